@@ -1,0 +1,2 @@
+#include "algo/facemodel/face_model.hpp"
+// PLACEHOLDER: implemented by the face-model work.

@@ -1,0 +1,2 @@
+#include "algo/sensor/kinect_calibration.hpp"
+// PLACEHOLDER: implemented by the sensor-layer work.

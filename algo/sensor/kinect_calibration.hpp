@@ -1,0 +1,93 @@
+// Kinect v1 calibration: raw 11-bit disparity <-> millimetres and depth-to-colour
+// registration, computed in the project because Debian's fakenect lacks libfreenect's
+// registration symbols and its mm/registered depth modes.
+//
+// The maths follows libfreenect's registration.c (Apache-2.0/GPL-2.0 dual licensed,
+// reimplemented here): the device's reg_info polynomial gives a per-pixel distortion
+// table, zero_plane_info gives the disparity-to-depth law and the depth-to-colour shift.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+
+namespace fb {
+
+// Field names and meaning as in libfreenect's freenect_reg_info.
+struct KinectRegInfo {
+  std::int32_t ax = 0, bx = 0, cx = 0, dx = 0;
+  std::int32_t ay = 0, by = 0, cy = 0, dy = 0;
+  std::int32_t dx_start = 0, dy_start = 0;
+  std::int32_t dx_beta_start = 0, dy_beta_start = 0;
+  std::int32_t dx_beta_inc = 0, dy_beta_inc = 0;
+  std::int32_t dxdx_start = 0, dxdy_start = 0, dydx_start = 0, dydy_start = 0;
+  std::int32_t dxdxdx_start = 0, dydxdx_start = 0, dxdxdy_start = 0;
+  std::int32_t dydxdy_start = 0, dydydx_start = 0, dydydy_start = 0;
+};
+
+struct KinectPadInfo {
+  std::int32_t start_lines = 0;
+  std::int32_t end_lines = 0;
+  std::int32_t cropping_lines = 0;
+};
+
+// Lengths in centimetres / millimetres exactly as the device reports them.
+struct KinectZeroPlaneInfo {
+  double dcmos_emitter_distance = 7.5;     // cm, IR camera to projector baseline
+  double dcmos_rcmos_distance = 2.4;       // cm, IR camera to colour camera
+  double reference_distance = 120.0;       // mm, zero-plane distance
+  double reference_pixel_size = 0.1042;    // mm, zero-plane pixel size (at 1280 width)
+};
+
+struct KinectCalibration {
+  KinectRegInfo reg_info;
+  KinectPadInfo pad_info;
+  KinectZeroPlaneInfo zero_plane_info;
+  std::int32_t const_shift = 200;
+
+  // Documented defaults: the values read from a real Kinect v1 (model 1414) as stored in
+  // the openiss-desk dump's device.json. Used when neither a device nor a device.json is at hand.
+  static KinectCalibration defaults();
+
+  // Pinhole model of the depth camera implied by zero_plane_info (f = reference_distance /
+  // (2 * reference_pixel_size) at 640x480, principal point at the image centre).
+  PinholeIntrinsics depth_intrinsics() const;
+};
+
+// Precomputed tables for one calibration. Build once (allocates), then use per frame
+// without allocation.
+class KinectRegistration {
+ public:
+  explicit KinectRegistration(const KinectCalibration& calibration);
+
+  const KinectCalibration& calibration() const { return calibration_; }
+  PinholeIntrinsics depth_intrinsics() const { return calibration_.depth_intrinsics(); }
+
+  // Raw 11-bit value -> millimetres (0 for invalid/out-of-range raw values).
+  std::uint16_t raw_to_mm(std::uint16_t raw) const;
+  // Millimetres -> the raw value whose depth is nearest (kInvalidDisparity for 0 or unreachable).
+  std::uint16_t mm_to_raw(std::uint16_t mm) const;
+
+  // Whole-image conversions; `out` is resized only when its size differs.
+  void disparity_to_mm(const DisparityImage& raw, DepthImage& out) const;
+  void mm_to_disparity(const DepthImage& mm, DisparityImage& out) const;
+
+  // Where a depth pixel (x, y) with depth `mm` lands in the colour image. Returns false when
+  // the depth is invalid or the target is outside the colour image.
+  bool depth_to_color(int x, int y, std::uint16_t mm, double& color_x, double& color_y) const;
+
+  // Equivalent of libfreenect's FREENECT_DEPTH_REGISTERED: depth resampled into the colour
+  // camera's image, nearest surface wins, 0 where nothing maps.
+  void register_depth_to_color(const DepthImage& depth_mm, DepthImage& registered) const;
+
+ private:
+  KinectCalibration calibration_;
+  std::vector<std::uint16_t> raw_to_mm_table_;       // 2048 entries
+  std::vector<std::uint16_t> mm_to_raw_table_;       // up to 10000 mm
+  std::vector<std::int32_t> depth_to_rgb_shift_;     // per mm, as in libfreenect
+  std::vector<std::int32_t> registration_table_;     // 640*480*2, x (scaled) and y per pixel
+};
+
+}  // namespace fb

@@ -1,0 +1,1 @@
+#include "drivers/camera/common/device_json.hpp"

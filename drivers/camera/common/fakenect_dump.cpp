@@ -1,0 +1,1 @@
+#include "drivers/camera/common/fakenect_dump.hpp"

@@ -1,0 +1,1 @@
+#include "drivers/camera/recorder/recorder.hpp"

@@ -1,0 +1,2 @@
+#include "storage/asset_files.hpp"
+// PLACEHOLDER

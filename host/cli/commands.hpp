@@ -1,0 +1,28 @@
+// The facebooth CLI's command table. Each group lives in its own file and contributes
+// its commands here; main.cpp only dispatches.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "host/cli/command_line.hpp"
+
+namespace fb::cli {
+
+// Exit codes shared by every command.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;  // the work could not be done (message on stderr)
+inline constexpr int kExitUsage = 2;    // the command line was wrong
+
+struct Command {
+  CommandSpec spec;
+  std::function<int(const ParsedOptions&)> run;
+};
+
+std::vector<Command> camera_commands();
+std::vector<Command> bench_commands();
+
+// Prints "facebooth: <message>" to stderr and returns kExitFailure.
+int report_failure(const Error& error);
+
+}  // namespace fb::cli

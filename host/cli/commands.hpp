@@ -21,6 +21,7 @@ struct Command {
 
 std::vector<Command> camera_commands();
 std::vector<Command> bench_commands();
+std::vector<Command> fusion_commands();
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

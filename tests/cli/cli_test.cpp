@@ -1,0 +1,129 @@
+// The facebooth CLI as a user runs it: exit codes, messages, and the files it writes.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <sys/wait.h>
+
+namespace {
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;  // stdout and stderr together
+};
+
+RunResult run_cli(const std::string& arguments) {
+  const std::string command = std::string(FB_CLI_PATH) + " " + arguments + " 2>&1";
+  RunResult result;
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
+  if (!pipe) return result;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr) result.out += buffer.data();
+  const int status = pclose(pipe.release());
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("facebooth-cli-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path dir_;
+};
+
+int count_lines_starting_with(const std::filesystem::path& file, char first) {
+  std::ifstream in(file);
+  int count = 0;
+  for (std::string line; std::getline(in, line);) count += !line.empty() && line[0] == first;
+  return count;
+}
+
+TEST_F(CliTest, HelpListsEveryCommandAndExitsZero) {
+  const auto result = run_cli("--help");
+  EXPECT_EQ(result.exit_code, 0);
+  for (const char* command : {"camera list", "camera record", "camera view", "bench camera"}) {
+    EXPECT_NE(result.out.find(command), std::string::npos) << command;
+  }
+  EXPECT_EQ(run_cli("camera record --help").exit_code, 0);
+}
+
+TEST_F(CliTest, UsageErrorsExitTwoWithAMessage) {
+  auto result = run_cli("camera fly");
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_NE(result.out.find("unknown command"), std::string::npos);
+  result = run_cli("camera record --frames");
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_NE(result.out.find("needs a value"), std::string::npos);
+  result = run_cli("camera record --bogus 1");
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_NE(result.out.find("unknown option '--bogus'"), std::string::npos);
+}
+
+TEST_F(CliTest, ListShowsBuiltBackends) {
+  const auto result = run_cli("camera list");
+  EXPECT_EQ(result.exit_code, 0) << result.out;
+  EXPECT_NE(result.out.find("synthetic:"), std::string::npos);
+  EXPECT_NE(result.out.find("replay:"), std::string::npos);
+}
+
+TEST_F(CliTest, BadCameraUriFailsClearly) {
+  auto result = run_cli("camera view --camera nosuch:1 --out " + (dir_ / "x.png").string());
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.out.find("unknown camera backend 'nosuch'"), std::string::npos) << result.out;
+  result = run_cli("camera view --camera replay:" + (dir_ / "missing").string() + " --out " +
+                   (dir_ / "x.png").string());
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "x.png"));
+}
+
+TEST_F(CliTest, RecordThenViewTheRecording) {
+  const auto take = dir_ / "take";
+  auto result = run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
+  ASSERT_EQ(result.exit_code, 0) << result.out;
+  EXPECT_EQ(count_lines_starting_with(take / "INDEX.txt", 'd'), 6);
+  EXPECT_EQ(count_lines_starting_with(take / "INDEX.txt", 'r'), 6);
+  EXPECT_TRUE(std::filesystem::exists(take / "device.json"));
+
+  // Recording into the same, now non-empty, directory must be refused without --force.
+  result = run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
+  EXPECT_EQ(result.exit_code, 1) << result.out;
+
+  const auto png = dir_ / "view.png";
+  result = run_cli("camera view --camera replay:" + take.string() + " --frame 5 --overlay --out " +
+                   png.string());
+  ASSERT_EQ(result.exit_code, 0) << result.out;
+  const cv::Mat image = cv::imread(png.string());
+  EXPECT_EQ(image.cols, 3 * 640);
+  EXPECT_EQ(image.rows, 480);
+
+  result = run_cli("camera view --camera replay:" + take.string() + " --frame 6 --out " + png.string());
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.out.find("ended after 6 frames"), std::string::npos) << result.out;
+}
+
+TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
+  const std::string command = std::string(FB_CLI_PATH) + " bench camera --json --frames 5 2>/dev/null";
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
+  ASSERT_TRUE(pipe);
+  std::string out;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr) out += buffer.data();
+  const auto json = nlohmann::json::parse(out);
+  EXPECT_GT(json.at("synthetic_fps").get<double>(), 0.0);
+  EXPECT_GT(json.at("replay_fps").get<double>(), 0.0);
+  EXPECT_EQ(json.at("replay_frames").get<int>(), 5);
+}
+
+}  // namespace

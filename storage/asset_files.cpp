@@ -1,2 +1,78 @@
 #include "storage/asset_files.hpp"
-// PLACEHOLDER
+
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <system_error>
+#include <vector>
+
+namespace fb {
+namespace {
+
+constexpr const char* kFaceModelFile = "facemodel.fbfm";
+
+std::string env_data_dir() {
+  const char* v = std::getenv("FACEBOOTH_DATA_DIR");
+  return v != nullptr ? std::string(v) : std::string();
+}
+
+bool file_exists(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(p, ec);
+}
+
+// Explains, for error messages, which directories data_directory() considered and why it
+// picked the one it did, so a user can tell a wrong $FACEBOOTH_DATA_DIR from a missing asset.
+std::string search_description() {
+  const std::string env = env_data_dir();
+  std::string s = "$FACEBOOTH_DATA_DIR ";
+  s += env.empty() ? "is not set" : "= " + env;
+  s += "; installed directory " FB_INSTALLED_DATA_DIR;
+  s += file_exists(std::filesystem::path(FB_INSTALLED_DATA_DIR) / kFaceModelFile)
+           ? " has the face model"
+           : " has no face model";
+  s += "; source tree directory " FB_DATA_DIR;
+  return s;
+}
+
+}  // namespace
+
+std::filesystem::path data_directory() {
+  if (std::string env = env_data_dir(); !env.empty()) return env;
+  const std::filesystem::path installed(FB_INSTALLED_DATA_DIR);
+  if (file_exists(installed / kFaceModelFile)) return installed;
+  return FB_DATA_DIR;
+}
+
+std::filesystem::path default_face_model_path() {
+  return data_directory() / kFaceModelFile;
+}
+
+Result<FaceModel> load_face_model(const std::filesystem::path& path) {
+  const std::string fix =
+      " Run `facebooth-convert-facemodel --out " + path.string() +
+      "` (it reads ../shared/facemodel/ict-facekit by default), or set $FACEBOOTH_DATA_DIR to "
+      "the directory holding facemodel.fbfm.";
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return fail("face model not found at " + path.string() + " (" + search_description() + ")." +
+                fix);
+  }
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return fail("face model path " + path.string() + " is not a regular file." + fix);
+  }
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return fail("cannot open the face model " + path.string() + " (permissions?)." + fix);
+  const std::streamoff size = in.tellg();
+  if (size < 0) return fail("cannot determine the size of " + path.string() + "." + fix);
+  std::vector<std::byte> bytes(static_cast<std::size_t>(size));
+  in.seekg(0);
+  if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size)) {
+    return fail("error while reading the face model " + path.string() + "." + fix);
+  }
+  auto model = parse_face_model(bytes);
+  if (!model) return fail(path.string() + ": " + model.error().message);
+  return model;
+}
+
+}  // namespace fb

@@ -16,6 +16,8 @@ std::filesystem::path data_directory();
 std::filesystem::path default_face_model_path();
 
 Result<FaceModel> load_face_model(const std::filesystem::path& path);
-inline Result<FaceModel> load_face_model() { return load_face_model(default_face_model_path()); }
+inline Result<FaceModel> load_face_model() {
+  return load_face_model(default_face_model_path());
+}
 
 }  // namespace fb

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "algo/core/result.hpp"
@@ -19,34 +20,41 @@
 namespace fb {
 
 struct FaceModel {
-  int vertex_count = 0;    // skin vertices kept (11248: face 0-9408 + back of head 9409-11247)
+  int vertex_count = 0;       // skin vertices kept (11248: face 0-9408 + back of head 9409-11247)
   int face_vertex_count = 0;  // vertices 0..face_vertex_count-1 are the face region (9409)
-  int identity_count = 0;  // 100
-  int expression_count = 0;  // 57: the 53 fitting expressions first, then the 4 extras
+  int identity_count = 0;     // 100
+  int expression_count = 0;   // 57: the 53 fitting expressions first, then the 4 extras
 
   std::vector<float> neutral;           // 3 * vertex_count, xyz interleaved, mm
   std::vector<float> identity_basis;    // identity_count blocks of 3 * vertex_count (1 sigma each)
   std::vector<float> expression_basis;  // expression_count blocks of 3 * vertex_count (full shape)
   std::vector<std::string> expression_names;  // e.g. "jawOpen", "mouthSmile_L"
-  int fitting_expression_count = 0;     // 53: the ARKit-style set used for fitting
+  int fitting_expression_count = 0;           // 53: the ARKit-style set used for fitting
 
   std::vector<std::uint32_t> triangles;  // 3 * triangle_count, quads split into two triangles
   std::array<std::uint32_t, 68> landmark_vertices{};  // iBUG 68-point order
-  std::vector<std::uint32_t> rigid_landmarks;          // positions in the 68-list that stay rigid
-  std::vector<std::uint32_t> right_jawline;            // candidates for landmarks 0-7
-  std::vector<std::uint32_t> left_jawline;             // candidates for landmarks 9-16
+  std::vector<std::uint32_t> rigid_landmarks;         // positions in the 68-list that stay rigid
+  std::vector<std::uint32_t> right_jawline;           // candidates for landmarks 0-7
+  std::vector<std::uint32_t> left_jawline;            // candidates for landmarks 9-16
   std::vector<std::uint32_t> right_extended_jawline;
   std::vector<std::uint32_t> left_extended_jawline;
-  std::vector<std::uint32_t> fitting_vertices;         // upstream's fitting subset
-  std::vector<std::uint32_t> rigid_vertices;           // upstream's rigid subset (skin part)
+  std::vector<std::uint32_t> fitting_vertices;  // upstream's fitting subset
+  std::vector<std::uint32_t> rigid_vertices;    // upstream's rigid subset (skin part)
+  std::string provenance;  // where the data came from and its license (free text, may be empty)
 
   int triangle_count() const { return static_cast<int>(triangles.size() / 3); }
   // Index of an expression by name, or -1.
   int expression_index(std::string_view name) const;
 
+  // One basis shape (3 * vertex_count floats, mm); k / j must be in range.
+  std::span<const float> identity_mode(int k) const;
+  std::span<const float> expression_shape(int j) const;
+
   // model = neutral + sum_k c_k * identity_k + sum_j w_j * expression_j, written to `out`
-  // (3 * vertex_count floats). Shorter coefficient spans mean the remaining ones are zero.
-  // Does not allocate.
+  // (3 * vertex_count floats). Shorter coefficient spans mean the remaining ones are zero;
+  // extra coefficients are ignored. A shorter `out` evaluates only the first out.size() / 3
+  // vertices (e.g. 3 * face_vertex_count for the face region alone). Zero coefficients are
+  // skipped. Does not allocate.
   void evaluate(std::span<const float> identity_coeffs, std::span<const float> expression_weights,
                 std::span<float> out) const;
 };

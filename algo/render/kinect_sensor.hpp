@@ -1,0 +1,109 @@
+// Kinect v1 depth sensor model for synthetic scenes. Given a triangle mesh in the depth (IR)
+// camera frame it renders the noiseless depth and then reproduces what the structured-light
+// device would store:
+//  - projector shadow: the IR projector sits dcmos_emitter_distance (7.5 cm) from the IR camera
+//    along +x of the depth image (libfreenect's registration adds a shift that grows with depth
+//    to x, i.e. the colour camera is on +x, and the projector lies beyond it on the same side:
+//    front view "projector | RGB | IR"). A surface point the projector cannot see gets no
+//    depth, so shadows fall on the -x (left) side of foreground objects, as on real Kinects;
+//  - missing depth at depth discontinuities (the correlation window straddles two surfaces)
+//    and at grazing angles (the speckle pattern is too stretched to match), both random near
+//    the limit;
+//  - Gaussian noise in disparity units followed by 11-bit quantisation, so depth noise grows
+//    as z^2 (dz = z^2 / (f b) dd) and every output value is raw_to_mm of an integer raw.
+// Pure: data in, data out; deterministic for a noise seed.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "algo/render/rasterizer.hpp"
+#include "algo/sensor/kinect_calibration.hpp"
+
+namespace fb {
+
+struct KinectSensorOptions {
+  // Gaussian disparity noise. sigma is in raw 11-bit units; the default is tuned so the mean
+  // absolute depth error over a face at 0.7 m is about 1.5 mm (FaceWarehouse's raw figure).
+  bool depth_noise = true;
+  double disparity_noise_sigma = 1.0;
+  // Projector shadow (deterministic geometry).
+  bool projector_shadow = true;
+  // Random dropouts at depth discontinuities and at grazing angles.
+  bool dropouts = true;
+  // Angle between the surface normal and the view ray: below `grazing_start_deg` always
+  // measured, above `grazing_end_deg` never, linear probability in between.
+  double grazing_start_deg = 72.0;
+  double grazing_end_deg = 82.0;
+  // A pixel is on a depth discontinuity when an 8-neighbour differs by more than
+  // max(discontinuity_mm, discontinuity_fraction * z) or has no surface; such pixels are
+  // dropped with `edge_drop_probability`.
+  double discontinuity_mm = 15.0;
+  double discontinuity_fraction = 0.02;
+  double edge_drop_probability = 0.75;
+  // Working range; outside it the device reports nothing.
+  double min_depth_mm = 500.0;
+  double max_depth_mm = 8000.0;
+};
+
+// Why a pixel has no depth (bit mask, 0 = measured).
+enum SensorInvalid : std::uint8_t {
+  kSensorNoSurface = 1,
+  kSensorOutOfRange = 2,
+  kSensorProjectorShadow = 4,
+  kSensorGrazing = 8,
+  kSensorDepthEdge = 16,
+};
+
+struct SensorFrame {
+  DisparityImage raw;               // 11-bit disparity, kInvalidDisparity where missing
+  DepthImage depth_mm;              // registration.raw_to_mm(raw), 0 where missing
+  Image<float> noiseless_depth_mm;  // rendered z, 0 where no surface
+  Image<std::uint8_t> invalid;      // SensorInvalid bits per pixel
+};
+
+class KinectSensorModel {
+ public:
+  // Builds the lookup tables (allocates); capture() then runs without allocation.
+  KinectSensorModel(const KinectRegistration& registration, const KinectSensorOptions& options);
+
+  const KinectSensorOptions& options() const { return options_; }
+  const PinholeIntrinsics& intrinsics() const { return intrinsics_; }
+  const KinectRegistration& registration() const { return registration_; }
+  // IR camera to projector offset in the depth camera frame, mm (along +x).
+  double projector_baseline_mm() const { return baseline_mm_; }
+
+  // Renders `triangles` over `vertices` (depth camera frame, mm) and applies the sensor model.
+  // `noise_seed` picks the noise and dropout pattern; the same seed gives identical output.
+  Result<void> capture(std::span<const Eigen::Vector3f> vertices,
+                       std::span<const std::uint32_t> triangles, std::uint64_t noise_seed,
+                       SensorFrame& out);
+
+  // The depth camera's raster of the last capture (triangle ids and barycentrics), e.g. for
+  // shading a colour image.
+  const RasterBuffers& camera_raster() const { return camera_; }
+
+  // Continuous disparity for a depth: piecewise-linear inverse of raw_to_mm. Exposed for tests.
+  double fractional_raw(double depth_mm) const;
+
+ private:
+  KinectRegistration registration_;
+  KinectSensorOptions options_;
+  PinholeIntrinsics intrinsics_;
+  PinholeIntrinsics projector_intrinsics_;
+  double baseline_mm_ = 75.0;
+  int projector_pad_ = 0;
+  std::vector<float> raw_of_mm_;       // fractional raw per integer mm
+  std::vector<float> gaussian_table_;  // inverse normal CDF at (i + 0.5) / size
+  std::vector<Eigen::Vector3f> projector_vertices_;
+  RasterBuffers camera_;
+  RasterBuffers projector_;
+};
+
+}  // namespace fb

@@ -177,18 +177,18 @@ Result<void> Parser::check_header() {
                 " unexpected trailing bytes after the declared end of the file (" +
                 std::to_string(file_size_) + " bytes)." + kRegenerateHint);
   }
+  const auto stored = load<std::uint32_t>(bytes_, fbfm::kOffChecksum);
+  const auto computed = fbfm::crc32(bytes_.subspan(fbfm::kChecksumBegin));
+  if (stored != computed) {
+    return fail("face model: checksum mismatch (stored " + hex32(stored) + ", computed " +
+                hex32(computed) + "): the file is corrupted." + kRegenerateHint);
+  }
   section_count_ = load<std::uint32_t>(bytes_, fbfm::kOffSectionCount);
   if (section_count_ > fbfm::kMaxSections ||
       fbfm::kHeaderSize + std::uint64_t{section_count_} * fbfm::kSectionEntrySize > file_size_) {
     return fail("face model: the section table (" + std::to_string(section_count_) +
                 " entries) does not fit in the file (" + std::to_string(file_size_) + " bytes)." +
                 kRegenerateHint);
-  }
-  const auto stored = load<std::uint32_t>(bytes_, fbfm::kOffChecksum);
-  const auto computed = fbfm::crc32(bytes_.subspan(fbfm::kChecksumBegin));
-  if (stored != computed) {
-    return fail("face model: checksum mismatch (stored " + hex32(stored) + ", computed " +
-                hex32(computed) + "): the file is corrupted." + kRegenerateHint);
   }
   if (load<std::uint32_t>(bytes_, fbfm::kOffFlags) != 0 ||
       load<std::uint32_t>(bytes_, fbfm::kOffReserved) != 0) {

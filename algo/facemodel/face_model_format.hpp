@@ -4,8 +4,8 @@
 //
 // Summary: a 64-byte header, a section table (24 bytes per entry), then the sections, each
 // starting at a 16-byte aligned absolute offset. Little-endian throughout. A CRC-32 (IEEE,
-// the zlib/PNG polynomial) covers every byte from offset 28 to the end of the file, so the
-// counts, the section table and the payload are all protected.
+// the zlib/PNG polynomial) covers every byte from offset 16 to the end of the file, so the
+// sizes, counts, the section table and the payload are all protected.
 #pragma once
 
 #include <array>
@@ -29,13 +29,14 @@ inline constexpr std::size_t kSectionEntrySize = 24;
 inline constexpr std::size_t kSectionAlignment = 16;
 inline constexpr std::uint32_t kMaxSections = 256;
 
-// Header field offsets (bytes from the start of the file).
+// Header field offsets (bytes from the start of the file). The CRC covers everything after
+// itself, so every field but magic and version (each validated first, on its own) is protected.
 inline constexpr std::size_t kOffMagic = 0;                    // 8 bytes
 inline constexpr std::size_t kOffVersion = 8;                  // u32
-inline constexpr std::size_t kOffSectionCount = 12;            // u32
+inline constexpr std::size_t kOffChecksum = 12;                // u32, CRC-32 of [16, file_size)
+inline constexpr std::size_t kChecksumBegin = 16;              // first byte the CRC covers
 inline constexpr std::size_t kOffFileSize = 16;                // u64, total bytes of the file
-inline constexpr std::size_t kOffChecksum = 24;                // u32, CRC-32 of [28, file_size)
-inline constexpr std::size_t kChecksumBegin = 28;              // first byte the CRC covers
+inline constexpr std::size_t kOffSectionCount = 24;            // u32
 inline constexpr std::size_t kOffFlags = 28;                   // u32, must be 0 in version 1
 inline constexpr std::size_t kOffVertexCount = 32;             // u32
 inline constexpr std::size_t kOffFaceVertexCount = 36;         // u32

@@ -32,7 +32,7 @@ struct KinectSensorOptions {
   // Gaussian disparity noise. sigma is in raw 11-bit units; the default is tuned so the mean
   // absolute depth error over a face at 0.7 m is about 1.5 mm (FaceWarehouse's raw figure).
   bool depth_noise = true;
-  double disparity_noise_sigma = 1.0;
+  double disparity_noise_sigma = 1.3;
   // Projector shadow (deterministic geometry).
   bool projector_shadow = true;
   // Random dropouts at depth discontinuities and at grazing angles.

@@ -629,30 +629,49 @@ std::span<const float> FaceModel::expression_shape(int j) const {
   return std::span<const float>(expression_basis).subspan(static_cast<std::size_t>(j) * n3, n3);
 }
 
+namespace {
+
+using VecMap = Eigen::Map<Eigen::VectorXf, Eigen::Unaligned>;
+using ConstVecMap = Eigen::Map<const Eigen::VectorXf, Eigen::Unaligned>;
+
+// result += sum_k coeffs[k] * basis block k, skipping zero coefficients. Eigen maps over the
+// caller's memory: no allocation, and Eigen emits SIMD (SSE/AVX/NEON) for each axpy.
+void accumulate(VecMap& result, std::span<const float> coeffs, std::size_t count,
+                const std::vector<float>& basis, std::size_t stride) {
+  const std::size_t n = std::min(coeffs.size(), count);
+  for (std::size_t k = 0; k < n; ++k) {
+    const float c = coeffs[k];
+    if (c == 0.0f) continue;
+    result += c * ConstVecMap(basis.data() + k * stride, result.size());
+  }
+}
+
+}  // namespace
+
 void FaceModel::evaluate(std::span<const float> identity_coeffs,
                          std::span<const float> expression_weights, std::span<float> out) const {
   // Each basis block is 3 * vertex_count floats; `n` may cover only a prefix of the vertices.
   const std::size_t stride = static_cast<std::size_t>(vertex_count) * 3;
   const std::size_t n = std::min(out.size(), std::min(stride, neutral.size()));
   if (n == 0) return;
-  using Vec = Eigen::Map<Eigen::VectorXf, Eigen::Unaligned>;
-  using ConstVec = Eigen::Map<const Eigen::VectorXf, Eigen::Unaligned>;
-  const auto len = static_cast<Eigen::Index>(n);
-  Vec result(out.data(), len);  // a Map: no allocation, Eigen vectorizes the axpy loops below
-  result = ConstVec(neutral.data(), len);
+  VecMap result(out.data(), static_cast<Eigen::Index>(n));
+  result = ConstVecMap(neutral.data(), static_cast<Eigen::Index>(n));
+  accumulate(result, identity_coeffs, static_cast<std::size_t>(identity_count), identity_basis,
+             stride);
+  accumulate(result, expression_weights, static_cast<std::size_t>(expression_count),
+             expression_basis, stride);
+}
 
-  const std::size_t ni = std::min<std::size_t>(identity_coeffs.size(), identity_count);
-  for (std::size_t k = 0; k < ni; ++k) {
-    const float c = identity_coeffs[k];
-    if (c == 0.0f) continue;
-    result += c * ConstVec(identity_basis.data() + k * stride, len);
-  }
-  const std::size_t ne = std::min<std::size_t>(expression_weights.size(), expression_count);
-  for (std::size_t j = 0; j < ne; ++j) {
-    const float w = expression_weights[j];
-    if (w == 0.0f) continue;
-    result += w * ConstVec(expression_basis.data() + j * stride, len);
-  }
+void FaceModel::evaluate_expressions(std::span<const float> base,
+                                     std::span<const float> expression_weights,
+                                     std::span<float> out) const {
+  const std::size_t stride = static_cast<std::size_t>(vertex_count) * 3;
+  const std::size_t n = std::min({out.size(), base.size(), stride});
+  if (n == 0) return;
+  VecMap result(out.data(), static_cast<Eigen::Index>(n));
+  if (base.data() != out.data()) result = ConstVecMap(base.data(), static_cast<Eigen::Index>(n));
+  accumulate(result, expression_weights, static_cast<std::size_t>(expression_count),
+             expression_basis, stride);
 }
 
 }  // namespace fb

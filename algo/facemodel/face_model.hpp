@@ -57,6 +57,13 @@ struct FaceModel {
   // skipped. Does not allocate.
   void evaluate(std::span<const float> identity_coeffs, std::span<const float> expression_weights,
                 std::span<float> out) const;
+
+  // out = base + sum_j w_j * expression_j, with `base` a precomputed face (typically
+  // evaluate(c, {}, base) once per subject). Per-frame tracking then streams only the
+  // expression basis instead of all 157 shapes. `out` may be the same buffer as `base`; the
+  // same span rules as evaluate() apply (prefix of min(base, out) floats). Does not allocate.
+  void evaluate_expressions(std::span<const float> base, std::span<const float> expression_weights,
+                            std::span<float> out) const;
 };
 
 // Parses the compact asset (see data/README.md). Errors name what is wrong (bad magic,

@@ -1,9 +1,183 @@
-// PLACEHOLDER until the replay backend lands.
 #include "drivers/camera/replay/replay_camera.hpp"
+
+#include <chrono>
+#include <string>
+#include <thread>
+
+#include "drivers/camera/common/camera_uri.hpp"
+#include "drivers/camera/common/fakenect_dump.hpp"
+
 namespace fb {
 namespace {
-Result<std::unique_ptr<DepthCamera>> open_replay(std::string_view) { return fail("replay: not built yet"); }
-std::vector<CameraListing> list_replay() { return {}; }
+
+using Clock = std::chrono::steady_clock;
+
+class ReplayCamera final : public DepthCamera {
+ public:
+  ReplayCamera(CameraInfo info, FakenectDumpReader reader, const ReplayOptions& options)
+      : info_(std::move(info)),
+        reader_(std::move(reader)),
+        registration_(info_.calibration),
+        options_(options) {}
+
+  const CameraInfo& info() const override { return info_; }
+
+  Result<void> start() override {
+    reader_.rewind();
+    next_index_ = 0;
+    started_ = true;
+    pacing_started_ = false;
+    return success();
+  }
+
+  void stop() override { started_ = false; }
+
+  Result<FrameStatus> next_frame(RgbdFrame& frame, std::chrono::milliseconds timeout) override {
+    if (!started_) {
+      return fail("replay camera '" + info_.uri + "' is not started; call start() first");
+    }
+    if (reader_.position() >= reader_.depth_frame_count()) {
+      if (!options_.loop) return FrameStatus::kEndOfStream;
+      reader_.rewind();
+      pacing_started_ = false;  // the recorded clock jumps back; pace from here again
+    }
+    if (options_.realtime) {
+      const double host_time = reader_.depth_host_time(reader_.position());
+      if (!pacing_started_) {
+        pacing_started_ = true;
+        wall_start_ = Clock::now();
+        host_start_ = host_time;
+      }
+      const auto due = wall_start_ + std::chrono::duration_cast<Clock::duration>(
+                                         std::chrono::duration<double>(host_time - host_start_));
+      const auto now = Clock::now();
+      if (due > now) {
+        if (due - now > timeout) {
+          std::this_thread::sleep_for(timeout);
+          return FrameStatus::kTimeout;
+        }
+        std::this_thread::sleep_until(due);
+      }
+    }
+    auto got = reader_.next(frame);
+    if (!got) return got.failure();
+    if (!*got) return FrameStatus::kEndOfStream;  // not reached: position was checked above
+    registration_.disparity_to_mm(frame.raw_disparity, frame.depth_mm);
+    frame.index = next_index_++;
+    return FrameStatus::kFrame;
+  }
+
+ private:
+  CameraInfo info_;
+  FakenectDumpReader reader_;
+  KinectRegistration registration_;
+  ReplayOptions options_;
+  bool started_ = false;
+  std::uint64_t next_index_ = 0;
+  bool pacing_started_ = false;
+  Clock::time_point wall_start_{};
+  double host_start_ = 0.0;
+};
+
+constexpr std::string_view kUsage =
+    "replay:DIR[,realtime=1][,loop=1]  play a fakenect dump directory (INDEX.txt + d-/r- files)";
+
+// Splits `DIR[,options]`. A comma starts the options only if everything after it is a valid
+// option list, so directory names containing commas still work.
+Result<std::pair<std::string, ReplayOptions>> parse_arguments(std::string_view arguments) {
+  const auto parse_options = [](std::string_view text) -> Result<ReplayOptions> {
+    auto values = parse_key_values(text);
+    if (!values) return values.failure();
+    ReplayOptions options;
+    for (const auto& [key, value] : *values) {
+      bool* target = key == "realtime" ? &options.realtime
+                     : key == "loop"   ? &options.loop
+                                       : nullptr;
+      if (target == nullptr) {
+        return fail("unknown replay option '" + key + "'; use realtime=1 and/or loop=1");
+      }
+      if (value == "1" || value == "true" || value == "yes") {
+        *target = true;
+      } else if (value == "0" || value == "false" || value == "no") {
+        *target = false;
+      } else {
+        return fail("replay option '" + key + "=" + value + "' must be 0 or 1");
+      }
+    }
+    return options;
+  };
+  std::optional<Error> option_error;
+  for (std::size_t comma = arguments.find(','); comma != std::string_view::npos;
+       comma = arguments.find(',', comma + 1)) {
+    auto options = parse_options(arguments.substr(comma + 1));
+    if (options) {
+      return std::pair{std::string(arguments.substr(0, comma)), *options};
+    }
+    if (!option_error) option_error = options.error();
+  }
+  // No option list found. If the whole thing is not a directory but a suffix looked like
+  // options, report the option error: it is the likelier mistake.
+  std::error_code ec;
+  if (option_error && !std::filesystem::exists(std::string(arguments), ec)) {
+    return fail(option_error->message);
+  }
+  return std::pair{std::string(arguments), ReplayOptions{}};
+}
+
+Result<std::unique_ptr<DepthCamera>> open_replay(std::string_view arguments) {
+  if (arguments.empty()) {
+    return fail("replay needs a dump directory: use " + std::string(kUsage));
+  }
+  auto parsed = parse_arguments(arguments);
+  if (!parsed) return parsed.failure();
+  return open_replay_camera(parsed->first, parsed->second);
+}
+
+std::vector<CameraListing> list_replay() {
+  // A replay needs a path; there is nothing to enumerate.
+  return {};
+}
+
 }  // namespace
-CameraBackend replay_camera_backend() { return {"replay", &open_replay, &list_replay, "replay:"}; }
+
+Result<std::unique_ptr<DepthCamera>> open_replay_camera(const std::filesystem::path& directory,
+                                                        const ReplayOptions& options) {
+  auto reader = FakenectDumpReader::open(directory);
+  if (!reader) return fail("replay: " + reader.error().message);
+  const std::size_t n = reader->depth_frame_count();
+  if (n == 0) {
+    return fail("replay: fakenect dump '" + directory.string() +
+                "' has no depth frames (INDEX.txt lists no d-*.pgm files)");
+  }
+  // Read the first frame now so a corrupt dump fails at open, and to learn the image size.
+  RgbdFrame first;
+  auto got = reader->next(first);
+  if (!got) return fail("replay: " + got.error().message);
+  reader->rewind();
+
+  CameraInfo info;
+  info.uri = "replay:" + directory.string();
+  if (options.realtime) info.uri += ",realtime=1";
+  if (options.loop) info.uri += ",loop=1";
+  info.backend = "replay";
+  const bool has_json = reader->device_calibration().has_value();
+  info.calibration = has_json ? *reader->device_calibration() : KinectCalibration::defaults();
+  info.depth_intrinsics = info.calibration.depth_intrinsics();
+  info.width = first.raw_disparity.width;
+  info.height = first.raw_disparity.height;
+  const double span = reader->depth_host_time(n - 1) - reader->depth_host_time(0);
+  info.fps = (n > 1 && span > 0.0) ? static_cast<double>(n - 1) / span : kKinectFps;
+  info.frame_count = options.loop ? -1 : static_cast<long long>(n);
+  info.description =
+      "fakenect dump " + directory.string() + ": " + std::to_string(n) + " depth frames, " +
+      std::to_string(reader->color_image_count()) + " colour images, calibration from " +
+      (has_json ? std::string("device.json") : std::string("defaults (no device.json)"));
+  return std::unique_ptr<DepthCamera>(
+      std::make_unique<ReplayCamera>(std::move(info), std::move(*reader), options));
+}
+
+CameraBackend replay_camera_backend() {
+  return {"replay", &open_replay, &list_replay, kUsage};
+}
+
 }  // namespace fb

@@ -1,5 +1,128 @@
+// The `synthetic` camera backend: renders the face model (chosen identity, expression weights
+// and head-pose track) in front of a wall through the Kinect v1 sensor model
+// (algo/render/kinect_sensor.hpp) and emits per-frame ground truth (FrameTruth).
+//
+// URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
+//      distance=700,noise=on|off,background=1200|off,identity=random|neutral
+//
+// Scene and conventions (all documented choices):
+//  - Head pose: camera_from_model = T * R_flip * R_y(yaw) * R_x(pitch). R_flip (180 deg about x)
+//    turns the model frame (+X subject's left, +Y up, +Z out of the face) into the camera frame
+//    (x right, y down, z forward) with the face towards the camera. The head rotates about the
+//    model origin (inside the head, behind the face, like a neck pivot); T puts the centroid of
+//    the 68 landmarks of the rest pose at (0, 0, distance). "headturn": yaw = A_yaw sin(2 pi t /
+//    P), pitch = A_pitch sin(4 pi t / P), A = 30 / 15 deg, P = 3 s, t = frame / 30 s.
+//  - The model's skin mesh is open at the eyes, the mouth and the neck. The holes are capped
+//    with triangle fans: eyes flat and dark, the mouth recessed 15 mm (a dark red cavity), the
+//    neck flat, so the depth shows no see-through holes.
+//  - Wall: a plane facing the camera at `background_mm`, fixed in the camera frame.
+//  - Colour image: Lambertian + ambient shading of per-vertex albedo (skin, darker brows, red
+//    lips, dark eyes, painted from the landmark neighbourhoods on the rest-pose mesh). It is put
+//    into the colour camera through the registration: every depth pixel with a noiseless
+//    surface is mapped with KinectRegistration::depth_to_color (at its rounded noiseless mm)
+//    and splatted to the nearest colour pixel with a z-test; colour pixels no depth pixel
+//    reached are filled from their neighbours (two 3x3 passes) and the rest get the wall
+//    colour. Round-to-nearest keeps the colour content at the geometric positions, so
+//    landmarks_color_px (interpolated depth_to_color) matches the image; libfreenect-style
+//    registered depth truncates x and so sits up to one pixel left of it, as with a real device.
+//  - Time: frame i has host time i / 30 s (depth and colour alike) and device timestamps
+//    i * 2,000,000 ticks of the 60 MHz clock (wrapping at 2^32). next_frame() renders on demand
+//    and ignores the timeout: no real-time pacing.
+//  - Determinism: everything random (identity draw, noise, dropouts) comes from counter-based
+//    hashes of the seed and frame index, so a seed gives bit-identical frames on a given build.
 #pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "algo/facemodel/face_model.hpp"
+#include "algo/render/kinect_sensor.hpp"
 #include "drivers/camera/camera_backend.hpp"
+
 namespace fb {
+
+enum class SyntheticMotion {
+  kHeadTurn,  // yaw/pitch sinusoids (see above)
+  kStatic,    // frontal, no motion
+};
+
+struct SyntheticOptions {
+  std::uint64_t seed = 0;
+  // Identity coefficients in sigma units; unset = one N(0, 1) draw per mode from `seed`.
+  std::optional<std::vector<float>> identity_coeffs;
+  // One weight per model expression (shorter = the rest are zero).
+  std::vector<float> expression_weights;
+  // Optional per-frame expression weights; when non-empty, frame i uses
+  // expression_track[min(i, size - 1)] instead of `expression_weights`.
+  std::vector<std::vector<float>> expression_track;
+
+  SyntheticMotion motion = SyntheticMotion::kHeadTurn;
+  double yaw_amplitude_deg = 30.0;
+  double pitch_amplitude_deg = 15.0;
+  double motion_period_s = 3.0;
+  // Optional explicit head poses; when non-empty, frame i uses
+  // camera_from_model_track[min(i, size - 1)] and `motion`/`distance_mm` are ignored.
+  std::vector<RigidPose> camera_from_model_track;
+
+  int frame_count = 90;
+  double distance_mm = 700.0;     // depth of the rest-pose landmark centroid
+  double background_mm = 1200.0;  // wall depth; <= 0 for no wall (empty background)
+
+  KinectSensorOptions sensor;  // noise=off sets sensor.depth_noise = false
+  KinectCalibration calibration = KinectCalibration::defaults();
+
+  Rgb8 wall_color{178, 180, 172};
+  // Reported as CameraInfo::uri; empty = "synthetic:seed=N".
+  std::string uri;
+};
+
+// Parses the URI argument list (after `synthetic:`) into options. Unknown keys and bad values
+// are errors that list what is accepted.
+Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
+                                                 const FaceModel& model);
+
+// Parses `expr=` values: `neutral`, or `name[:weight]` terms joined by '+', e.g.
+// `jawOpen:0.6+mouthSmile_L` (weight defaults to 1). Names are FaceModel expression names.
+// Returns one weight per model expression. The single place expression specs are read, so
+// named recipes can be added here.
+Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model);
+
+class SyntheticCamera : public DepthCamera {
+ public:
+  ~SyntheticCamera() override;
+
+  const CameraInfo& info() const override;
+  Result<void> start() override;
+  void stop() override;
+  Result<FrameStatus> next_frame(RgbdFrame& frame, std::chrono::milliseconds timeout) override;
+  const FrameTruth* truth() const override;
+
+  const SyntheticOptions& options() const;
+  // Sensor-model output of the last frame, including why each missing pixel is missing.
+  const SensorFrame& sensor_frame() const;
+  // Rest-pose (no expression track) mesh in model coordinates, incl. hole caps, and its triangles.
+  std::span<const Eigen::Vector3f> model_vertices() const;
+  std::span<const std::uint32_t> model_triangles() const;
+
+  struct State;
+
+ private:
+  explicit SyntheticCamera(std::unique_ptr<State> state);
+  friend Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel&,
+                                                                        const SyntheticOptions&);
+  std::unique_ptr<State> state_;
+};
+
+// Builds a synthetic camera. The camera copies what it needs from `model` (it keeps no
+// reference). Fails on inconsistent options (bad sizes, frame_count < 1, distance out of range).
+Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& model,
+                                                               const SyntheticOptions& options);
+
 CameraBackend synthetic_camera_backend();
+
 }  // namespace fb

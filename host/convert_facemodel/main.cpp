@@ -377,7 +377,10 @@ Result<void> write_file(const fs::path& path, const std::vector<std::byte>& byte
   tmp += ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return fail("cannot create " + tmp.string());
+    if (!out) {
+      return fail("cannot create " + tmp.string() +
+                  ": check that the directory exists and is writable, or pass another --out");
+    }
     out.write(reinterpret_cast<const char*>(bytes.data()),
               static_cast<std::streamsize>(bytes.size()));
     out.flush();
@@ -410,8 +413,12 @@ int main(int argc, char** argv) {
     }
     if ((a == "--source" || a == "--out") && i + 1 < argc) {
       (a == "--source" ? opt.source_dir : opt.out_file) = argv[++i];
+    } else if (a == "--source" || a == "--out") {
+      std::cerr << "error: " << a << " needs a value\n";
+      print_usage(std::cerr);
+      return 2;
     } else {
-      std::cerr << "error: unknown or incomplete argument '" << a << "'\n";
+      std::cerr << "error: unknown argument '" << a << "'\n";
       print_usage(std::cerr);
       return 2;
     }

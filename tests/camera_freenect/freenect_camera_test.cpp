@@ -15,6 +15,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,23 @@
 
 #include "algo/sensor/kinect_calibration.hpp"
 #include "drivers/camera/common/device_json.hpp"
+
+// Counts C++ heap allocations per thread, to check that steady-state next_frame() allocates
+// nothing on the caller's thread.
+namespace {
+thread_local long long t_allocations = 0;
+}  // namespace
+void* operator new(std::size_t bytes) {
+  ++t_allocations;
+  if (void* p = std::malloc(bytes == 0 ? 1 : bytes)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
 
 namespace fb {
 namespace {
@@ -331,14 +349,22 @@ TEST_F(FakenectPlayback, DumpDeviceJsonTimeoutAndEnd) {
     ASSERT_EQ(*status, FrameStatus::kFrame);
     check_frame(i);
   }
+  // From here on the frame's buffers have their size: no more allocations (a timeout and a
+  // frame, measured on this thread).
+  const long long counter_check = t_allocations;
+  delete new int(1);  // the counter sees allocations at all
+  ASSERT_EQ(t_allocations, counter_check + 1);
+  const long long allocations_before = t_allocations;
   const auto before = std::chrono::steady_clock::now();
   const auto waiting = camera.next_frame(frame, 300ms);
+  const double waited = seconds_since(before);
+  const auto third = camera.next_frame(frame, 3000ms);
+  EXPECT_EQ(t_allocations - allocations_before, 0);
   ASSERT_TRUE(waiting.ok()) << waiting.error().message;
   EXPECT_EQ(*waiting, FrameStatus::kTimeout);
-  EXPECT_GE(seconds_since(before), 0.29);
-  EXPECT_LT(seconds_since(before), 1.0);
+  EXPECT_GE(waited, 0.29);
+  EXPECT_LT(waited, 1.0);
 
-  const auto third = camera.next_frame(frame, 3000ms);
   ASSERT_TRUE(third.ok()) << third.error().message;
   ASSERT_EQ(*third, FrameStatus::kFrame);
   check_frame(2);

@@ -485,7 +485,6 @@ Result<std::unique_ptr<DepthCamera>> FreenectCamera::open(std::string_view argum
   info.calibration = calibration;
   info.depth_intrinsics = calibration.depth_intrinsics();
 
-  freenect_set_user(camera->device_.get(), camera.get());
   freenect_set_depth_callback(camera->device_.get(), &FreenectCamera::on_depth);
   freenect_set_video_callback(camera->device_.get(), &FreenectCamera::on_video);
   return std::unique_ptr<DepthCamera>(std::move(camera));
@@ -549,6 +548,9 @@ Result<void> FreenectCamera::start() {
                               std::to_string(events_rc_) + "; reopen it");
     }
   }
+  // Set here rather than at open: fakenect has one global user pointer for all "devices", and
+  // the camera that streams must be the one that receives the callbacks.
+  freenect_set_user(device_.get(), this);
   if (freenect_start_depth(device_.get()) < 0) {
     return fail("freenect: could not start the depth stream of " + info_.description +
                 " (unplugged, or not enough USB bandwidth: use a USB 2.0 port of its own)");

@@ -130,6 +130,17 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
     }
   }
 
+  // Unit normal per triangle, for the grazing-angle test.
+  const std::size_t triangle_count = triangles.size() / 3;
+  triangle_normals_.resize(triangle_count);
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    const Eigen::Vector3f& a = vertices[triangles[3 * t]];
+    const Eigen::Vector3f n =
+        (vertices[triangles[3 * t + 1]] - a).cross(vertices[triangles[3 * t + 2]] - a);
+    const float length = n.norm();
+    triangle_normals_[t] = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
+  }
+
   out.raw.resize(w, h);
   out.depth_mm.resize(w, h);
   out.noiseless_depth_mm.resize(w, h);
@@ -191,15 +202,11 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
         }
 
         // Grazing angle between the visible triangle's normal and the view ray.
-        const auto t = static_cast<std::size_t>(camera_.triangle[i]);
-        const Eigen::Vector3f& a = vertices[triangles[3 * t]];
-        const Eigen::Vector3f& b = vertices[triangles[3 * t + 1]];
-        const Eigen::Vector3f& c = vertices[triangles[3 * t + 2]];
-        const Eigen::Vector3f normal = (b - a).cross(c - a);
+        const Eigen::Vector3f& normal =
+            triangle_normals_[static_cast<std::size_t>(camera_.triangle[i])];
         const Eigen::Vector3f ray((x - intrinsics_.cx) / intrinsics_.fx,
                                   (y - intrinsics_.cy) / intrinsics_.fy, 1.0f);
-        const double cos_angle =
-            std::abs(normal.dot(ray)) / (static_cast<double>(normal.norm()) * ray.norm() + 1e-30);
+        const double cos_angle = std::abs(normal.dot(ray)) / static_cast<double>(ray.norm());
         if (cos_angle < cos_start) {
           // p(drop) rises linearly from 0 at grazing_start to 1 at grazing_end (in angle).
           const double angle =
@@ -222,12 +229,14 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
             const auto bits = pixel_random(noise_seed, i, kStreamNoise);
             const double noisy =
                 r + options_.disparity_noise_sigma * gaussian_table_[(bits >> 20) & table_mask];
-            const long rounded = std::lround(noisy);
+            // floor(x + 0.5): round half up, far cheaper than lround and the same for x >= 0.
+            const long rounded = static_cast<long>(std::floor(noisy + 0.5));
             if (rounded >= 0 && rounded < kInvalidDisparity)
               raw = static_cast<std::uint16_t>(rounded);
           }
         } else {
-          raw = registration_.mm_to_raw(static_cast<std::uint16_t>(std::lround(depth)));
+          raw =
+              registration_.mm_to_raw(static_cast<std::uint16_t>(static_cast<double>(depth) + 0.5));
         }
       }
       std::uint16_t mm = raw == kInvalidDisparity ? 0 : registration_.raw_to_mm(raw);

@@ -102,6 +102,7 @@ class KinectSensorModel {
   std::vector<float> raw_of_mm_;       // fractional raw per integer mm
   std::vector<float> gaussian_table_;  // inverse normal CDF at (i + 0.5) / size
   std::vector<Eigen::Vector3f> projector_vertices_;
+  std::vector<Eigen::Vector3f> triangle_normals_;
   RasterBuffers camera_;
   RasterBuffers projector_;
 };

@@ -1,13 +1,35 @@
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
+#include <new>
 
 #include <gtest/gtest.h>
 
 #include "storage/asset_files.hpp"
+
+// Counts heap allocations while `g_count_allocations` is set (test binary only), to check that
+// steady-state next_frame() reuses its buffers.
+namespace {
+std::atomic<bool> g_count_allocations{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_count_allocations.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
 
 namespace fb {
 namespace {
@@ -290,6 +312,32 @@ TEST(SyntheticCamera, ProjectorShadowFallsLeftOfTheHead) {
   ASSERT_GT(rows, 100);
   EXPECT_GT(left, rows * 10);  // f b (1/z_head - 1/z_wall) ~ 20-30 px per row
   EXPECT_EQ(right, 0);
+}
+
+TEST(SyntheticCamera, SteadyStateFramesDoNotAllocate) {
+  SyntheticOptions options;
+  options.frame_count = 6;
+  // An expression track exercises the per-frame mesh update too.
+  std::vector<float> weights(static_cast<std::size_t>(model().expression_count), 0.0f);
+  for (int i = 0; i < 6; ++i) {
+    weights[model().expression_index("jawOpen")] = 0.1f * i;
+    options.expression_track.push_back(weights);
+  }
+  auto camera = make(options);
+  RgbdFrame frame;
+  ASSERT_EQ(*camera->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
+  ASSERT_EQ(*camera->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
+  g_allocations = 0;
+  g_count_allocations = true;
+  bool all_frames = true;
+  for (int i = 0; i < 4; ++i) {
+    auto status = camera->next_frame(frame, milliseconds(0));
+    all_frames = all_frames && status.ok() && *status == FrameStatus::kFrame;
+  }
+  g_count_allocations = false;
+  EXPECT_TRUE(all_frames);
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_FLOAT_EQ(camera->truth()->expression_weights[model().expression_index("jawOpen")], 0.5f);
 }
 
 TEST(SyntheticCamera, MeasureFramesPerSecond) {

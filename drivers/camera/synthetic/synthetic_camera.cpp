@@ -384,9 +384,10 @@ void SyntheticCamera::State::shade_color() {
       if (t == kNoTriangle) continue;
       const float z = raster.depth[i];
       double cx = 0.0, cy = 0.0;
-      const auto mm = static_cast<std::uint16_t>(std::min(std::lround(z), 65535L));
+      // Rounded like std::lround (z > 0), without the libm call per pixel.
+      const auto mm = static_cast<std::uint16_t>(std::min(static_cast<double>(z) + 0.5, 65535.0));
       if (!registration.depth_to_color(x, y, mm, cx, cy)) continue;
-      const int px = static_cast<int>(std::lround(cx)), py = static_cast<int>(std::lround(cy));
+      const int px = static_cast<int>(cx + 0.5), py = static_cast<int>(cy + 0.5);  // cx, cy >= 0
       if (px < 0 || py < 0 || px >= w || py >= h) continue;
       const std::size_t j = static_cast<std::size_t>(py) * w + px;
       if (!(z < color_z.pixels[j])) continue;

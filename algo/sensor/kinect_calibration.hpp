@@ -35,10 +35,10 @@ struct KinectPadInfo {
 
 // Lengths in centimetres / millimetres exactly as the device reports them.
 struct KinectZeroPlaneInfo {
-  double dcmos_emitter_distance = 7.5;     // cm, IR camera to projector baseline
-  double dcmos_rcmos_distance = 2.4;       // cm, IR camera to colour camera
-  double reference_distance = 120.0;       // mm, zero-plane distance
-  double reference_pixel_size = 0.1042;    // mm, zero-plane pixel size (at 1280 width)
+  double dcmos_emitter_distance = 7.5;   // cm, IR camera to projector baseline
+  double dcmos_rcmos_distance = 2.4;     // cm, IR camera to colour camera
+  double reference_distance = 120.0;     // mm, zero-plane distance
+  double reference_pixel_size = 0.1042;  // mm, zero-plane pixel size (at 1280 width)
 };
 
 struct KinectCalibration {
@@ -52,7 +52,8 @@ struct KinectCalibration {
   static KinectCalibration defaults();
 
   // Pinhole model of the depth camera implied by zero_plane_info (f = reference_distance /
-  // (2 * reference_pixel_size) at 640x480, principal point at the image centre).
+  // (2 * reference_pixel_size) at 640x480, about 575.8 px; principal point (320, 240) exactly as
+  // libfreenect's freenect_camera_to_world uses it).
   PinholeIntrinsics depth_intrinsics() const;
 };
 
@@ -75,7 +76,9 @@ class KinectRegistration {
   void mm_to_disparity(const DepthImage& mm, DisparityImage& out) const;
 
   // Where a depth pixel (x, y) with depth `mm` lands in the colour image. Returns false when
-  // the depth is invalid or the target is outside the colour image.
+  // the depth is invalid or the target is outside the colour image. color_x has 1/256 px
+  // resolution, color_y is a whole row (libfreenect's table); the colour pixel
+  // (floor(color_x), color_y) is the one register_depth_to_color() writes.
   bool depth_to_color(int x, int y, std::uint16_t mm, double& color_x, double& color_y) const;
 
   // Equivalent of libfreenect's FREENECT_DEPTH_REGISTERED: depth resampled into the colour
@@ -84,10 +87,10 @@ class KinectRegistration {
 
  private:
   KinectCalibration calibration_;
-  std::vector<std::uint16_t> raw_to_mm_table_;       // 2048 entries
-  std::vector<std::uint16_t> mm_to_raw_table_;       // up to 10000 mm
-  std::vector<std::int32_t> depth_to_rgb_shift_;     // per mm, as in libfreenect
-  std::vector<std::int32_t> registration_table_;     // 640*480*2, x (scaled) and y per pixel
+  std::vector<std::uint16_t> raw_to_mm_table_;    // 2048 entries
+  std::vector<std::uint16_t> mm_to_raw_table_;    // up to 10000 mm
+  std::vector<std::int32_t> depth_to_rgb_shift_;  // per mm, as in libfreenect
+  std::vector<std::int32_t> registration_table_;  // 640*480*2, x (scaled) and y per pixel
 };
 
 }  // namespace fb

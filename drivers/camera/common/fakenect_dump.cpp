@@ -333,7 +333,11 @@ Result<void> read_color_ppm(const std::string& path, ColorImage& out,
 }
 
 Result<AccelSample> read_accel_dump(const std::string& path) {
-  std::vector<std::uint8_t> bytes;
+  std::vector<std::uint8_t> scratch;
+  return read_accel_dump(path, scratch);
+}
+
+Result<AccelSample> read_accel_dump(const std::string& path, std::vector<std::uint8_t>& bytes) {
   if (auto r = read_file(path, bytes); !r) return r.failure();
   if (bytes.size() != kAccelDumpSize) {
     return fail("'" + path + "' has " + std::to_string(bytes.size()) + " bytes; an accelerometer " +
@@ -565,7 +569,7 @@ Result<bool> FakenectDumpReader::next(RgbdFrame& frame) {
     frame.color_device_timestamp = 0;
   }
   if (ref.accel != kNone && ref.accel != m.cached_accel) {
-    auto sample = read_accel_dump(m.paths[ref.accel]);
+    auto sample = read_accel_dump(m.paths[ref.accel], m.scratch);
     if (!sample) return sample.failure();
     m.accel = *sample;
     m.cached_accel = ref.accel;

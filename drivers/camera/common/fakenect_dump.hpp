@@ -84,6 +84,7 @@ Result<void> read_depth_pgm(const std::string& path, DisparityImage& out,
 // Colour: P6 with maxval 255.
 Result<void> read_color_ppm(const std::string& path, ColorImage& out,
                             std::vector<std::uint8_t>& scratch);
+Result<AccelSample> read_accel_dump(const std::string& path, std::vector<std::uint8_t>& scratch);
 Result<AccelSample> read_accel_dump(const std::string& path);
 
 // Encoders producing exactly what fakenect-record writes (depth little-endian).

@@ -1,0 +1,241 @@
+#include "algo/fusion/face_fusion.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include <time.h>
+
+namespace fb {
+namespace {
+
+// Wall and calling-thread CPU time; the CPU figure is what one core of the device would spend
+// even when other processes compete for the host's cores.
+struct Stopwatch {
+  std::chrono::steady_clock::time_point wall;
+  double cpu_ms;
+  static double thread_cpu_ms() {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+  }
+  Stopwatch() { restart(); }
+  void restart() {
+    wall = std::chrono::steady_clock::now();
+    cpu_ms = thread_cpu_ms();
+  }
+  // Adds the time since the last restart to `wall_out` / `cpu_out` and restarts.
+  void lap(double& wall_out, double& cpu_out) {
+    wall_out +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall).count();
+    cpu_out += thread_cpu_ms() - cpu_ms;
+    restart();
+  }
+};
+
+}  // namespace
+
+FaceFusion::FaceFusion() : runner_(std::make_unique<ParallelRunner>(1)) {}
+FaceFusion::~FaceFusion() = default;
+
+Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBox& face_box,
+                               const FusionOptions& options) {
+  configured_ = false;
+  if (intrinsics.width < 16 || intrinsics.height < 16 || !(intrinsics.fx > 0.0) ||
+      !(intrinsics.fy > 0.0))
+    return fail(
+        "fusion needs camera intrinsics with a positive focal length and an image of at "
+        "least 16 x 16 pixels");
+  const FaceBox box = face_box.clipped(intrinsics.width, intrinsics.height);
+  if (box.width < 16 || box.height < 16)
+    return fail("the face box (" + std::to_string(face_box.x) + "," + std::to_string(face_box.y) +
+                " " + std::to_string(face_box.width) + "x" + std::to_string(face_box.height) +
+                ") must cover at least 16 x 16 pixels of the " + std::to_string(intrinsics.width) +
+                "x" + std::to_string(intrinsics.height) + " image");
+  if (!(options.truncation_mm > 0.0f)) return fail("truncation must be positive");
+  if (!(options.volume_size_mm > 0.0f)) return fail("the volume size must be positive");
+  if (options.threads < 1 || options.threads > 16) return fail("threads must be 1 to 16");
+  if (options.truncation_mm < 2.0f * options.volume_size_mm / options.volume_resolution)
+    return fail("truncation must span at least 2 voxels (raise it or the resolution)");
+  if (auto ok =
+          volume_.reset(options.volume_resolution, options.volume_size_mm, Eigen::Vector3f::Zero());
+      !ok)
+    return ok;
+  options_ = options;
+  intrinsics_ = intrinsics;
+  box_ = box;
+  if (runner_->parts() != options.threads)
+    runner_ = std::make_unique<ParallelRunner>(options.threads);
+  preprocessor_.configure(options);
+  tracker_.configure(options);
+  integrator_.configure(options, volume_);
+  ray_caster_.configure(options);
+  pyramid_.allocate(intrinsics, box);
+  model_.allocate(intrinsics, box);
+  scratch_depths_.clear();
+  scratch_depths_.reserve(static_cast<std::size_t>(box.width) * box.height);
+  last_good_ = PoseF{};
+  started_ = false;
+  lost_ = false;
+  configured_ = true;
+  return success();
+}
+
+void FaceFusion::place_volume() {
+  // The nearest part of the box is the face (nose, cheeks): take a low percentile of the depths
+  // so background or shoulders do not pull the cube away, then centre the cube laterally on the
+  // pixels near that depth and put its centre a fixed distance behind the face.
+  scratch_depths_.clear();
+  const FaceBox& b = box_;
+  for (int y = b.y; y < b.y + b.height; ++y)
+    for (int x = b.x; x < b.x + b.width; ++x)
+      if (const float d = pyramid_.raw.at(x, y); d > 0.0f) scratch_depths_.push_back(d);
+  const std::size_t nth = static_cast<std::size_t>(
+      std::clamp(options_.near_percentile, 0.0f, 1.0f) * (scratch_depths_.size() - 1));
+  std::nth_element(scratch_depths_.begin(), scratch_depths_.begin() + nth, scratch_depths_.end());
+  const float near = scratch_depths_[nth];
+  const float face_depth_band = 0.5f * options_.volume_size_mm;
+  const LevelIntrinsics k = LevelIntrinsics::from(intrinsics_);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (int y = b.y; y < b.y + b.height; ++y)
+    for (int x = b.x; x < b.x + b.width; ++x) {
+      const float d = pyramid_.raw.at(x, y);
+      if (d <= 0.0f || d > near + face_depth_band) continue;
+      sum += Eigen::Vector3d((x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d);
+      ++count;
+    }
+  Eigen::Vector3f centre = (sum / std::max(count, 1)).cast<float>();
+  centre.z() = near + options_.volume_center_behind_face_mm;
+  volume_.set_origin(centre - Eigen::Vector3f::Constant(0.5f * volume_.size_mm()));
+}
+
+void FaceFusion::cast_model(const PoseF& pose) {
+  const Image<float>& hint =
+      options_.integrate_filtered_depth ? pyramid_.levels[0].depth : pyramid_.raw;
+  ray_caster_.cast(volume_, pose, &hint, false, model_.levels[0], *runner_);
+  subsample_model_levels(model_);
+  model_.world_from_camera = pose;
+  model_.valid = true;
+}
+
+FrameReport FaceFusion::process(const DepthImage& depth_mm) {
+  FrameReport report;
+  report.world_from_camera = last_good_.to_rigid();
+  report.state = started_ ? TrackingState::kLost : TrackingState::kNotStarted;
+  if (!configured_) {
+    report.state = TrackingState::kBadInput;
+    report.loss_reason = "fusion was not configured (reset() failed or was not called)";
+    return report;
+  }
+  if (depth_mm.empty() || depth_mm.width != intrinsics_.width ||
+      depth_mm.height != intrinsics_.height ||
+      depth_mm.pixels.size() != static_cast<std::size_t>(depth_mm.width) * depth_mm.height) {
+    report.state = TrackingState::kBadInput;
+    report.loss_reason =
+        depth_mm.empty() ? "empty depth frame" : "depth frame size differs from the camera's";
+    return report;
+  }
+  Stopwatch t;
+  preprocessor_.run(depth_mm, pyramid_, *runner_);
+  t.lap(report.times.preprocess_ms, report.cpu_times.preprocess_ms);
+  report.valid_pixels = pyramid_.valid_pixels;
+  const Image<float>& fuse_depth =
+      options_.integrate_filtered_depth ? pyramid_.levels[0].depth : pyramid_.raw;
+  const LevelIntrinsics k0 = pyramid_.levels[0].k;
+
+  if (!started_) {
+    if (pyramid_.valid_pixels < options_.min_valid_pixels_to_start) {
+      report.loss_reason = "too little valid depth in the face box to start fusion";
+      return report;
+    }
+    place_volume();
+    last_good_ = PoseF{};
+    report.integrated_bricks =
+        integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
+    t.lap(report.times.integrate_ms, report.cpu_times.integrate_ms);
+    cast_model(last_good_);
+    t.lap(report.times.raycast_ms, report.cpu_times.raycast_ms);
+    started_ = true;
+    lost_ = false;
+    report.state = TrackingState::kStarted;
+    report.fused = true;
+    report.world_from_camera = last_good_.to_rigid();
+    return report;
+  }
+
+  if (pyramid_.valid_pixels < options_.min_inliers) {
+    lost_ = true;
+    report.loss_reason = "too little valid depth in the face box";
+    return report;
+  }
+  t.restart();
+  const IcpResult icp = tracker_.track(pyramid_, model_, last_good_, *runner_);
+  t.lap(report.times.track_ms, report.cpu_times.track_ms);
+  report.inliers = icp.inliers;
+  report.rms_mm = icp.rms_mm;
+  report.iterations = icp.iterations;
+  // Plausibility in the head's terms: how far the volume centre (the head) moved relative to
+  // the camera, and by how much the view turned; a head turn of a few degrees moves the camera
+  // centre by many centimetres relative to the head, so the camera centre is not the measure.
+  const PoseF delta = last_good_.inverse() * icp.world_from_camera;
+  const Eigen::Vector3f head =
+      volume_.origin() + Eigen::Vector3f::Constant(0.5f * volume_.size_mm());
+  const float moved =
+      (icp.world_from_camera.inverse().apply(head) - last_good_.inverse().apply(head)).norm();
+  const float turned =
+      std::acos(std::clamp((delta.r.trace() - 1.0f) * 0.5f, -1.0f, 1.0f)) * 180.0f / M_PI;
+  const char* reason = nullptr;
+  if (!icp.solved)
+    reason = "ICP was ill-conditioned (too little surface in view)";
+  else if (icp.inliers < options_.min_inliers ||
+           icp.inliers < options_.min_inlier_fraction * static_cast<float>(icp.candidates))
+    reason = "too few ICP inliers (the face left the box or the model)";
+  else if (icp.rms_mm > options_.max_rms_mm)
+    reason = "ICP residual too large";
+  else if (moved > options_.max_frame_translation_mm || turned > options_.max_frame_rotation_deg)
+    reason = "implausible motion between frames";
+  if (reason) {
+    lost_ = true;
+    report.loss_reason = reason;
+    return report;
+  }
+  last_good_ = icp.world_from_camera;
+  t.restart();
+  report.integrated_bricks =
+      integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
+  t.lap(report.times.integrate_ms, report.cpu_times.integrate_ms);
+  t.restart();
+  cast_model(last_good_);
+  t.lap(report.times.raycast_ms, report.cpu_times.raycast_ms);
+  report.state = lost_ ? TrackingState::kRecovered : TrackingState::kTracking;
+  lost_ = false;
+  report.fused = true;
+  report.world_from_camera = last_good_.to_rigid();
+  return report;
+}
+
+void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
+  if (render_level_.depth.width != intrinsics_.width ||
+      render_level_.depth.height != intrinsics_.height ||
+      !(render_level_.box.x == box_.x && render_level_.box.y == box_.y &&
+        render_level_.box.width == box_.width && render_level_.box.height == box_.height))
+    render_level_.allocate(LevelIntrinsics::from(intrinsics_), box_);
+  std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
+  ray_caster_.cast(volume_, PoseF::from(world_from_camera), nullptr, true, render_level_, *runner_);
+  out.depth_mm = render_level_.depth;
+  out.normals = render_level_.normals;
+}
+
+SurfaceView FaceFusion::render(const RigidPose& world_from_camera) {
+  SurfaceView out;
+  render(world_from_camera, out);
+  return out;
+}
+
+TriangleMesh FaceFusion::extract_mesh(const MeshOptions& options) const {
+  return fb::extract_mesh(volume_, options);
+}
+
+}  // namespace fb

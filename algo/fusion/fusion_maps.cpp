@@ -1,0 +1,74 @@
+#include "algo/fusion/fusion_maps.hpp"
+
+#include <algorithm>
+
+namespace fb {
+
+FaceBox FaceBox::clipped(int w, int h) const {
+  const int x0 = std::clamp(x, 0, w), y0 = std::clamp(y, 0, h);
+  const int x1 = std::clamp(x + width, 0, w), y1 = std::clamp(y + height, 0, h);
+  return {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0)};
+}
+
+FaceBox FaceBox::at_level(int level) const {
+  const int x0 = x >> level, y0 = y >> level;
+  const int x1 = (x + width + (1 << level) - 1) >> level;
+  const int y1 = (y + height + (1 << level) - 1) >> level;
+  return {x0, y0, x1 - x0, y1 - y0};
+}
+
+FaceBox default_face_box(int width, int height) {
+  const int w = width * 200 / 640, h = height * 240 / 480;
+  return {(width - w) / 2, (height - h) / 2, w, h};
+}
+
+const char* to_string(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotStarted:
+      return "not_started";
+    case TrackingState::kStarted:
+      return "started";
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kLost:
+      return "lost";
+    case TrackingState::kRecovered:
+      return "recovered";
+    case TrackingState::kBadInput:
+      return "bad_input";
+  }
+  return "unknown";
+}
+
+void MapLevel::allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_box) {
+  k = intrinsics;
+  box = face_box.clipped(k.width, k.height);
+  depth.resize(k.width, k.height);
+  std::fill(depth.pixels.begin(), depth.pixels.end(), 0.0f);
+  vertices.resize(k.width, k.height);
+  std::fill(vertices.pixels.begin(), vertices.pixels.end(), Eigen::Vector3f::Zero());
+  normals.resize(k.width, k.height);
+  std::fill(normals.pixels.begin(), normals.pixels.end(), Eigen::Vector3f::Zero());
+}
+
+void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {
+  raw.resize(intrinsics.width, intrinsics.height);
+  std::fill(raw.pixels.begin(), raw.pixels.end(), 0.0f);
+  LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
+  for (int l = 0; l < kPyramidLevels; ++l) {
+    levels[l].allocate(k, face_box.at_level(l));
+    k = k.averaged_half();
+  }
+  valid_pixels = 0;
+}
+
+void ModelView::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {
+  LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
+  for (int l = 0; l < kPyramidLevels; ++l) {
+    levels[l].allocate(k, face_box.at_level(l));
+    k = k.subsampled_half();
+  }
+  valid = false;
+}
+
+}  // namespace fb

@@ -1,0 +1,88 @@
+// Image-shaped objects of the fusion pipeline: the input depth pyramid with vertex and normal
+// maps, and the ray-cast model view the tracker aligns against. All buffers are allocated once
+// in allocate() and reused for every frame.
+#pragma once
+
+#include <array>
+
+#include <Eigen/Core>
+
+#include "algo/core/image.hpp"
+#include "algo/fusion/fusion_types.hpp"
+
+namespace fb {
+
+inline constexpr int kPyramidLevels = 3;
+
+// A float rigid transform for hot loops: p' = r * p + t.
+struct PoseF {
+  Eigen::Matrix3f r = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f t = Eigen::Vector3f::Zero();
+
+  Eigen::Vector3f apply(const Eigen::Vector3f& p) const { return r * p + t; }
+  PoseF inverse() const { return {r.transpose(), -(r.transpose() * t)}; }
+  PoseF operator*(const PoseF& o) const { return {r * o.r, r * o.t + t}; }
+  static PoseF from(const RigidPose& p) {
+    return {p.rotation.toRotationMatrix().cast<float>(), p.translation.cast<float>()};
+  }
+  RigidPose to_rigid() const {
+    RigidPose p;
+    p.rotation = Eigen::Quaterniond(r.cast<double>()).normalized();
+    p.translation = t.cast<double>();
+    return p;
+  }
+};
+
+// Float pinhole intrinsics of one pyramid level (hot loops use float).
+struct LevelIntrinsics {
+  int width = 0;
+  int height = 0;
+  float fx = 0, fy = 0, cx = 0, cy = 0;
+
+  static LevelIntrinsics from(const PinholeIntrinsics& k) {
+    return {k.width,
+            k.height,
+            static_cast<float>(k.fx),
+            static_cast<float>(k.fy),
+            static_cast<float>(k.cx),
+            static_cast<float>(k.cy)};
+  }
+  // 2x2 block averaging: the centre of block (u1) is at u0 = 2 u1 + 0.5.
+  LevelIntrinsics averaged_half() const {
+    return {width / 2, height / 2, fx * 0.5f, fy * 0.5f, (cx - 0.5f) * 0.5f, (cy - 0.5f) * 0.5f};
+  }
+  // Plain subsampling: pixel u1 is pixel u0 = 2 u1.
+  LevelIntrinsics subsampled_half() const {
+    return {width / 2, height / 2, fx * 0.5f, fy * 0.5f, cx * 0.5f, cy * 0.5f};
+  }
+};
+
+struct MapLevel {
+  LevelIntrinsics k;
+  FaceBox box;                      // the face box on this level
+  Image<float> depth;               // mm, 0 = invalid
+  Image<Eigen::Vector3f> vertices;  // camera frame; z == 0 marks invalid
+  Image<Eigen::Vector3f> normals;   // camera frame, unit; zero where invalid
+
+  void allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_box);
+};
+
+// The preprocessed input frame: raw depth (gated, float) plus 3 filtered levels.
+struct DepthPyramid {
+  Image<float> raw;  // level-0 raw depth in mm, inside the face box only
+  std::array<MapLevel, kPyramidLevels> levels;
+  int valid_pixels = 0;  // valid raw pixels inside the face box
+
+  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box);
+};
+
+// The ray-cast model view (vertices and normals in the frame of the camera it was cast from).
+struct ModelView {
+  std::array<MapLevel, kPyramidLevels> levels;  // level 0 ray-cast; 1, 2 subsampled
+  PoseF world_from_camera;                      // the pose it was cast from
+  bool valid = false;
+
+  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box);
+};
+
+}  // namespace fb

@@ -1,0 +1,126 @@
+// Options and results of the face-box KinectFusion (FaceWarehouse section 3.1).
+// Units: millimetres; camera coordinates follow OpenCV (x right, y down, z forward).
+// The "world" frame is the depth camera frame of the first fused frame; every camera pose is
+// world_from_camera (maps camera points into the world).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+
+namespace fb {
+
+// An image rectangle where the face is (the kiosk's on-screen rectangle or a detection).
+struct FaceBox {
+  int x = 0;
+  int y = 0;
+  int width = 0;
+  int height = 0;
+
+  bool empty() const { return width <= 0 || height <= 0; }
+  bool contains(int px, int py) const {
+    return px >= x && py >= y && px < x + width && py < y + height;
+  }
+  // The same rectangle clipped to a w x h image.
+  FaceBox clipped(int w, int h) const;
+  // The rectangle on a pyramid level that is 2^level times smaller (rounded outwards).
+  FaceBox at_level(int level) const;
+};
+
+// The default configured rectangle of the kiosk: 200 x 240 px in the middle of a 640 x 480 view,
+// which holds a face at 0.5-0.9 m.
+FaceBox default_face_box(int width, int height);
+
+struct FusionOptions {
+  // --- Volume: a cube sized to the head ---
+  float volume_size_mm = 300.0f;
+  int volume_resolution = 256;  // voxels per side, a multiple of 8 (bricks of 8^3)
+  // TSDF truncation: Kinect v1 depth noise is ~1.5 mm (sigma) at 0.7 m and disparity steps are
+  // ~1.3 mm there, so +/-8 mm (about 7 voxels) holds the noise band with margin.
+  float truncation_mm = 8.0f;
+  // Running-average weight cap: 64 frames, so a 3 s head turn (90 frames) averages almost all
+  // observations and the model can still adapt slowly.
+  int max_weight = 64;
+  // The volume centre sits behind the nearest face surface (percentile of depths in the box)
+  // by this much, so the face and the sides of the head fit in the cube.
+  float volume_center_behind_face_mm = 70.0f;
+  float near_percentile = 0.10f;
+
+  // --- Depth gating and preprocessing ---
+  float min_depth_mm = 300.0f;
+  float max_depth_mm = 2500.0f;
+  int bilateral_radius_px = 2;  // 5 x 5 kernel
+  float bilateral_sigma_space_px = 1.5f;
+  float bilateral_sigma_depth_mm = 6.0f;   // ~4 sigma of Kinect noise at face distance
+  float normal_max_depth_jump_mm = 20.0f;  // neighbours further apart break the surface
+  bool integrate_filtered_depth = false;   // KinectFusion integrates the raw depth
+
+  // --- Tracking (projective point-to-plane ICP, coarse to fine) ---
+  std::array<int, 3> icp_iterations = {4, 5, 8};  // per level, level 0 = full resolution
+  float icp_distance_mm = 25.0f;                  // association gate
+  float icp_normal_angle_deg = 35.0f;
+  float icp_huber_mm = 3.0f;    // robust weight: residuals beyond this get Huber weights
+  float icp_converged = 1e-5f;  // stop a level when |increment| (rad + mm/1000) drops below
+  // Loss detection: too few inliers, too large a residual, or a jump no head makes in 33 ms.
+  int min_inliers = 800;
+  float min_inlier_fraction = 0.30f;  // of the valid input points in the face box
+  float max_rms_mm = 3.0f;
+  float max_frame_translation_mm = 40.0f;  // of the head centre relative to the camera
+  float max_frame_rotation_deg = 20.0f;
+  int min_valid_pixels_to_start = 2000;
+
+  // --- Threads: 1 = the device's single-core figure; 2 uses a second worker ---
+  int threads = 1;
+};
+
+enum class TrackingState : std::uint8_t {
+  kNotStarted,  // no usable frame yet (nothing fused)
+  kStarted,     // this frame started the volume (pose = identity)
+  kTracking,    // tracked and fused
+  kLost,        // tracking failed on this frame: not fused, pose = last good pose
+  kRecovered,   // tracked again after one or more lost frames, and fused
+  kBadInput,    // empty or wrongly sized frame: ignored
+};
+
+const char* to_string(TrackingState state);
+
+struct StageTimes {
+  double preprocess_ms = 0.0;
+  double track_ms = 0.0;
+  double integrate_ms = 0.0;
+  double raycast_ms = 0.0;
+  double total_ms() const { return preprocess_ms + track_ms + integrate_ms + raycast_ms; }
+};
+
+struct FrameReport {
+  TrackingState state = TrackingState::kNotStarted;
+  bool fused = false;            // the frame was integrated into the volume
+  RigidPose world_from_camera;   // tracked pose (the last good one when lost)
+  int valid_pixels = 0;          // valid input depth in the face box
+  int inliers = 0;               // ICP inliers at full resolution (last iteration)
+  float rms_mm = 0.0f;           // ICP point-to-plane RMS of the inliers
+  int iterations = 0;            // ICP iterations over all levels
+  int integrated_bricks = 0;     // 8^3-voxel bricks visited by the integrator
+  const char* loss_reason = "";  // empty unless state == kLost or kBadInput
+  StageTimes times;              // wall clock
+  StageTimes cpu_times;  // CPU time of the calling thread: the one-core cost even on a busy host
+};
+
+// A ray-cast view of the fused surface from one camera pose.
+struct SurfaceView {
+  Image<float> depth_mm;           // z in the camera frame, 0 = no surface
+  Image<Eigen::Vector3f> normals;  // camera frame, unit, zero where no surface
+};
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3f> vertices;  // world frame, mm
+  std::vector<Eigen::Vector3f> normals;   // unit, pointing out of the surface
+  std::vector<Eigen::Vector3i> triangles;
+};
+
+}  // namespace fb

@@ -1,0 +1,33 @@
+// Integration engine: fuses one depth image into the TSDF volume. Only voxels inside the
+// truncation band along the rays of face-box pixels are visited: the rays first mark the bricks
+// they cross inside the band, then only those bricks are updated (never the whole cube).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "algo/fusion/fusion_maps.hpp"
+#include "algo/fusion/parallel.hpp"
+#include "algo/fusion/tsdf_volume.hpp"
+
+namespace fb {
+
+class TsdfIntegrator {
+ public:
+  // Preallocates the brick marks and list for `volume`.
+  void configure(const FusionOptions& options, const TsdfVolume& volume);
+
+  // depth: level-0 depth (mm, 0 = invalid), only pixels inside `box` are used.
+  // Returns the number of bricks updated.
+  int integrate(const Image<float>& depth, const LevelIntrinsics& k, const FaceBox& box,
+                const PoseF& world_from_camera, TsdfVolume& volume, ParallelRunner& runner);
+
+ private:
+  float truncation_ = 8.0f;
+  int max_weight_ = 64;
+  std::vector<float> inv_count_;
+  std::vector<std::uint8_t> marks_;
+  std::vector<int> bricks_;
+};
+
+}  // namespace fb

@@ -83,6 +83,7 @@ class KinectRegistration {
 
   // Equivalent of libfreenect's FREENECT_DEPTH_REGISTERED: depth resampled into the colour
   // camera's image, nearest surface wins, 0 where nothing maps.
+  // `registered` must not be `depth_mm` (it is cleared first).
   void register_depth_to_color(const DepthImage& depth_mm, DepthImage& registered) const;
 
  private:

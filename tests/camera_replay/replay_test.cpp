@@ -34,6 +34,7 @@ TEST_F(RealDumpReplay, NinetyFramesThenEndOfStream) {
   EXPECT_EQ(info.height, 480);
   EXPECT_GT(info.fps, 20.0);
   EXPECT_LT(info.fps, 40.0);
+  std::cout << "[ replay ] " << info.description << ", " << info.fps << " fps\n";
   EXPECT_NEAR(info.depth_intrinsics.fx, 575.8, 0.1);
   // Calibration comes from the dump's device.json (equal to the documented defaults).
   auto json = read_device_json(dir_ / "device.json");

@@ -12,6 +12,11 @@
 //  - Gaussian noise in disparity units followed by 11-bit quantisation, so depth noise grows
 //    as z^2 (dz = z^2 / (f b) dd) and every output value is raw_to_mm of an integer raw.
 // Pure: data in, data out; deterministic for a noise seed.
+//
+// Measured with the defaults (tests/render, tests/camera_synthetic): frontal plane mean abs
+// error 1.51 mm at 0.7 m and 3.01 mm at 1.0 m (ratio 1.99, z^2 law 2.04); face pixels 1.53 mm
+// at 0.7 m, 3.1 mm at 1.0 m. Holes on the face: 4-8 % (stated range 1-15 %), mostly grazing
+// cheeks/jaw and silhouette edges, a little projector shadow beside the nose.
 #pragma once
 
 #include <cstdint>

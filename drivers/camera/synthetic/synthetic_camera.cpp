@@ -745,6 +745,14 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   return std::unique_ptr<SyntheticCamera>(new SyntheticCamera(std::move(state)));
 }
 
+Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const SyntheticOptions& options) {
+  auto model = load_face_model();
+  if (!model) {
+    return fail("synthetic: cannot load the face model: " + model.error().message);
+  }
+  return make_synthetic_camera(*model, options);
+}
+
 namespace {
 
 Result<std::unique_ptr<DepthCamera>> open_synthetic(std::string_view arguments) {

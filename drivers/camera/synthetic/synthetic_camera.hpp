@@ -4,6 +4,8 @@
 //
 // URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
 //      distance=700,noise=on|off,background=1200|off,identity=random|neutral
+// Defaults: seed 0, neutral expression, headturn, 90 frames, 700 mm, noise on, wall at 1200 mm,
+// random identity (N(0, 1) per mode from the seed).
 //
 // Scene and conventions (all documented choices):
 //  - Head pose: camera_from_model = T * R_flip * R_y(yaw) * R_x(pitch). R_flip (180 deg about x)
@@ -16,6 +18,10 @@
 //    with triangle fans: eyes flat and dark, the mouth recessed 15 mm (a dark red cavity), the
 //    neck flat, so the depth shows no see-through holes.
 //  - Wall: a plane facing the camera at `background_mm`, fixed in the camera frame.
+//  - Sensor: KinectSensorModel with KinectCalibration::defaults() (see kinect_sensor.hpp).
+//    noise=off turns off the Gaussian disparity noise only; quantisation, projector shadow and
+//    the dropouts at silhouettes and grazing angles stay (they are part of what a Kinect
+//    delivers). With noise=off every measured pixel is raw_to_mm(mm_to_raw(round(z))).
 //  - Colour image: Lambertian + ambient shading of per-vertex albedo (skin, darker brows, red
 //    lips, dark eyes, painted from the landmark neighbourhoods on the rest-pose mesh). It is put
 //    into the colour camera through the registration: every depth pixel with a noiseless
@@ -122,6 +128,9 @@ class SyntheticCamera : public DepthCamera {
 // reference). Fails on inconsistent options (bad sizes, frame_count < 1, distance out of range).
 Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& model,
                                                                const SyntheticOptions& options);
+
+// Same, with the default face model asset (load_face_model()).
+Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const SyntheticOptions& options);
 
 CameraBackend synthetic_camera_backend();
 

@@ -71,11 +71,11 @@ int run_bench_camera(const ParsedOptions& options) {
   std::string replay_dir = options.get("replay");
   if (replay_dir.empty()) {
     std::cerr << "bench camera: recording the synthetic take to " << scratch.path() << "...\n";
-    auto camera = open_started_camera(synthetic_uri);
+    auto camera = open_camera(synthetic_uri);
     if (!camera) return report_failure(camera.error());
-    RecordOptions record_options;
-    record_options.max_frames = *frames;
-    auto recorded = record_camera(**camera, scratch.path(), record_options);
+    RecorderOptions record_options;
+    record_options.overwrite = true;  // the scratch directory is ours
+    auto recorded = record_camera(**camera, scratch.path(), *frames, {}, record_options);
     if (!recorded) return report_failure(recorded.error());
     replay_dir = scratch.path().string();
   }
@@ -97,7 +97,8 @@ std::vector<Command> bench_commands() {
       {{"bench camera",
         "frames per second of the synthetic and replay backends (one core)",
         "Prints one JSON object on stdout: synthetic_fps, replay_fps and the frame counts.\n"
-        "Without --replay, the replay figure uses a fakenect dump recorded from the synthetic take.",
+        "Without --replay, the replay figure uses a fakenect dump recorded from the synthetic "
+        "take.",
         {{"frames", "N", "frames to read from each source", "90"},
          {"replay", "DIR", "time this fakenect dump instead of a recorded synthetic take", ""},
          {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},

@@ -7,41 +7,43 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/frame_png.hpp"
+#include "host/cli/progress.hpp"
 
 namespace fb::cli {
 namespace {
-
-constexpr auto kFrameTimeout = std::chrono::milliseconds(2000);
 
 int run_list(const ParsedOptions&) {
   std::cout << "backends in this build:\n";
   for (const auto& backend : camera_backends()) std::cout << "  " << backend.usage << "\n";
   std::cout << "\nsources available now:\n";
   const auto cameras = list_cameras();
-  for (const auto& camera : cameras) std::cout << "  " << camera.uri << "  " << camera.description << "\n";
+  for (const auto& camera : cameras)
+    std::cout << "  " << camera.uri << "  " << camera.description << "\n";
   if (cameras.empty()) std::cout << "  (none)\n";
   return kExitOk;
 }
 
 int run_record(const ParsedOptions& options) {
   const auto out = options.get("out");
-  if (out.empty()) return report_failure({"camera record needs --out DIR (a new or empty directory)"});
+  if (out.empty())
+    return report_failure({"camera record needs --out DIR (a new or empty directory)"});
   auto frames = options.get_int("frames");
   if (!frames) return report_failure(frames.error());
   if (*frames <= 0) return report_failure({"--frames must be at least 1"});
-  auto camera = open_started_camera(options.get("camera"));
+  auto camera = open_camera(options.get("camera"));
   if (!camera) return report_failure(camera.error());
 
-  RecordOptions record_options;
-  record_options.max_frames = *frames;
+  RecorderOptions record_options;
   record_options.overwrite = options.flag("force");
-  record_options.progress = [&](long long written) {
-    std::cerr << "\rrecording " << written << "/" << *frames << " frames" << std::flush;
-  };
-  auto summary = record_camera(**camera, out, record_options);
-  std::cerr << "\n";
+  auto summary = [&] {
+    Progress progress("recording frames", *frames);
+    return record_camera(
+        **camera, out, *frames, [&](long long written) { progress.update(written); },
+        record_options);
+  }();
   if (!summary) return report_failure(summary.error());
-  std::cout << "wrote " << summary->frames << " frames to " << out << " (fakenect format)\n";
+  std::cout << "wrote " << summary->depth_frames << " frames to " << out << " (fakenect format)"
+            << (summary->end_of_stream ? "; the source ended there" : "") << "\n";
   return kExitOk;
 }
 
@@ -58,8 +60,10 @@ int run_view(const ParsedOptions& options) {
   const KinectRegistration registration((*camera)->info().calibration);
   FramePngOptions png;
   if (options.flag("overlay")) png.registration = &registration;
-  if (auto written = write_frame_png(frame, out, png); !written) return report_failure(written.error());
-  std::cout << "wrote frame " << frame.index << " of " << (*camera)->info().uri << " to " << out << "\n";
+  if (auto written = write_frame_png(frame, out, png); !written)
+    return report_failure(written.error());
+  std::cout << "wrote frame " << frame.index << " of " << (*camera)->info().uri << " to " << out
+            << "\n";
   return kExitOk;
 }
 
@@ -73,10 +77,14 @@ const std::string kCameraDetails =
 
 std::vector<Command> camera_commands() {
   return {
-      {{"camera list", "list camera backends and the sources that can be opened now", kCameraDetails, {}},
+      {{"camera list",
+        "list camera backends and the sources that can be opened now",
+        kCameraDetails,
+        {}},
        run_list},
       {{"camera record",
-        "record frames from a camera into a fakenect-format dump (INDEX.txt, d-/r-/a- files, device.json)",
+        "record frames from a camera into a fakenect-format dump (INDEX.txt, d-/r-/a- files, "
+        "device.json)",
         kCameraDetails,
         {{"camera", "URI", "camera to record from", "synthetic:"},
          {"frames", "N", "number of frames to record", "90"},

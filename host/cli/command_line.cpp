@@ -58,8 +58,8 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
       if (candidate.name == name) option = &candidate;
     }
     if (option == nullptr) {
-      return fail("unknown option '--" + name + "' for 'facebooth " + spec.path + "'; see 'facebooth " +
-                  spec.path + " --help'");
+      return fail("unknown option '--" + name + "' for 'facebooth " + spec.path +
+                  "'; see 'facebooth " + spec.path + " --help'");
     }
     if (option->value_name.empty()) {
       if (inline_value) return fail("--" + name + " is a flag and takes no value");
@@ -67,7 +67,8 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
     } else if (inline_value) {
       parsed.values_[name] = *inline_value;
     } else {
-      if (i + 1 >= args.size()) return fail("--" + name + " needs a value (" + option->value_name + ")");
+      if (i + 1 >= args.size())
+        return fail("--" + name + " needs a value (" + option->value_name + ")");
       parsed.values_[name] = args[++i];
     }
   }

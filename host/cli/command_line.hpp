@@ -12,8 +12,8 @@
 namespace fb::cli {
 
 struct OptionSpec {
-  std::string name;           // without leading dashes, e.g. "camera"
-  std::string value_name;     // empty for a flag, else e.g. "URI"
+  std::string name;        // without leading dashes, e.g. "camera"
+  std::string value_name;  // empty for a flag, else e.g. "URI"
   std::string help;
   std::string default_value;  // shown in help; used when the option is absent
 };

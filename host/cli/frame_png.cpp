@@ -52,15 +52,29 @@ cv::Mat color_panel(const ColorImage& color) {
 cv::Mat overlay_panel(const RgbdFrame& frame, const KinectRegistration& registration) {
   DepthImage registered;
   registration.register_depth_to_color(frame.depth_mm, registered);
-  cv::Mat depth16(registered.height, registered.width, CV_16UC1, registered.pixels.data());
-  cv::Mat depth_f, grad_x, grad_y, magnitude;
-  depth16.convertTo(depth_f, CV_32F);
-  cv::Sobel(depth_f, grad_x, CV_32F, 1, 0);
-  cv::Sobel(depth_f, grad_y, CV_32F, 0, 1);
-  cv::magnitude(grad_x, grad_y, magnitude);
   cv::Mat panel = color_panel(frame.color) * 0.6;
-  // Depth discontinuities larger than ~10 cm over the Sobel window are drawn in magenta.
-  panel.setTo(cv::Scalar(255, 0, 255), magnitude > 400.0f);
+  // Mark the near side of depth jumps (> 5 % of the depth). Registration leaves unmapped gaps
+  // beside silhouettes, so look past up to 8 empty pixels for the neighbouring measurement.
+  constexpr int kDirections[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  constexpr int kMaxGap = 8;
+  for (int y = 0; y < registered.height; ++y) {
+    for (int x = 0; x < registered.width; ++x) {
+      const int d = registered.at(x, y);
+      if (d == 0) continue;
+      bool edge = false;
+      for (const auto& step : kDirections) {
+        for (int k = 1; k <= kMaxGap + 1 && !edge; ++k) {
+          const int nx = x + k * step[0], ny = y + k * step[1];
+          if (!registered.contains(nx, ny)) break;
+          const int n = registered.at(nx, ny);
+          if (n == 0) continue;
+          edge = n - d > d / 20;
+          break;
+        }
+      }
+      if (edge) panel.at<cv::Vec3b>(y, x) = cv::Vec3b(255, 0, 255);
+    }
+  }
   return panel;
 }
 
@@ -72,16 +86,19 @@ Result<void> write_frame_png(const RgbdFrame& frame, const std::filesystem::path
     return fail("the frame has no depth or no colour image; nothing to draw");
   }
   std::vector<cv::Mat> panels{depth_panel(frame.depth_mm), color_panel(frame.color)};
-  if (options.registration != nullptr) panels.push_back(overlay_panel(frame, *options.registration));
+  if (options.registration != nullptr)
+    panels.push_back(overlay_panel(frame, *options.registration));
   const int height = std::max(panels[0].rows, panels[1].rows);
   for (auto& panel : panels) {
-    if (panel.rows != height) cv::resize(panel, panel, cv::Size(panel.cols * height / panel.rows, height));
+    if (panel.rows != height)
+      cv::resize(panel, panel, cv::Size(panel.cols * height / panel.rows, height));
   }
   cv::Mat joined;
   cv::hconcat(panels, joined);
   try {
     if (!cv::imwrite(path.string(), joined)) {
-      return fail("could not write '" + path.string() + "': check the directory exists and is writable");
+      return fail("could not write '" + path.string() +
+                  "': check the directory exists and is writable");
     }
   } catch (const cv::Exception& e) {
     return fail("could not write '" + path.string() + "': " + e.what());

@@ -1,6 +1,877 @@
-// facebooth eval fusion | bench fusion (filled in by the fusion work).
+// facebooth eval fusion | bench fusion: the face-box KinectFusion (algo/fusion) scored against
+// the synthetic camera's ground truth, run on the real dump, and timed against Open3D on the same
+// frames. One JSON object on stdout, progress on stderr.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <sstream>
+
+#include "algo/fusion/face_fusion.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/frame_open.hpp"
 
 namespace fb::cli {
-std::vector<Command> fusion_commands() { return {}; }
+namespace {
+
+#ifndef FB_REAL_DUMP_DEFAULT
+#define FB_REAL_DUMP_DEFAULT "../shared/kinect/openiss-desk/test-recording-first90.tar.xz"
+#endif
+
+// ---------------------------------------------------------------------------------------------
+// Frames held in memory, so that camera rendering or decoding is never part of a timing.
+
+struct Sequence {
+  std::string uri;
+  PinholeIntrinsics intrinsics;
+  std::vector<DepthImage> depth;
+  std::vector<RigidPose> camera_from_model;  // truth, empty for real recordings
+  std::vector<std::vector<Eigen::Vector3d>> landmarks_3d;
+  // Truth of the frontal frame only (the one the fused depth is scored on).
+  int frontal = 0;
+  Image<float> frontal_noiseless;
+  std::vector<Eigen::Vector2d> frontal_landmarks_px;
+};
+
+Result<Sequence> load_sequence(const std::string& uri, long long max_frames, int frontal) {
+  auto camera = open_started_camera(uri);
+  if (!camera) return camera.failure();
+  Sequence seq;
+  seq.uri = uri;
+  seq.intrinsics = (*camera)->info().depth_intrinsics;
+  seq.frontal = frontal;
+  RgbdFrame frame;
+  int timeouts = 0;
+  while (static_cast<long long>(seq.depth.size()) < max_frames) {
+    auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(2000));
+    if (!status) return status.failure();
+    if (*status == FrameStatus::kEndOfStream) break;
+    if (*status == FrameStatus::kTimeout) {
+      if (++timeouts > 5) return fail("camera '" + uri + "' stopped delivering frames");
+      continue;
+    }
+    const int index = static_cast<int>(seq.depth.size());
+    seq.depth.push_back(frame.depth_mm);
+    if (const FrameTruth* truth = (*camera)->truth()) {
+      seq.camera_from_model.push_back(truth->camera_from_model);
+      seq.landmarks_3d.push_back(truth->landmarks_3d);
+      if (index == frontal) {
+        seq.frontal_noiseless = truth->noiseless_depth_mm;
+        seq.frontal_landmarks_px = truth->landmarks_depth_px;
+      }
+    }
+  }
+  (*camera)->stop();
+  if (seq.depth.empty()) return fail("camera '" + uri + "' delivered no frames");
+  if (seq.intrinsics.fx <= 0.0) return fail("camera '" + uri + "' reports no depth intrinsics");
+  return seq;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Options shared by both commands.
+
+std::vector<OptionSpec> fusion_option_specs() {
+  return {
+      {"box", "X,Y,W,H",
+       "face box in the depth image (default: the kiosk rectangle, 200x240 "
+       "in the middle of 640x480)",
+       ""},
+      {"volume-mm", "MM", "TSDF cube side", "300"},
+      {"resolution", "N", "voxels per side (multiple of 8)", "256"},
+      {"truncation-mm", "MM", "TSDF truncation", "8"},
+      {"max-weight", "N", "running-average weight cap", "64"},
+  };
+}
+
+Result<FaceBox> parse_box(const std::string& text, const PinholeIntrinsics& k) {
+  if (text.empty()) return default_face_box(k.width, k.height);
+  FaceBox box;
+  char c1 = 0, c2 = 0, c3 = 0;
+  std::istringstream in(text);
+  if (!(in >> box.x >> c1 >> box.y >> c2 >> box.width >> c3 >> box.height) || c1 != ',' ||
+      c2 != ',' || c3 != ',' || box.width <= 0 || box.height <= 0)
+    return fail("--box must be X,Y,W,H in depth-image pixels, e.g. 220,120,200,240 (got '" + text +
+                "')");
+  return box;
+}
+
+Result<FusionOptions> parse_fusion_options(const ParsedOptions& options) {
+  FusionOptions o;
+  auto volume = options.get_double("volume-mm");
+  if (!volume) return volume.failure();
+  auto resolution = options.get_int("resolution");
+  if (!resolution) return resolution.failure();
+  auto truncation = options.get_double("truncation-mm");
+  if (!truncation) return truncation.failure();
+  auto weight = options.get_int("max-weight");
+  if (!weight) return weight.failure();
+  o.volume_size_mm = static_cast<float>(*volume);
+  o.volume_resolution = static_cast<int>(*resolution);
+  o.truncation_mm = static_cast<float>(*truncation);
+  o.max_weight = static_cast<int>(*weight);
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Running the pipeline over a sequence.
+
+struct Run {
+  std::vector<FrameReport> reports;
+  int fused = 0;
+  int lost = 0;
+  std::vector<int> lost_frames;
+};
+
+Result<Run> run_fusion(FaceFusion& fusion, const Sequence& seq, const FaceBox& box,
+                       const FusionOptions& options) {
+  if (auto ok = fusion.reset(seq.intrinsics, box, options); !ok) return ok.failure();
+  Run run;
+  run.reports.reserve(seq.depth.size());
+  for (std::size_t i = 0; i < seq.depth.size(); ++i) {
+    const FrameReport r = fusion.process(seq.depth[i]);
+    run.fused += r.fused;
+    if (r.state == TrackingState::kLost) {
+      ++run.lost;
+      run.lost_frames.push_back(static_cast<int>(i));
+    }
+    run.reports.push_back(r);
+  }
+  return run;
+}
+
+double angle_deg(const Eigen::Matrix3d& r) {
+  return std::acos(std::clamp((r.trace() - 1.0) * 0.5, -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+// Pose error of frame k relative to the first fused frame f0: truth relative motion
+// camera_f0_from_camera_k = M_f0 M_k^-1 against the tracked G_f0^-1 G_k; E = truth^-1 tracked.
+// Reported as the translation of E (camera centre error, the usual relative-pose error) and its
+// angle, and as the displacement E causes at the face (the landmark centroid).
+struct PoseErrors {
+  double max_mm = 0, mean_mm = 0, max_deg = 0, mean_deg = 0, face_max_mm = 0, face_mean_mm = 0;
+  int frames = 0;
+};
+
+PoseErrors pose_errors(const Sequence& seq, const Run& run) {
+  PoseErrors e;
+  int f0 = -1;
+  for (std::size_t i = 0; i < run.reports.size(); ++i)
+    if (run.reports[i].state == TrackingState::kStarted) {
+      f0 = static_cast<int>(i);
+      break;
+    }
+  if (f0 < 0 || seq.camera_from_model.size() != run.reports.size()) return e;
+  const Eigen::Isometry3d g0_inv = run.reports[f0].world_from_camera.isometry().inverse();
+  const Eigen::Isometry3d m0 = seq.camera_from_model[f0].isometry();
+  for (std::size_t k = f0; k < run.reports.size(); ++k) {
+    if (!run.reports[k].fused) continue;
+    const Eigen::Isometry3d truth = m0 * seq.camera_from_model[k].isometry().inverse();
+    const Eigen::Isometry3d tracked = g0_inv * run.reports[k].world_from_camera.isometry();
+    const Eigen::Isometry3d err = truth.inverse() * tracked;
+    Eigen::Vector3d face = Eigen::Vector3d::Zero();
+    if (k < seq.landmarks_3d.size() && !seq.landmarks_3d[k].empty()) {
+      for (const auto& p : seq.landmarks_3d[k]) face += p;
+      face /= static_cast<double>(seq.landmarks_3d[k].size());
+    }
+    const double mm = err.translation().norm();
+    const double deg = angle_deg(err.rotation());
+    const double face_mm = (err * face - face).norm();
+    e.max_mm = std::max(e.max_mm, mm);
+    e.max_deg = std::max(e.max_deg, deg);
+    e.face_max_mm = std::max(e.face_max_mm, face_mm);
+    e.mean_mm += mm;
+    e.mean_deg += deg;
+    e.face_mean_mm += face_mm;
+    ++e.frames;
+  }
+  if (e.frames > 0) {
+    e.mean_mm /= e.frames;
+    e.mean_deg /= e.frames;
+    e.face_mean_mm /= e.frames;
+  }
+  return e;
+}
+
+// Face region of the frontal frame: inside the convex hull of the 68 landmarks (brows to chin),
+// where the noiseless rendering has surface, inside the face box.
+cv::Mat face_region(const Sequence& seq, const FaceBox& box) {
+  const PinholeIntrinsics& k = seq.intrinsics;
+  cv::Mat mask = cv::Mat::zeros(k.height, k.width, CV_8U);
+  std::vector<cv::Point> points;
+  for (const auto& p : seq.frontal_landmarks_px)
+    points.emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+  if (points.size() < 3) return mask;
+  std::vector<cv::Point> hull;
+  cv::convexHull(points, hull);
+  cv::fillConvexPoly(mask, hull, cv::Scalar(255));
+  for (int y = 0; y < k.height; ++y)
+    for (int x = 0; x < k.width; ++x)
+      if (!box.contains(x, y) || seq.frontal_noiseless.empty() ||
+          seq.frontal_noiseless.at(x, y) <= 0.0f)
+        mask.at<std::uint8_t>(y, x) = 0;
+  return mask;
+}
+
+struct DepthErrors {
+  double fused_mae_mm = 0, raw_mae_mm = 0, fill = 0, fused_p95_mm = 0, raw_p95_mm = 0;
+  double fused_max_mm = 0, raw_max_mm = 0;
+  int face_pixels = 0;
+  cv::Mat fused_error, raw_error;  // CV_32F, NaN where no value
+};
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const std::size_t n = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + n, v.end());
+  return v[n];
+}
+
+DepthErrors depth_errors(const Sequence& seq, const SurfaceView& fused, const cv::Mat& region) {
+  DepthErrors e;
+  const PinholeIntrinsics& k = seq.intrinsics;
+  e.fused_error = cv::Mat(k.height, k.width, CV_32F, cv::Scalar(NAN));
+  e.raw_error = cv::Mat(k.height, k.width, CV_32F, cv::Scalar(NAN));
+  std::vector<double> fe, re;
+  const DepthImage& raw = seq.depth[seq.frontal];
+  for (int y = 0; y < k.height; ++y)
+    for (int x = 0; x < k.width; ++x) {
+      if (!region.at<std::uint8_t>(y, x)) continue;
+      ++e.face_pixels;
+      const double truth = seq.frontal_noiseless.at(x, y);
+      if (const float d = fused.depth_mm.at(x, y); d > 0.0f) {
+        fe.push_back(std::abs(d - truth));
+        e.fused_error.at<float>(y, x) = static_cast<float>(d - truth);
+      }
+      if (const std::uint16_t d = raw.at(x, y); d > 0) {
+        re.push_back(std::abs(d - truth));
+        e.raw_error.at<float>(y, x) = static_cast<float>(d - truth);
+      }
+    }
+  auto mean = [](const std::vector<double>& v) {
+    return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / v.size();
+  };
+  e.fused_mae_mm = mean(fe);
+  e.raw_mae_mm = mean(re);
+  e.fused_p95_mm = percentile(fe, 0.95);
+  e.raw_p95_mm = percentile(re, 0.95);
+  e.fused_max_mm = fe.empty() ? 0.0 : *std::max_element(fe.begin(), fe.end());
+  e.raw_max_mm = re.empty() ? 0.0 : *std::max_element(re.begin(), re.end());
+  e.fill = e.face_pixels > 0 ? static_cast<double>(fe.size()) / e.face_pixels : 0.0;
+  return e;
+}
+
+// Paper Fig. 2 style error map: |depth - truth| over the face, raw frame beside fused, with a
+// shared mm colour bar. Pixels without a value are dark grey; outside the face, black.
+Result<void> write_error_map(const std::filesystem::path& path, const DepthErrors& e,
+                             const FaceBox& box, double scale_mm) {
+  const int pad = 10;
+  auto panel = [&](const cv::Mat& err, const std::string& title, double mae) {
+    cv::Mat roi = err(cv::Rect(box.x, box.y, box.width, box.height));
+    cv::Mat out(box.height, box.width, CV_8UC3, cv::Scalar(0, 0, 0));
+    cv::Mat abs8(box.height, box.width, CV_8U, cv::Scalar(0));
+    cv::Mat has(box.height, box.width, CV_8U, cv::Scalar(0));
+    for (int y = 0; y < roi.rows; ++y)
+      for (int x = 0; x < roi.cols; ++x) {
+        const float v = roi.at<float>(y, x);
+        if (std::isnan(v)) continue;
+        abs8.at<std::uint8_t>(y, x) =
+            static_cast<std::uint8_t>(std::clamp(std::abs(v) / scale_mm, 0.0, 1.0) * 255.0);
+        has.at<std::uint8_t>(y, x) = 1;
+      }
+    cv::Mat colour;
+    cv::applyColorMap(abs8, colour, cv::COLORMAP_JET);
+    colour.copyTo(out, has);
+    cv::Mat big;
+    cv::resize(out, big, cv::Size(), 2.0, 2.0, cv::INTER_NEAREST);
+    cv::Mat framed(big.rows + 30, big.cols, CV_8UC3, cv::Scalar(255, 255, 255));
+    big.copyTo(framed(cv::Rect(0, 30, big.cols, big.rows)));
+    char text[128];
+    std::snprintf(text, sizeof text, "%s: mean %.2f mm", title.c_str(), mae);
+    cv::putText(framed, text, cv::Point(4, 20), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0),
+                1, cv::LINE_AA);
+    return framed;
+  };
+  const cv::Mat raw = panel(e.raw_error, "raw frame", e.raw_mae_mm);
+  const cv::Mat fused = panel(e.fused_error, "fused", e.fused_mae_mm);
+  // Colour bar: 0 .. scale_mm, ticks every scale/4.
+  const int bar_w = 70;
+  cv::Mat bar(raw.rows, bar_w, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int top = 40, bottom = raw.rows - 20;
+  for (int y = top; y <= bottom; ++y) {
+    const double v = static_cast<double>(bottom - y) / (bottom - top);
+    cv::Mat px(1, 1, CV_8U, cv::Scalar(static_cast<int>(v * 255.0)));
+    cv::Mat c;
+    cv::applyColorMap(px, c, cv::COLORMAP_JET);
+    cv::line(bar, cv::Point(4, y), cv::Point(22, y), cv::Scalar(c.at<cv::Vec3b>(0, 0)), 1);
+  }
+  for (int t = 0; t <= 4; ++t) {
+    const int y = bottom - (bottom - top) * t / 4;
+    char label[32];
+    std::snprintf(label, sizeof label, "%.1f%s", scale_mm * t / 4, t == 4 ? "+" : "");
+    cv::putText(bar, label, cv::Point(26, y + 4), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  cv::putText(bar, "mm", cv::Point(26, top - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::Mat row;
+  cv::Mat gap(raw.rows, pad, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::hconcat(std::vector<cv::Mat>{raw, gap, fused, gap, bar}, row);
+  try {
+    if (!cv::imwrite(path.string(), row)) return fail("could not write " + path.string());
+  } catch (const cv::Exception& ex) {
+    return fail("could not write " + path.string() + ": " + ex.what());
+  }
+  return success();
+}
+
+Result<void> write_ply(const std::filesystem::path& path, const TriangleMesh& mesh) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) return fail("cannot write " + path.string() + " (check the directory exists)");
+  out << "ply\nformat binary_little_endian 1.0\ncomment facebooth fused face (mm, first camera)\n"
+      << "element vertex " << mesh.vertices.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "property float nx\nproperty float ny\nproperty float nz\n"
+      << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\n"
+      << "end_header\n";
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    out.write(reinterpret_cast<const char*>(mesh.vertices[i].data()), 12);
+    out.write(reinterpret_cast<const char*>(mesh.normals[i].data()), 12);
+  }
+  for (const auto& t : mesh.triangles) {
+    const std::uint8_t n = 3;
+    out.write(reinterpret_cast<const char*>(&n), 1);
+    out.write(reinterpret_cast<const char*>(t.data()), 12);
+  }
+  if (!out) return fail("write error on " + path.string());
+  return success();
+}
+
+// A scratch directory removed on scope exit.
+class ScratchDirectory {
+ public:
+  explicit ScratchDirectory(const std::string& prefix) {
+    std::random_device seed;
+    path_ = std::filesystem::temp_directory_path() /
+            (prefix + std::to_string(std::mt19937_64(seed())()));
+    std::filesystem::create_directories(path_);
+  }
+  ~ScratchDirectory() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// The replay directory of a dump given as a directory or a .tar.xz (extracted to `scratch`).
+Result<std::filesystem::path> dump_directory(const std::filesystem::path& source,
+                                             const std::filesystem::path& scratch) {
+  if (std::filesystem::is_directory(source)) return source;
+  if (!std::filesystem::exists(source))
+    return fail("recording " + source.string() + " does not exist");
+  const std::string cmd =
+      "tar -xJf '" + source.string() + "' -C '" + scratch.string() + "' 2>/dev/null";
+  if (std::system(cmd.c_str()) != 0)
+    return fail("could not extract " + source.string() + " (needs tar with xz support)");
+  for (const auto& entry : std::filesystem::directory_iterator(scratch))
+    if (entry.is_directory()) return entry.path();
+  return fail(source.string() + " holds no dump directory");
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth eval fusion
+
+std::string synthetic_uri(const std::string& base, int seed, long long frames) {
+  std::string uri = base.empty() ? "synthetic:motion=headturn" : base;
+  uri += (uri.find(':') == uri.size() - 1 ? "" : ",");
+  return uri + "seed=" + std::to_string(seed) + ",frames=" + std::to_string(frames);
+}
+
+int run_eval_fusion(const ParsedOptions& options) {
+  auto seeds = options.get_int("seeds");
+  if (!seeds) return report_failure(seeds.error());
+  auto first_seed = options.get_int("first-seed");
+  if (!first_seed) return report_failure(first_seed.error());
+  auto frames = options.get_int("frames");
+  if (!frames) return report_failure(frames.error());
+  auto frontal = options.get_int("frontal-frame");
+  if (!frontal) return report_failure(frontal.error());
+  auto scale = options.get_double("error-scale-mm");
+  if (!scale) return report_failure(scale.error());
+  if (*seeds < 1 || *frames < 2 || *frontal < 0 || *frontal >= *frames || *scale <= 0)
+    return report_failure(
+        {"--seeds >= 1, --frames >= 2, 0 <= --frontal-frame < --frames and "
+         "--error-scale-mm > 0 are required"});
+  auto fusion_options = parse_fusion_options(options);
+  if (!fusion_options) return report_failure(fusion_options.error());
+
+  nlohmann::json result;
+  nlohmann::json per_seed = nlohmann::json::array();
+  PoseErrors worst;
+  double fused_sum = 0, raw_sum = 0, fill_min = 1.0, fill_sum = 0, fused_max_seed = 0;
+  int total_lost = 0;
+  FaceFusion fusion;
+  for (long long s = 0; s < *seeds; ++s) {
+    const int seed = static_cast<int>(*first_seed + s);
+    const std::string uri = synthetic_uri(options.get("synthetic"), seed, *frames);
+    std::cerr << "eval fusion: " << uri << " ...\n";
+    auto seq = load_sequence(uri, *frames, static_cast<int>(*frontal));
+    if (!seq) return report_failure(seq.error());
+    if (seq->camera_from_model.empty() || seq->frontal_noiseless.empty())
+      return report_failure({"camera '" + uri + "' has no ground truth; use a synthetic URI"});
+    auto box = parse_box(options.get("box"), seq->intrinsics);
+    if (!box) return report_failure(box.error());
+    auto run = run_fusion(fusion, *seq, *box, *fusion_options);
+    if (!run) return report_failure(run.error());
+    const PoseErrors pe = pose_errors(*seq, *run);
+    const RigidPose frontal_pose = run->reports[seq->frontal].world_from_camera;
+    const SurfaceView view = fusion.render(frontal_pose);
+    const cv::Mat region = face_region(*seq, *box);
+    const DepthErrors de = depth_errors(*seq, view, region);
+    nlohmann::json j;
+    j["seed"] = seed;
+    j["uri"] = uri;
+    j["frames"] = seq->depth.size();
+    j["fused_frames"] = run->fused;
+    j["lost_frames"] = run->lost;
+    j["pose_error_mm_max"] = pe.max_mm;
+    j["pose_error_mm_mean"] = pe.mean_mm;
+    j["pose_error_deg_max"] = pe.max_deg;
+    j["pose_error_deg_mean"] = pe.mean_deg;
+    j["face_point_error_mm_max"] = pe.face_max_mm;
+    j["face_point_error_mm_mean"] = pe.face_mean_mm;
+    j["fused_depth_mae_mm"] = de.fused_mae_mm;
+    j["fused_depth_p95_mm"] = de.fused_p95_mm;
+    j["fused_depth_max_mm"] = de.fused_max_mm;
+    j["raw_depth_mae_mm"] = de.raw_mae_mm;
+    j["raw_depth_p95_mm"] = de.raw_p95_mm;
+    j["raw_depth_max_mm"] = de.raw_max_mm;
+    j["fill_fraction"] = de.fill;
+    j["face_pixels"] = de.face_pixels;
+    j["box"] = {box->x, box->y, box->width, box->height};
+    per_seed.push_back(j);
+    std::cerr << "  pose max " << pe.max_mm << " mm " << pe.max_deg << " deg; fused "
+              << de.fused_mae_mm << " mm vs raw " << de.raw_mae_mm << " mm; fill " << de.fill
+              << "; lost " << run->lost << "\n";
+    worst.max_mm = std::max(worst.max_mm, pe.max_mm);
+    worst.max_deg = std::max(worst.max_deg, pe.max_deg);
+    worst.face_max_mm = std::max(worst.face_max_mm, pe.face_max_mm);
+    worst.mean_mm += pe.mean_mm / *seeds;
+    worst.mean_deg += pe.mean_deg / *seeds;
+    fused_sum += de.fused_mae_mm;
+    fused_max_seed = std::max(fused_max_seed, de.fused_mae_mm);
+    raw_sum += de.raw_mae_mm;
+    fill_min = std::min(fill_min, de.fill);
+    fill_sum += de.fill;
+    total_lost += run->lost;
+    if (s == 0) {
+      const std::filesystem::path png = options.get("png");
+      if (!png.empty()) {
+        if (auto ok = write_error_map(png, de, *box, *scale); !ok)
+          return report_failure(ok.error());
+        result["error_map_png"] = std::filesystem::absolute(png).string();
+        std::cerr << "  error map: " << png.string() << "\n";
+      }
+      const std::filesystem::path mesh_path = options.get("mesh");
+      if (!mesh_path.empty()) {
+        const TriangleMesh mesh = fusion.extract_mesh();
+        if (auto ok = write_ply(mesh_path, mesh); !ok) return report_failure(ok.error());
+        result["synthetic_mesh_ply"] = std::filesystem::absolute(mesh_path).string();
+        result["synthetic_mesh_triangles"] = mesh.triangles.size();
+      }
+    }
+  }
+  result["seeds"] = *seeds;
+  result["frames_per_seed"] = *frames;
+  result["pose_error_definition"] =
+      "relative to the first frame: E = (M0 Mk^-1)^-1 (G0^-1 Gk); mm = |translation of E| "
+      "(camera centre), deg = angle of E; face_point = displacement of the landmark centroid";
+  result["pose_error_mm_max"] = worst.max_mm;
+  result["pose_error_deg_max"] = worst.max_deg;
+  result["pose_error_mm_mean"] = worst.mean_mm;
+  result["pose_error_deg_mean"] = worst.mean_deg;
+  result["face_point_error_mm_max"] = worst.face_max_mm;
+  result["fused_depth_mae_mm"] = fused_sum / *seeds;
+  result["fused_depth_mae_mm_worst_seed"] = fused_max_seed;
+  result["raw_depth_mae_mm"] = raw_sum / *seeds;
+  result["fill_fraction"] = fill_sum / *seeds;
+  result["fill_fraction_min"] = fill_min;
+  result["lost_frames"] = total_lost;
+  result["per_seed"] = per_seed;
+
+  // The real dump: must run to the end without losing track, and give a mesh.
+  const std::string real = options.get("real");
+  if (real != "off") {
+    ScratchDirectory scratch("facebooth-eval-fusion-");
+    auto dir = dump_directory(real, scratch.path());
+    if (!dir) return report_failure(dir.error());
+    const std::string uri = "replay:" + dir->string();
+    std::cerr << "eval fusion: real dump " << uri << " ...\n";
+    auto seq = load_sequence(uri, 1 << 20, 0);
+    if (!seq) return report_failure(seq.error());
+    auto box = parse_box(options.get("real-box"), seq->intrinsics);
+    if (!box) return report_failure(box.error());
+    FusionOptions real_options = *fusion_options;
+    auto run = run_fusion(fusion, *seq, *box, real_options);
+    if (!run) return report_failure(run.error());
+    nlohmann::json j;
+    j["uri"] = real;
+    j["frames"] = seq->depth.size();
+    j["fused_frames"] = run->fused;
+    j["lost_frames"] = run->lost;
+    j["lost_frame_indices"] = run->lost_frames;
+    j["box"] = {box->x, box->y, box->width, box->height};
+    double max_step_mm = 0, max_step_deg = 0;
+    for (std::size_t i = 1; i < run->reports.size(); ++i) {
+      const Eigen::Isometry3d d = run->reports[i - 1].world_from_camera.isometry().inverse() *
+                                  run->reports[i].world_from_camera.isometry();
+      max_step_mm = std::max(max_step_mm, d.translation().norm());
+      max_step_deg = std::max(max_step_deg, angle_deg(d.rotation()));
+    }
+    const Eigen::Isometry3d last = run->reports.back().world_from_camera.isometry();
+    j["final_camera_translation_mm"] = last.translation().norm();
+    j["final_camera_rotation_deg"] = angle_deg(last.rotation());
+    j["max_frame_step_mm"] = max_step_mm;
+    j["max_frame_step_deg"] = max_step_deg;
+    j["ran_to_end"] = run->reports.size() == seq->depth.size();
+    const TriangleMesh mesh = fusion.extract_mesh();
+    j["mesh_triangles"] = mesh.triangles.size();
+    const std::filesystem::path mesh_path = options.get("real-mesh");
+    if (!mesh_path.empty()) {
+      if (auto ok = write_ply(mesh_path, mesh); !ok) return report_failure(ok.error());
+      j["mesh_ply"] = std::filesystem::absolute(mesh_path).string();
+    }
+    std::cerr << "  " << run->fused << "/" << seq->depth.size() << " fused, " << run->lost
+              << " lost, mesh " << mesh.triangles.size() << " triangles\n";
+    result["real_dump"] = j;
+  }
+  nlohmann::json targets;
+  targets["pose_error_mm_max"] = 1.0;
+  targets["pose_error_deg_max"] = 0.5;
+  targets["fused_depth_mae_mm"] = 0.5;
+  result["targets"] = targets;
+  result["meets_targets"] =
+      worst.max_mm <= 1.0 && worst.max_deg <= 0.5 && fused_sum / *seeds <= 0.5;
+  std::cout << result.dump(2) << std::endl;
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth bench fusion
+
+struct Timing {
+  StageTimes cpu;   // mean per timed frame, calling thread's CPU time
+  StageTimes wall;  // mean per timed frame
+  int timed = 0;
+};
+
+// Frames 0 and 1 are left out (volume placement, first model, cold caches).
+Timing time_run(const Run& run) {
+  Timing t;
+  for (std::size_t i = 2; i < run.reports.size(); ++i) {
+    const FrameReport& r = run.reports[i];
+    if (!r.fused) continue;
+    t.cpu.preprocess_ms += r.cpu_times.preprocess_ms;
+    t.cpu.track_ms += r.cpu_times.track_ms;
+    t.cpu.integrate_ms += r.cpu_times.integrate_ms;
+    t.cpu.raycast_ms += r.cpu_times.raycast_ms;
+    t.wall.preprocess_ms += r.times.preprocess_ms;
+    t.wall.track_ms += r.times.track_ms;
+    t.wall.integrate_ms += r.times.integrate_ms;
+    t.wall.raycast_ms += r.times.raycast_ms;
+    ++t.timed;
+  }
+  const double n = std::max(1, t.timed);
+  for (StageTimes* s : {&t.cpu, &t.wall}) {
+    s->preprocess_ms /= n;
+    s->track_ms /= n;
+    s->integrate_ms /= n;
+    s->raycast_ms /= n;
+  }
+  return t;
+}
+
+nlohmann::json stage_json(const StageTimes& s) {
+  return {{"preprocess_ms", s.preprocess_ms},
+          {"icp_ms", s.track_ms},
+          {"integrate_ms", s.integrate_ms},
+          {"raycast_ms", s.raycast_ms},
+          {"icp_integrate_raycast_ms", s.track_ms + s.integrate_ms + s.raycast_ms},
+          {"total_ms", s.total_ms()}};
+}
+
+std::filesystem::path self_directory() {
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::filesystem::path() : exe.parent_path();
+}
+
+std::string open3d_bench_path(const std::string& option) {
+  if (!option.empty()) return option;
+  const auto self = self_directory();
+  for (const auto& candidate :
+       {self / "facebooth-bench-open3d",
+        self / ".." / ".." / "bench" / "fusion_open3d" / "facebooth-bench-open3d"})
+    if (std::filesystem::exists(candidate)) return candidate.string();
+#ifdef FB_OPEN3D_BENCH_PATH
+  if (std::filesystem::exists(FB_OPEN3D_BENCH_PATH)) return FB_OPEN3D_BENCH_PATH;
+#endif
+  return {};
+}
+
+// Runs a command with OMP_NUM_THREADS=1 and returns its stdout.
+Result<std::string> capture_output(const std::string& command) {
+  const std::string full = "OMP_NUM_THREADS=1 " + command;
+  FILE* pipe = popen(full.c_str(), "r");
+  if (!pipe) return fail("could not run " + command);
+  std::string out;
+  char buffer[65536];
+  std::size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  const int status = pclose(pipe);
+  if (status != 0)
+    return fail("'" + command + "' failed (exit status " + std::to_string(WEXITSTATUS(status)) +
+                ")");
+  return out;
+}
+
+Result<void> write_frames_file(const std::filesystem::path& path, const Sequence& seq,
+                               const FaceBox& box, const FaceFusion& fusion) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) return fail("cannot write " + path.string());
+  const PinholeIntrinsics& k = seq.intrinsics;
+  const FusionOptions& o = fusion.options();
+  // Depth gate as ours, with the far bound at the back of our volume (the wall behind the head
+  // is outside the volume for us, so it must not be integrated by Open3D either).
+  const double far = fusion.volume().origin().z() + fusion.volume().size_mm();
+  out << "FBDEPTH1 " << k.width << ' ' << k.height << ' ' << seq.depth.size() << ' ' << k.fx << ' '
+      << k.fy << ' ' << k.cx << ' ' << k.cy << ' ' << box.x << ' ' << box.y << ' ' << box.width
+      << ' ' << box.height << ' ' << o.min_depth_mm << ' ' << std::min<double>(far, o.max_depth_mm)
+      << ' ' << fusion.volume().voxel_size() << ' ' << o.truncation_mm << '\n';
+  for (const auto& d : seq.depth)
+    out.write(reinterpret_cast<const char*>(d.pixels.data()),
+              static_cast<std::streamsize>(d.pixels.size() * 2));
+  if (!out) return fail("write error on " + path.string());
+  return success();
+}
+
+int run_bench_fusion(const ParsedOptions& options) {
+  auto frames = options.get_int("frames");
+  if (!frames) return report_failure(frames.error());
+  auto seed = options.get_int("seed");
+  if (!seed) return report_failure(seed.error());
+  auto repeats = options.get_int("repeats");
+  if (!repeats) return report_failure(repeats.error());
+  if (*frames < 4 || *repeats < 1)
+    return report_failure({"--frames must be at least 4 and --repeats at least 1"});
+  auto fusion_options = parse_fusion_options(options);
+  if (!fusion_options) return report_failure(fusion_options.error());
+  const std::string camera = options.get("camera");
+  const std::string uri =
+      camera.empty() ? synthetic_uri("", static_cast<int>(*seed), *frames) : camera;
+  std::cerr << "bench fusion: loading " << uri << " ...\n";
+  auto seq = load_sequence(uri, *frames, 0);
+  if (!seq) return report_failure(seq.error());
+  auto box = parse_box(options.get("box"), seq->intrinsics);
+  if (!box) return report_failure(box.error());
+
+  nlohmann::json result;
+  result["source"] = uri;
+  result["frames"] = seq->depth.size();
+  result["box"] = {box->x, box->y, box->width, box->height};
+  result["volume_mm"] = fusion_options->volume_size_mm;
+  result["resolution"] = fusion_options->volume_resolution;
+  result["truncation_mm"] = fusion_options->truncation_mm;
+
+  // One thread: the device figure. Best of `repeats` runs (the host is shared; the minimum is
+  // the least disturbed one).
+  FaceFusion fusion;
+  Timing best1;
+  double best1_total = 1e30;
+  Run last_run;
+  for (long long r = 0; r < *repeats; ++r) {
+    FusionOptions o = *fusion_options;
+    o.threads = 1;
+    std::cerr << "bench fusion: 1 thread, run " << r + 1 << "/" << *repeats << " ...\n";
+    auto run = run_fusion(fusion, *seq, *box, o);
+    if (!run) return report_failure(run.error());
+    const Timing t = time_run(*run);
+    if (t.cpu.track_ms + t.cpu.integrate_ms + t.cpu.raycast_ms < best1_total) {
+      best1_total = t.cpu.track_ms + t.cpu.integrate_ms + t.cpu.raycast_ms;
+      best1 = t;
+    }
+    last_run = std::move(*run);
+  }
+  const PoseErrors pe = pose_errors(*seq, last_run);
+  result["ms_per_frame"] = best1.cpu.track_ms + best1.cpu.integrate_ms + best1.cpu.raycast_ms;
+  result["ms_per_frame_definition"] =
+      "ICP + integrate + ray-cast, one thread, CPU time of that thread, mean over frames 2..N, "
+      "best of --repeats runs; preprocessing (bilateral, pyramid, maps) listed separately";
+  result["ms_per_frame_with_preprocess"] = best1.cpu.total_ms();
+  result["stages_1thread_cpu"] = stage_json(best1.cpu);
+  result["stages_1thread_wall"] = stage_json(best1.wall);
+  result["timed_frames"] = best1.timed;
+  result["lost_frames"] = last_run.lost;
+  if (pe.frames > 0) {
+    result["pose_error_mm_max"] = pe.max_mm;
+    result["pose_error_deg_max"] = pe.max_deg;
+  }
+  result["tsdf_memory_mb"] = static_cast<double>(fusion.volume().memory_bytes()) / (1 << 20);
+
+  // Two threads: wall time (CPU time of one thread says nothing about a split).
+  {
+    FusionOptions o = *fusion_options;
+    o.threads = 2;
+    Timing best2;
+    double best2_total = 1e30;
+    for (long long r = 0; r < *repeats; ++r) {
+      std::cerr << "bench fusion: 2 threads, run " << r + 1 << "/" << *repeats << " ...\n";
+      auto run = run_fusion(fusion, *seq, *box, o);
+      if (!run) return report_failure(run.error());
+      const Timing t = time_run(*run);
+      const double total = t.wall.track_ms + t.wall.integrate_ms + t.wall.raycast_ms;
+      if (total < best2_total) {
+        best2_total = total;
+        best2 = t;
+      }
+    }
+    result["ms_per_frame_2threads"] = best2_total;
+    result["stages_2threads_wall"] = stage_json(best2.wall);
+  }
+
+  // Open3D on the same frames, box, voxel size and truncation.
+  const std::string peer = open3d_bench_path(options.get("open3d"));
+  if (options.get("open3d") == "off") {
+    result["open3d"] = "skipped (--open3d off)";
+  } else if (peer.empty()) {
+    result["open3d"] = "not built (install libopen3d-dev and rebuild facebooth-bench-open3d)";
+  } else {
+    ScratchDirectory scratch("facebooth-bench-fusion-");
+    // Re-run once so that the volume placement written out is the one of a full run.
+    FusionOptions o = *fusion_options;
+    o.threads = 1;
+    auto run = run_fusion(fusion, *seq, *box, o);
+    if (!run) return report_failure(run.error());
+    const auto frames_file = scratch.path() / "frames.fbdepth";
+    if (auto ok = write_frames_file(frames_file, *seq, *box, fusion); !ok)
+      return report_failure(ok.error());
+    std::cerr << "bench fusion: Open3D (" << peer << ", 1 thread) ...\n";
+    auto out = capture_output("'" + peer + "' '" + frames_file.string() + "'");
+    if (!out) return report_failure(out.error());
+    nlohmann::json o3d;
+    try {
+      o3d = nlohmann::json::parse(*out);
+    } catch (const std::exception& e) {
+      return report_failure({std::string("Open3D bench printed no JSON: ") + e.what()});
+    }
+    const double o3d_ms = o3d.value("ms_per_frame", 0.0);
+    result["open3d_ms_per_frame"] = o3d_ms;
+    result["open3d_wall_ms_per_frame"] = o3d.value("wall_ms_per_frame", 0.0);
+    result["open3d_stages_cpu"] = {{"odometry_ms", o3d.value("odometry_ms", 0.0)},
+                                   {"integrate_ms", o3d.value("integrate_ms", 0.0)},
+                                   {"raycast_ms", o3d.value("raycast_ms", 0.0)}};
+    result["open3d_version"] = o3d.value("open3d_version", "");
+    result["open3d_peak_rss_mb"] = o3d.value("peak_rss_mb", 0.0);
+    result["open3d_tracked_frames"] = o3d.value("tracked_frames", 0);
+    const double ours = result["ms_per_frame"].get<double>();
+    result["speedup_vs_open3d"] = ours > 0 ? o3d_ms / ours : 0.0;
+    // Open3D's own tracking accuracy on these frames (so the comparison is not against a
+    // pipeline that lost track), in the same relative-pose terms as ours.
+    if (!seq->camera_from_model.empty() && o3d.contains("poses_world_from_camera")) {
+      Run o3d_run;
+      for (const auto& p : o3d["poses_world_from_camera"]) {
+        Eigen::Matrix4d m;
+        for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = p[i].get<double>();
+        FrameReport r;
+        r.fused = true;
+        r.state = o3d_run.reports.empty() ? TrackingState::kStarted : TrackingState::kTracking;
+        r.world_from_camera.rotation = Eigen::Quaterniond(m.block<3, 3>(0, 0)).normalized();
+        r.world_from_camera.translation = m.block<3, 1>(0, 3) * 1000.0;  // m -> mm
+        o3d_run.reports.push_back(r);
+      }
+      const PoseErrors e = pose_errors(*seq, o3d_run);
+      result["open3d_pose_error_mm_max"] = e.max_mm;
+      result["open3d_pose_error_deg_max"] = e.max_deg;
+    }
+  }
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  result["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  result["peak_rss_note"] =
+      "whole facebooth process: TSDF volume, all frames held in memory, the synthetic renderer";
+  result["threads"] = 1;
+  result["budget_ms_per_frame"] = 8.0;
+  result["budget_speedup"] = 5.0;
+  std::cout << result.dump(2) << std::endl;
+  return kExitOk;
+}
+
+}  // namespace
+
+std::vector<Command> fusion_commands() {
+  std::vector<OptionSpec> eval_options = {
+      {"seeds", "N", "synthetic head-turn sequences (seeds first-seed..first-seed+N-1)", "5"},
+      {"first-seed", "N", "first synthetic seed", "0"},
+      {"frames", "N", "frames per sequence", "90"},
+      {"synthetic", "URI", "base synthetic URI (seed and frames are appended)",
+       "synthetic:motion=headturn"},
+      {"frontal-frame", "N", "frame whose fused depth is scored", "0"},
+      {"png", "PATH", "error map of the first seed (raw vs fused, mm colour scale)",
+       "fusion_error.png"},
+      {"error-scale-mm", "MM", "top of the error map's colour scale", "2"},
+      {"mesh", "PATH", "write the first seed's fused mesh as PLY (empty: none)", ""},
+      {"real", "PATH", "real fakenect dump (directory or .tar.xz), or off", FB_REAL_DUMP_DEFAULT},
+      {"real-box", "X,Y,W,H", "face box for the real dump (default: the kiosk rectangle)", ""},
+      {"real-mesh", "PATH", "PLY mesh written from the real dump", "fusion_real_mesh.ply"},
+      {"json", "", "print JSON (the only output format; accepted for symmetry)", ""},
+  };
+  std::vector<OptionSpec> bench_options = {
+      {"frames", "N", "frames of the synthetic head turn", "90"},
+      {"seed", "N", "synthetic seed", "0"},
+      {"camera", "URI", "time these frames instead (any camera URI)", ""},
+      {"repeats", "N", "runs per configuration; the fastest is reported", "3"},
+      {"open3d", "PATH",
+       "the facebooth-bench-open3d executable, or off (default: found next "
+       "to facebooth or in the build tree)",
+       ""},
+      {"json", "", "print JSON (the only output format; accepted for symmetry)", ""},
+  };
+  for (const auto& o : fusion_option_specs()) {
+    eval_options.push_back(o);
+    bench_options.push_back(o);
+  }
+  return {
+      {{"eval fusion",
+        "score the face-box KinectFusion against synthetic ground truth and on the real dump",
+        "Prints one JSON object on stdout: pose_error_mm_max, pose_error_deg_max (relative to the "
+        "first frame), fused_depth_mae_mm beside raw_depth_mae_mm (frontal frame, landmark-hull "
+        "face region), fill_fraction, per-seed figures, and the real dump's run (lost frames, "
+        "mesh). Writes the error map PNG and PLY meshes.",
+        eval_options},
+       run_eval_fusion},
+      {{"bench fusion",
+        "per-frame fusion time by stage (1 and 2 threads) beside Open3D on the same frames",
+        "Prints one JSON object on stdout: ms_per_frame (ICP + integrate + ray-cast, one thread, "
+        "CPU time), ms_per_frame_2threads (wall), open3d_ms_per_frame, speedup_vs_open3d, "
+        "peak_rss_mb and the per-stage split.",
+        bench_options},
+       run_bench_fusion},
+  };
+}
+
 }  // namespace fb::cli

@@ -28,8 +28,8 @@ void print_overview(std::ostream& out, const std::vector<Command>& commands) {
          "commands:\n";
   for (const auto& command : commands) {
     std::string left = "  " + command.spec.path;
-    out << left << std::string(left.size() < 26 ? 26 - left.size() : 1, ' ')
-        << command.spec.summary << "\n";
+    out << left << std::string(left.size() < 26 ? 26 - left.size() : 1, ' ') << command.spec.summary
+        << "\n";
   }
   out << "\n'facebooth <command> --help' describes a command's options.\n";
 }

@@ -23,6 +23,7 @@
 
 #include "algo/sensor/kinect_calibration.hpp"
 #include "drivers/camera/common/device_json.hpp"
+#include "drivers/camera/recorder/recorder.hpp"
 
 // Counts C++ heap allocations per thread, to check that steady-state next_frame() allocates
 // nothing on the caller's thread.
@@ -262,6 +263,12 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
   EXPECT_DOUBLE_EQ(camera.info().calibration.zero_plane_info.reference_pixel_size,
                    calibration->zero_plane_info.reference_pixel_size);
 
+  // The replay backend reads the same dump directly; freenect+fakenect must agree with it.
+  auto replay = open_camera("replay:" + dir.string());
+  ASSERT_TRUE(replay.ok()) << replay.error().message;
+  ASSERT_TRUE((*replay)->start().ok());
+  RgbdFrame replayed;
+
   ASSERT_TRUE(camera.start().ok());
   RgbdFrame frame;
   DisparityImage file_raw;
@@ -269,6 +276,8 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
   const std::uint16_t* depth_buffer = nullptr;
   int frames = 0;
   int coloured = 0;
+  double first_arrival = 0.0;  // host times of the depth callbacks
+  double last_arrival = 0.0;
   const auto started = std::chrono::steady_clock::now();
   for (;;) {
     const auto status = camera.next_frame(frame, 2000ms);
@@ -283,6 +292,13 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
     EXPECT_EQ(count_mismatches(frame.raw_disparity.pixels, file_raw.pixels), 0u) << file->second;
     reference.disparity_to_mm(file_raw, expected_mm);
     EXPECT_EQ(count_mismatches(frame.depth_mm.pixels, expected_mm.pixels), 0u) << file->second;
+    const auto replay_status = (*replay)->next_frame(replayed, 1000ms);
+    ASSERT_TRUE(replay_status.ok()) << replay_status.error().message;
+    ASSERT_EQ(*replay_status, FrameStatus::kFrame);
+    EXPECT_EQ(replayed.depth_device_timestamp, frame.depth_device_timestamp);
+    EXPECT_EQ(count_mismatches(frame.depth_mm.pixels, replayed.depth_mm.pixels), 0u)
+        << "freenect and replay disagree on " << file->second;
+    EXPECT_EQ(frame.color_device_timestamp, replayed.color_device_timestamp);
 
     // Plausible depth for a desk scene: mostly valid, between 0.4 m and 8 m.
     std::vector<std::uint16_t> valid;
@@ -299,6 +315,8 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
     coloured += std::any_of(frame.color.pixels.begin(), frame.color.pixels.end(),
                             [](const Rgb8& p) { return p.r != 0 || p.g != 0 || p.b != 0; });
     // The caller's buffers are reused: steady state does not reallocate them.
+    if (frames == 0) first_arrival = frame.depth_host_time_s;
+    last_arrival = frame.depth_host_time_s;
     if (depth_buffer == nullptr) depth_buffer = frame.depth_mm.pixels.data();
     EXPECT_EQ(frame.depth_mm.pixels.data(), depth_buffer);
     ++frames;
@@ -306,9 +324,13 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
   const double elapsed = seconds_since(started);
   EXPECT_EQ(frames, 90);
   EXPECT_EQ(coloured, frames);  // INDEX.txt starts with a colour frame
-  std::cout << "freenect+fakenect: " << frames << " frames in " << elapsed
-            << " s = " << frames / elapsed << " fps (fakenect replays the recorded timing)\n";
-  RecordProperty("fps", std::to_string(frames / elapsed));
+  // fakenect replays the recorded timing (90 depth frames over 2.975 s = 29.9 fps); the arrival
+  // rate is what the backend delivers, the loop rate includes this test's checks.
+  const double arrival_fps = (frames - 1) / (last_arrival - first_arrival);
+  std::cout << "freenect+fakenect: " << frames << " frames, arriving at " << arrival_fps
+            << " fps; test loop " << elapsed << " s = " << frames / elapsed << " fps\n";
+  RecordProperty("arrival_fps", std::to_string(arrival_fps));
+  EXPECT_GT(arrival_fps, 20.0);
 
   // The end is sticky.
   const auto again = camera.next_frame(frame, 10ms);
@@ -429,50 +451,54 @@ TEST_F(FakenectPlayback, SecondPlaybackInOneProcessIsAClearError) {
       << status.error().message;
 }
 
-// Synthetic frames written as a fakenect dump (raw disparity + device.json) and played through
-// freenect+fakenect come back with the same disparity and, in millimetres, within the
-// quantisation of one disparity step.
-TEST_F(FakenectPlayback, SyntheticTakeRoundTrip) {
+// A synthetic take recorded by the project's recorder (raw disparity + device.json) and played
+// through freenect+fakenect comes back with the same disparity and, in millimetres, within the
+// quantisation of one disparity step of the synthetic depth.
+TEST_F(FakenectPlayback, SyntheticTakeRecordedAndPlayedThroughFakenect) {
   auto synthetic = open_camera("synthetic:seed=1,frames=10");
   if (!synthetic.ok()) {
     GTEST_SKIP() << "the synthetic backend is not available: " << synthetic.error().message;
   }
   CLAIM_FAKENECT_INDEX();
   DepthCamera& source = **synthetic;
-  ASSERT_TRUE(source.start().ok());
   const KinectRegistration source_registration(source.info().calibration);
-  std::vector<RgbdFrame> truth;
   const fs::path dir = tmp_.path() / "synthetic";
-  fs::create_directories(dir);
-  {
-    DumpWriter writer(dir);
-    for (;;) {
-      RgbdFrame frame;
-      const auto status = source.next_frame(frame, 5000ms);
-      ASSERT_TRUE(status.ok()) << status.error().message;
-      if (*status == FrameStatus::kEndOfStream) break;
-      if (*status == FrameStatus::kTimeout) continue;
-      if (frame.raw_disparity.empty()) {
-        source_registration.mm_to_disparity(frame.depth_mm, frame.raw_disparity);
-      }
-      const double t = 1000.0 + static_cast<double>(truth.size()) / 30.0;
-      const auto ts = static_cast<std::uint32_t>(truth.size() * 2'000'000);
-      writer.color(t - 0.001, ts, frame.color);
-      writer.depth(t, ts, frame.raw_disparity);
-      truth.push_back(std::move(frame));
+  auto recorder = FakenectRecorder::create(dir, source.info());
+  ASSERT_TRUE(recorder.ok()) << recorder.error().message;
+  ASSERT_TRUE(source.start().ok());
+  std::vector<RgbdFrame> truth;
+  for (;;) {
+    RgbdFrame frame;
+    const auto status = source.next_frame(frame, 5000ms);
+    ASSERT_TRUE(status.ok()) << status.error().message;
+    if (*status == FrameStatus::kEndOfStream) break;
+    if (*status == FrameStatus::kTimeout) continue;
+    const auto written = recorder->write(frame);
+    ASSERT_TRUE(written.ok()) << written.error().message;
+    if (frame.raw_disparity.empty()) {  // what the recorder stored
+      source_registration.mm_to_disparity(frame.depth_mm, frame.raw_disparity);
     }
+    truth.push_back(std::move(frame));
   }
+  source.stop();
+  const auto summary = recorder->finish();
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
   ASSERT_EQ(truth.size(), 10u);
-  ASSERT_TRUE(write_device_json(dir / "device.json", source.info().calibration).ok());
+  EXPECT_EQ(summary->depth_frames, 10);
 
   use_dump(dir);
   auto opened = open_freenect("0");
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   DepthCamera& camera = **opened;
   EXPECT_EQ(camera.info().frame_count, 10);
+  EXPECT_EQ(camera.info().calibration.const_shift, source.info().calibration.const_shift);
+  EXPECT_EQ(camera.info().calibration.reg_info.dx_start,
+            source.info().calibration.reg_info.dx_start);
   ASSERT_TRUE(camera.start().ok());
   RgbdFrame frame;
   std::size_t played = 0;
+  std::size_t valid = 0;
+  std::size_t identical = 0;
   for (;;) {
     const auto status = camera.next_frame(frame, 2000ms);
     ASSERT_TRUE(status.ok()) << status.error().message;
@@ -480,16 +506,20 @@ TEST_F(FakenectPlayback, SyntheticTakeRoundTrip) {
     ASSERT_EQ(*status, FrameStatus::kFrame);
     ASSERT_LT(played, truth.size());
     const RgbdFrame& expected = truth[played];
-    EXPECT_EQ(count_mismatches(frame.raw_disparity.pixels, expected.raw_disparity.pixels), 0u);
+    EXPECT_EQ(count_mismatches(frame.raw_disparity.pixels, expected.raw_disparity.pixels), 0u)
+        << "frame " << played;
     std::size_t beyond_quantisation = 0;
     for (std::size_t i = 0; i < frame.depth_mm.pixels.size(); ++i) {
       const int got = frame.depth_mm.pixels[i];
       const int want = expected.depth_mm.pixels[i];
-      const int raw = frame.raw_disparity.pixels[i];
       if (got == 0 || want == 0) {
         beyond_quantisation += got != want;
         continue;
       }
+      ++valid;
+      identical += got == want;
+      // One disparity step around this raw value, in mm.
+      const int raw = frame.raw_disparity.pixels[i];
       const int up =
           source_registration.raw_to_mm(static_cast<std::uint16_t>(std::min(raw + 1, 2046)));
       const int down =
@@ -501,6 +531,9 @@ TEST_F(FakenectPlayback, SyntheticTakeRoundTrip) {
     ++played;
   }
   EXPECT_EQ(played, truth.size());
+  EXPECT_GT(valid, 0u);
+  std::cout << "synthetic -> recorder -> fakenect -> freenect: " << identical << " of " << valid
+            << " valid depth pixels identical in mm, the rest within one disparity step\n";
 }
 
 TEST_F(FakenectDumpCheck, CalibrationSources) {

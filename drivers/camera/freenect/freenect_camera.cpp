@@ -363,12 +363,17 @@ class FreenectCamera final : public DepthCamera {
   // next_frame() swaps a pending image with its own (no allocation, no copy under the lock) and
   // converts outside the lock. A pending depth frame that is overwritten before it was taken
   // is dropped; the stream index in RgbdFrame::index shows the gap.
+  // Colour has a third buffer: each depth frame latches the latest colour image that arrived
+  // before it, so a slow consumer does not pair depth with a later colour image (the same
+  // pairing as the replay backend: the last colour entry before the depth entry).
   std::mutex mu_;
   std::condition_variable arrived_;
   DisparityImage pending_depth_;
-  ColorImage pending_color_;
+  ColorImage pending_color_;  // newest colour image from the device
+  ColorImage latched_color_;  // the colour image belonging to pending_depth_
   bool depth_ready_ = false;
-  bool color_ready_ = false;
+  bool color_ready_ = false;    // pending_color_ is newer than latched_color_
+  bool latched_ready_ = false;  // latched_color_ is newer than the consumer's color_
   bool color_seen_ = false;
   std::uint64_t depth_sequence_ = 0;  // depth callbacks so far
   std::uint64_t pending_index_ = 0;
@@ -376,6 +381,8 @@ class FreenectCamera final : public DepthCamera {
   std::uint32_t pending_color_timestamp_ = 0;
   double pending_depth_time_ = 0.0;
   double pending_color_time_ = 0.0;
+  std::uint32_t latched_color_timestamp_ = 0;
+  double latched_color_time_ = 0.0;
   bool events_ended_ = false;
   int events_rc_ = 0;
 
@@ -466,6 +473,7 @@ Result<std::unique_ptr<DepthCamera>> FreenectCamera::open(std::string_view argum
   camera->pending_depth_.resize(kKinectWidth, kKinectHeight);
   camera->depth_.resize(kKinectWidth, kKinectHeight);
   camera->pending_color_.resize(kKinectWidth, kKinectHeight);
+  camera->latched_color_.resize(kKinectWidth, kKinectHeight);
   camera->color_.resize(kKinectWidth, kKinectHeight);
 
   CameraInfo& info = camera->info_;
@@ -505,6 +513,13 @@ void FreenectCamera::on_depth(freenect_device* device, void* data, std::uint32_t
     self->pending_depth_timestamp_ = timestamp;
     self->pending_depth_time_ = now;
     self->depth_ready_ = true;
+    if (self->color_ready_) {
+      std::swap(self->latched_color_.pixels, self->pending_color_.pixels);
+      self->latched_color_timestamp_ = self->pending_color_timestamp_;
+      self->latched_color_time_ = self->pending_color_time_;
+      self->color_ready_ = false;
+      self->latched_ready_ = true;
+    }
   }
   self->arrived_.notify_one();
 }
@@ -616,12 +631,12 @@ Result<FrameStatus> FreenectCamera::next_frame(RgbdFrame& frame,
   frame.index = pending_index_;
   frame.depth_device_timestamp = pending_depth_timestamp_;
   frame.depth_host_time_s = pending_depth_time_;
-  const bool new_color = color_ready_;
+  const bool new_color = latched_ready_;
   if (new_color) {
-    std::swap(color_.pixels, pending_color_.pixels);
-    color_ready_ = false;
-    color_timestamp_ = pending_color_timestamp_;
-    color_time_ = pending_color_time_;
+    std::swap(color_.pixels, latched_color_.pixels);
+    latched_ready_ = false;
+    color_timestamp_ = latched_color_timestamp_;
+    color_time_ = latched_color_time_;
   }
   lock.unlock();
 

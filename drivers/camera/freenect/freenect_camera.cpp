@@ -427,7 +427,7 @@ Result<std::unique_ptr<DepthCamera>> FreenectCamera::open(std::string_view argum
       raw_device == nullptr) {
     return fail("freenect: could not open Kinect #" + std::to_string(options->index) +
                 ": it is in use by another program, or this user may not access it (install "
-                "the udev rules from board/, or check `lsusb` for 045e:02ae)");
+                "the udev rules from board/, or check `lsusb` for 045e:02ae or 045e:02bf)");
   }
   DevicePtr device(raw_device);
 

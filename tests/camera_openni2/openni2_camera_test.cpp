@@ -275,7 +275,9 @@ TEST(Openni2Recorder, RecorderOutputOfOurRecordingPlaysBackExactly) {
     openni::PlaybackControl* playback = device.getPlaybackControl();
     ASSERT_NE(playback, nullptr);
     ASSERT_EQ(playback->setSpeed(-1.0f), openni::STATUS_OK);
-    ASSERT_EQ(playback->setRepeatEnabled(false), openni::STATUS_OK);
+    // Repeat on: with it off, the player's end-of-file report races with Device::close (see
+    // Openni2Camera::configure_playback). The loop below stops at the frame counts.
+    ASSERT_EQ(playback->setRepeatEnabled(true), openni::STATUS_OK);
     openni::VideoStream depth, color;
     ASSERT_EQ(depth.create(device, openni::SENSOR_DEPTH), openni::STATUS_OK);
     ASSERT_EQ(color.create(device, openni::SENSOR_COLOR), openni::STATUS_OK);
@@ -286,6 +288,11 @@ TEST(Openni2Recorder, RecorderOutputOfOurRecordingPlaysBackExactly) {
       ASSERT_EQ(recorder.attach(depth, /*allowLossyCompression=*/false), openni::STATUS_OK);
       ASSERT_EQ(recorder.attach(color, /*allowLossyCompression=*/false), openni::STATUS_OK);
       ASSERT_EQ(recorder.start(), openni::STATUS_OK);
+      // Recorder::start() only queues a message for the recorder's thread; frames that arrive
+      // before that thread has handled it are silently not recorded (seen: the first frame of a
+      // take lost). The player sends nothing until a stream starts, so give the recorder thread
+      // time first.
+      std::this_thread::sleep_for(milliseconds(300));
       ASSERT_EQ(depth.start(), openni::STATUS_OK);
       ASSERT_EQ(color.start(), openni::STATUS_OK);
       openni::VideoStream* streams[2] = {&depth, &color};

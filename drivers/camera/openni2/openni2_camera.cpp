@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <string>
 #include <system_error>
+#include <thread>
 
 #include "drivers/camera/openni2/oni_writer.hpp"
 
@@ -192,8 +193,12 @@ class Openni2Camera final : public DepthCamera {
   explicit Openni2Camera(std::shared_ptr<OpenNiRuntime> runtime) : runtime_(std::move(runtime)) {}
 
   ~Openni2Camera() override {
+    if (playback_ && device_.isValid() && !player_seen_running_) ensure_player_thread_running();
     // Order matters: frame references go back to their streams, streams are destroyed before
-    // the device that created them, and OpenNI itself is released last (runtime_).
+    // the device that created them (closing a recording's device first frees OpenNI's device
+    // object under the streams), and OpenNI itself is released last (runtime_).
+    // Known residue: libOniFile's player thread walks its stream list every 10 ms without the
+    // lock that stream destruction skips too; with the streams stopped that window is tiny.
     stop();
     color_.destroy();
     depth_.destroy();
@@ -344,6 +349,7 @@ class Openni2Camera final : public DepthCamera {
                     " frame from '" + device_uri_ + "' failed (" + openni_error(read) + ")");
       }
       (ready == 0 ? last_depth_index_ : last_color_index_) = target.getFrameIndex();
+      player_seen_running_ = true;
       if (ready == 0) depth_read_at_ = Clock::now();
     }
   }
@@ -355,9 +361,16 @@ class Openni2Camera final : public DepthCamera {
       return fail("openni2: '" + path + "' opened but is not a recording (no playback control)");
     }
     // Manual stepping: frames come when the reader asks, so none is dropped and playback runs
-    // as fast as the consumer; no repeat so the end of the file is the end of the stream.
+    // as fast as the consumer.
+    //
+    // Repeat stays ON although the recording plays once: the end of the stream is detected from
+    // the frame counts (PlaybackControl::getNumberOfFrames vs frame indices), and the streams are
+    // stopped after the last frame. With repeat off, libOniFile's player thread, on reaching the
+    // file's End record, reports EOF to OpenNI's core from its own thread (which races with
+    // Device::close and crashed about one run in five here) and then spins on the closed file.
+    // With repeat on it rewinds and waits politely for a manual trigger that never comes.
     openni::Status rc = control->setSpeed(-1.0f);
-    if (rc == openni::STATUS_OK) rc = control->setRepeatEnabled(false);
+    if (rc == openni::STATUS_OK) rc = control->setRepeatEnabled(true);
     if (rc != openni::STATUS_OK) {
       return fail("openni2: cannot set up playback of '" + path + "' (" + openni_error(rc) + ")");
     }
@@ -525,8 +538,8 @@ class Openni2Camera final : public DepthCamera {
     frame.depth_host_time_s = host_time(depth.getTimestamp());
     pending_depth_.release();
 
-    // After the last frame of a recording, stop at once: libOniFile's player thread spins on
-    // the closed file while any stream is started.
+    // After the last frame of a recording, stop at once, so that frames of the player's next
+    // loop (repeat is on, see configure_playback) go nowhere.
     if (playback_ && last_depth_index_ >= depth_frame_count_ &&
         (!has_color_ || last_color_index_ >= color_frame_count_)) {
       finish_playback();
@@ -545,6 +558,32 @@ class Openni2Camera final : public DepthCamera {
     if (playback_) return static_cast<double>(microseconds) * 1e-6;
     return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
         .count();
+  }
+
+  // libOniFile's player thread sets its own "running" flag when it starts, so a device closed
+  // before that thread was first scheduled never sees the stop request: close() waits 3 s, then
+  // cancels the thread, which crashes the process (seen when a recording is opened and closed
+  // at once, e.g. only to read its info, on a loaded machine). A delivered frame proves the
+  // thread is up, so a camera that never read one reads one now.
+  void ensure_player_thread_running() {
+    const bool was_started = started_;
+    if (!started_ && !start()) return;
+    if (depth_frame_count_ > 0 || color_frame_count_ > 0) {
+      openni::VideoStream* streams[2] = {&depth_, &color_};
+      int ready = -1;
+      if (openni::OpenNI::waitForAnyStream(streams, has_color_ ? 2 : 1, &ready, 2000) ==
+              openni::STATUS_OK &&
+          ready >= 0) {
+        openni::VideoFrameRef discarded;
+        (void)streams[ready]->readFrame(&discarded);
+        player_seen_running_ = true;
+      }
+    }
+    if (!player_seen_running_) {
+      // An empty recording never delivers a frame; give the thread time to be scheduled.
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+    if (!was_started) stop();
   }
 
   void finish_playback() {
@@ -572,6 +611,7 @@ class Openni2Camera final : public DepthCamera {
   int last_depth_index_ = 0;  // OpenNI frame indices; recordings number frames from 1
   int last_color_index_ = 0;
   std::uint64_t delivered_ = 0;
+  bool player_seen_running_ = false;  // playback: a frame arrived, so the player thread runs
   std::chrono::steady_clock::time_point depth_read_at_;  // when pending_depth_ arrived
   std::chrono::steady_clock::duration max_color_lag_{};  // live: longest wait for colour
 };

@@ -68,7 +68,7 @@ struct FusionOptions {
   float icp_converged = 1e-5f;  // stop a level when |increment| (rad + mm/1000) drops below
   // Loss detection: too few inliers, too large a residual, or a jump no head makes in 33 ms.
   int min_inliers = 800;
-  float min_inlier_fraction = 0.30f;  // of the valid input points in the face box
+  float min_inlier_fraction = 0.30f;  // of the input points that project onto the model
   float max_rms_mm = 3.0f;
   float max_frame_translation_mm = 40.0f;  // of the head centre relative to the camera
   float max_frame_rotation_deg = 20.0f;

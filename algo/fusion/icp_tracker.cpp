@@ -107,7 +107,6 @@ IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, c
             if (v.z() <= 0.0f) continue;
             const Eigen::Vector3f& nin = nrow[x];
             if (nin.z() == 0.0f && nin.x() == 0.0f) continue;
-            ++cand;
             const Eigen::Vector3f p = r * v + t;
             if (p.z() <= 0.0f) continue;
             const float iz = 1.0f / p.z();
@@ -117,6 +116,9 @@ IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, c
               continue;
             const Eigen::Vector3f& m = mv.vertices.at(u, w);
             if (m.z() <= 0.0f) continue;
+            // Candidates: points that land on the model. Background outside the volume (a wall
+            // behind the head) never does; a face that left the box lands there and fails.
+            ++cand;
             const Eigen::Vector3f& n = mv.normals.at(u, w);
             const Eigen::Vector3f diff = p - m;
             if (diff.squaredNorm() > gate2) continue;

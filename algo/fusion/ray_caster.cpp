@@ -78,10 +78,13 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
         if (!clip_ray(go, gd, hi, t_enter, t_exit)) continue;
         float found = 0.0f;
         // Two passes: from the hint (cheap, a few steps), then from the volume entry if the
-        // hint started behind the surface or found nothing.
+        // hint started behind the surface (or, for full searches, found nothing). A hint
+        // outside the volume (background) means there is nothing to find for the model view.
+        bool behind = false;
         for (int pass = 0; pass < 2 && found == 0.0f; ++pass) {
           float t = t_enter;
           float t_end = t_exit;
+          if (pass == 1 && !behind && !full_search) break;
           if (pass == 0) {
             if (h <= 0.0f) continue;
             // 0.75 mu in front: beyond 3 sigma of Kinect noise at face range, yet only a few
@@ -112,7 +115,10 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
                                                  : prev_t + (t - prev_t) * prev_f / (prev_f - s.f);
                 break;
               }
-              if (first && pass == 0) break;  // the hint started behind the surface
+              if (first && pass == 0) {  // the hint started behind the surface
+                behind = true;
+                break;
+              }
               // Behind a surface seen from elsewhere (back side): keep marching.
               prev_t = -1.0f;
               t += min_step;

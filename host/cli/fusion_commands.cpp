@@ -136,7 +136,7 @@ struct Run {
 };
 
 Result<Run> run_fusion(FaceFusion& fusion, const Sequence& seq, const FaceBox& box,
-                       const FusionOptions& options) {
+                       const FusionOptions& options, bool verbose = false) {
   if (auto ok = fusion.reset(seq.intrinsics, box, options); !ok) return ok.failure();
   Run run;
   run.reports.reserve(seq.depth.size());
@@ -147,6 +147,13 @@ Result<Run> run_fusion(FaceFusion& fusion, const Sequence& seq, const FaceBox& b
       ++run.lost;
       run.lost_frames.push_back(static_cast<int>(i));
     }
+    if (verbose)
+      std::fprintf(stderr,
+                   "  frame %zu: %s%s%s valid %d inliers %d rms %.2f mm it %d | cpu ms pre %.2f "
+                   "icp %.2f int %.2f ray %.2f\n",
+                   i, to_string(r.state), *r.loss_reason ? " - " : "", r.loss_reason,
+                   r.valid_pixels, r.inliers, r.rms_mm, r.iterations, r.cpu_times.preprocess_ms,
+                   r.cpu_times.track_ms, r.cpu_times.integrate_ms, r.cpu_times.raycast_ms);
     run.reports.push_back(r);
   }
   return run;
@@ -436,7 +443,7 @@ int run_eval_fusion(const ParsedOptions& options) {
       return report_failure({"camera '" + uri + "' has no ground truth; use a synthetic URI"});
     auto box = parse_box(options.get("box"), seq->intrinsics);
     if (!box) return report_failure(box.error());
-    auto run = run_fusion(fusion, *seq, *box, *fusion_options);
+    auto run = run_fusion(fusion, *seq, *box, *fusion_options, options.flag("verbose"));
     if (!run) return report_failure(run.error());
     const PoseErrors pe = pose_errors(*seq, *run);
     const RigidPose frontal_pose = run->reports[seq->frontal].world_from_camera;
@@ -527,7 +534,7 @@ int run_eval_fusion(const ParsedOptions& options) {
     auto box = parse_box(options.get("real-box"), seq->intrinsics);
     if (!box) return report_failure(box.error());
     FusionOptions real_options = *fusion_options;
-    auto run = run_fusion(fusion, *seq, *box, real_options);
+    auto run = run_fusion(fusion, *seq, *box, real_options, options.flag("verbose"));
     if (!run) return report_failure(run.error());
     nlohmann::json j;
     j["uri"] = real;
@@ -838,6 +845,7 @@ std::vector<Command> fusion_commands() {
       {"real", "PATH", "real fakenect dump (directory or .tar.xz), or off", FB_REAL_DUMP_DEFAULT},
       {"real-box", "X,Y,W,H", "face box for the real dump (default: the kiosk rectangle)", ""},
       {"real-mesh", "PATH", "PLY mesh written from the real dump", "fusion_real_mesh.ply"},
+      {"verbose", "", "per-frame tracking state and stage times on stderr", ""},
       {"json", "", "print JSON (the only output format; accepted for symmetry)", ""},
   };
   std::vector<OptionSpec> bench_options = {

@@ -22,6 +22,9 @@ struct Command {
 std::vector<Command> camera_commands();
 std::vector<Command> bench_commands();
 std::vector<Command> fusion_commands();
+std::vector<Command> fit_commands();
+std::vector<Command> tracking_commands();
+std::vector<Command> storage_commands();
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

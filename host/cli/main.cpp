@@ -16,7 +16,8 @@ namespace {
 
 std::vector<Command> all_commands() {
   std::vector<Command> commands;
-  for (auto group : {camera_commands(), bench_commands(), fusion_commands()}) {
+  for (auto group : {camera_commands(), bench_commands(), fusion_commands(), fit_commands(),
+                     tracking_commands(), storage_commands()}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return commands;

@@ -1,8 +1,8 @@
 // facebooth-bench-open3d FRAMES_FILE: Open3D 0.16's CPU TSDF pipeline on the same frames and face
 // box as `facebooth bench fusion`, timed per stage. One JSON object on stdout.
 //
-// Per frame (as Open3D's own t::pipelines::slam::Model does it): point-to-plane RGB-D odometry
-// of the frame against the model ray-cast at the previous pose (3 scales, 10/5/3 iterations),
+// Per frame (as Open3D's own t::pipelines::slam::Model does it): point-to-plane odometry of the
+// frame against the model ray-cast at the previous pose (3 scales, 10/5/3 iterations),
 // then VoxelBlockGrid::Integrate of the frame, then VoxelBlockGrid::RayCast of depth + normals at
 // the new pose. Same voxel size (volume size / resolution), truncation and depth range, and
 // depth outside the face box set to 0, so both pipelines see the same pixels.
@@ -16,7 +16,9 @@
 
 #include <open3d/Open3D.h>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -107,10 +109,41 @@ int main(int argc, char** argv) {
   const float trunc_multiplier = static_cast<float>(h.truncation_mm / h.voxel_mm);
   o3g::VoxelBlockGrid grid({"tsdf", "weight"}, {o3c::Float32, o3c::Float32}, {{1}, {1}}, voxel, 8,
                            20000, cpu);
-  const std::vector<odo::OdometryConvergenceCriteria> criteria = {10, 5, 3};
   odo::OdometryLossParams loss;
-  loss.depth_outlier_trunc_ = 0.025f;  // 25 mm, as facebooth's association gate
-  loss.depth_huber_delta_ = 0.003f;
+  // Open3D's default loss parameters (outlier gate 7 cm, Huber 5 cm).
+
+  // Frame-to-model point-to-plane odometry, coarse to fine, as RGBDOdometryMultiScale(...,
+  // Method::PointToPlane) does it; its bilateral pre-filter is left out because Open3D 0.16
+  // has no CPU Float32 FilterBilateral without IPP (which only makes Open3D's figure smaller).
+  std::vector<o3c::Tensor> intrinsics_pyramid;
+  for (int l = 0; l < 3; ++l) {
+    const double s = 1.0 / (1 << l);
+    intrinsics_pyramid.push_back(
+        o3c::Tensor::Init<double>({{h.fx * s, 0, h.cx * s}, {0, h.fy * s, h.cy * s}, {0, 0, 1}}));
+  }
+  const int iterations[3] = {10, 5, 3};  // Open3D's default criteria, finest level first
+  auto track = [&](const o3g::Image& depth_mm, const o3g::Image& model_mm) {
+    std::vector<o3g::Image> src, tgt;
+    src.push_back(depth_mm.ClipTransform(depth_scale, depth_min, depth_max, NAN));
+    tgt.push_back(model_mm.ClipTransform(depth_scale, depth_min, depth_max, NAN));
+    for (int l = 1; l < 3; ++l) {
+      src.push_back(src.back().PyrDownDepth(0.05f, NAN));
+      tgt.push_back(tgt.back().PyrDownDepth(0.05f, NAN));
+    }
+    o3c::Tensor t = o3c::Tensor::Eye(4, o3c::Float64, cpu);
+    for (int l = 2; l >= 0; --l) {
+      o3g::Image sv = src[l].CreateVertexMap(intrinsics_pyramid[l], NAN);
+      o3g::Image tv = tgt[l].CreateVertexMap(intrinsics_pyramid[l], NAN);
+      o3g::Image tn = tv.CreateNormalMap(NAN);
+      for (int it = 0; it < iterations[l]; ++it) {
+        const auto r = odo::ComputeOdometryResultPointToPlane(
+            sv.AsTensor(), tv.AsTensor(), tn.AsTensor(), intrinsics_pyramid[l], t,
+            loss.depth_outlier_trunc_, loss.depth_huber_delta_);
+        t = r.transformation_.Matmul(t).Contiguous();
+      }
+    }
+    return t;  // camera_prev_from_camera_now (source = this frame, target = the model view)
+  };
 
   o3c::Tensor pose = o3c::Tensor::Eye(4, o3c::Float64, cpu);  // world_from_camera
   o3g::Image model_depth;
@@ -123,17 +156,13 @@ int main(int argc, char** argv) {
     o3g::Image depth(o3c::Tensor(frames[i], {h.height, h.width, 1}, o3c::UInt16, cpu));
     Lap lap;
     if (i > 0) {
-      o3g::RGBDImage source(depth, depth);
-      o3g::RGBDImage target(model_depth, model_depth);
       try {
-        const auto result = odo::RGBDOdometryMultiScale(
-            source, target, intrinsic, o3c::Tensor::Eye(4, o3c::Float64, cpu), depth_scale,
-            depth_max, criteria, odo::Method::PointToPlane, loss);
-        pose = pose.Matmul(result.transformation_);
+        pose = pose.Matmul(track(depth, model_depth)).Contiguous();
         ++tracked;
       } catch (const std::exception& e) {
         std::cerr << "facebooth-bench-open3d: odometry failed on frame " << i << ": " << e.what()
                   << "\n";
+        return 1;
       }
       double ow = 0, oc = 0;
       lap.take(ow, oc);
@@ -142,7 +171,7 @@ int main(int argc, char** argv) {
         odo_ms += oc;
       }
     }
-    const o3c::Tensor extrinsic = pose.Inverse();  // camera_from_world
+    const o3c::Tensor extrinsic = pose.Inverse().Contiguous();  // camera_from_world
     const o3c::Tensor blocks = grid.GetUniqueBlockCoordinates(
         depth, intrinsic, extrinsic, depth_scale, depth_max, trunc_multiplier);
     grid.Integrate(blocks, depth, intrinsic, extrinsic, depth_scale, depth_max, trunc_multiplier);
@@ -150,7 +179,7 @@ int main(int argc, char** argv) {
     lap.take(iw, ic);
     const auto rendered =
         grid.RayCast(blocks, intrinsic, extrinsic, h.width, h.height, {"depth", "normal"},
-                     depth_scale, depth_min, depth_max, 3.0f, trunc_multiplier);
+                     depth_scale, depth_min, depth_max, 1.0f, trunc_multiplier);
     // Ray-cast depth is float in depth_scale units; the odometry reads it as the target.
     model_depth = o3g::Image(rendered.at("depth"));
     double rw = 0, rc = 0;

@@ -814,6 +814,19 @@ int run_bench_fusion(const ParsedOptions& options) {
       const PoseErrors e = pose_errors(*seq, o3d_run);
       result["open3d_pose_error_mm_max"] = e.max_mm;
       result["open3d_pose_error_deg_max"] = e.max_deg;
+      result["open3d_pose_error_mm_mean"] = e.mean_mm;
+      result["open3d_pose_error_deg_mean"] = e.mean_deg;
+      if (options.flag("verbose")) {
+        for (std::size_t k = 1; k < o3d_run.reports.size(); ++k) {
+          Run prefix;
+          prefix.reports.assign(o3d_run.reports.begin(), o3d_run.reports.begin() + k + 1);
+          Sequence part;
+          part.camera_from_model.assign(seq->camera_from_model.begin(),
+                                        seq->camera_from_model.begin() + k + 1);
+          std::fprintf(stderr, "  open3d frame %zu: max so far %.2f mm %.3f deg\n", k,
+                       pose_errors(part, prefix).max_mm, pose_errors(part, prefix).max_deg);
+        }
+      }
     }
   }
   rusage usage{};
@@ -853,6 +866,7 @@ std::vector<Command> fusion_commands() {
       {"seed", "N", "synthetic seed", "0"},
       {"camera", "URI", "time these frames instead (any camera URI)", ""},
       {"repeats", "N", "runs per configuration; the fastest is reported", "3"},
+      {"verbose", "", "per-frame figures on stderr", ""},
       {"open3d", "PATH",
        "the facebooth-bench-open3d executable, or off (default: found next "
        "to facebooth or in the build tree)",

@@ -1,0 +1,244 @@
+// The session store: subjects, capture sessions, captures, frames, landmarks, meshes, rigs,
+// models and tracking takes, in one SQLite database plus per-session folders of immutable data
+// files (see storage/README.md for the layout, the crash-safety protocol and the thread model).
+//
+// Thread model: one SessionStore opened as the writer (a process-wide exclusive lock file makes
+// a second writer fail with a clear error) used from one thread; any number of read-only stores
+// (open with StoreOptions::read_only), each on its own thread with its own connection. WAL mode
+// means readers never block the writer and see only committed rows. A SessionStore object itself
+// is not thread-safe: do not share one between threads.
+//
+// Every call returns Result<T>; nothing throws out of this API.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "algo/core/frame.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "storage/stored_data.hpp"
+
+namespace fb {
+
+inline constexpr int kSessionStoreSchemaVersion = 2;
+inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
+
+using SubjectId = std::int64_t;
+using SessionId = std::int64_t;
+using MeshId = std::int64_t;
+using RigId = std::int64_t;
+using ModelId = std::int64_t;
+using TakeId = std::int64_t;
+
+enum class CaptureState {
+  kPending,    // not started
+  kCapturing,  // started (attempts counted), nothing committed yet
+  kRejected,   // the last attempt failed QA; must be captured again
+  kDone,       // frames, fused depth, landmarks and QA scores are committed
+};
+const char* to_string(CaptureState state);
+
+enum class MeshRole {
+  kFitted,   // a fitted expression mesh (FaceWarehouse's TrainingPose)
+  kNeutral,  // the fitted neutral
+  kScan,     // a fused scan turned into a mesh
+};
+const char* to_string(MeshRole role);
+
+// Where the store's work is, reported through StoreOptions::on_phase (crash tests use it to tell
+// where a kill landed).
+enum class StorePhase { kIdle, kWritingFile, kSyncingFile, kRenaming, kCommitting };
+
+struct StoreOptions {
+  bool read_only = false;  // a reader: own connection, no lock, no cleanup, no migrations
+  bool create = true;      // writer only: create the store when the folder/database is missing
+
+  // Test hooks; leave empty in production.
+  // Called before every write(2) of a data file with the bytes of that file written so far; a
+  // non-zero return is used as the errno of a failed write (ENOSPC simulates a full disk).
+  std::function<int(std::size_t bytes_written)> inject_write_error;
+  std::function<void(StorePhase)> on_phase;
+  int migrate_to = 0;  // apply migrations only up to this version (0 = all)
+};
+
+struct SubjectInfo {
+  SubjectId id = 0;
+  std::string name;
+  std::string created_at;  // ISO 8601 UTC
+};
+
+struct SessionInfo {
+  SessionId id = 0;
+  SubjectId subject = 0;
+  std::string created_at;
+  bool complete = false;  // every capture is done
+  int capture_count = 0;
+  int done_count = 0;
+  std::filesystem::path folder;  // absolute path of the session's data folder
+};
+
+struct CaptureInfo {
+  std::int64_t id = 0;
+  SessionId session = 0;
+  int index = 0;           // position in the guide sequence, 0-based
+  std::string expression;  // guide expression name
+  CaptureState state = CaptureState::kPending;
+  int attempts = 0;  // begin_capture calls so far
+  std::map<std::string, double> qa_scores;
+  int frame_count = 0;
+  std::string completed_at;  // empty unless done
+};
+
+// What the device hands over when a capture passed QA.
+struct CaptureInput {
+  std::vector<RgbdFrame> frames;    // the head-turn sequence as the camera delivered it
+  DepthImage fused_depth;           // the fused frontal depth map (may be empty)
+  std::vector<Landmark> landmarks;  // automatic landmarks (may be empty)
+  std::map<std::string, double> qa_scores;
+};
+
+struct CaptureData {
+  CaptureInfo info;
+  std::vector<RgbdFrame> frames;
+  DepthImage fused_depth;
+  std::vector<Landmark> landmarks;  // the operator's correction when present, else automatic
+  LandmarkSource landmark_source = LandmarkSource::kAutomatic;
+};
+
+struct MeshInfo {
+  MeshId id = 0;
+  SessionId session = 0;
+  std::optional<int> capture_index;
+  MeshRole role = MeshRole::kFitted;
+  std::string name;
+  int vertex_count = 0;
+  int triangle_count = 0;
+};
+
+struct RigInfo {
+  RigId id = 0;
+  SubjectId subject = 0;
+  std::optional<SessionId> session;
+  std::vector<std::string> shape_names;
+  int vertex_count = 0;
+  int triangle_count = 0;
+  std::string created_at;
+};
+
+struct ModelInfo {
+  ModelId id = 0;
+  std::string kind;         // e.g. "bilinear"
+  std::string params_json;  // free-form description (dimensions, sources)
+  std::int64_t bytes = 0;
+  std::string created_at;
+};
+
+// A tracking take: per frame, head pose (tx ty tz mm, qx qy qz qw) then one weight per shape.
+struct TakeInfo {
+  TakeId id = 0;
+  SubjectId subject = 0;
+  std::optional<SessionId> session;
+  double fps = 30.0;
+  std::vector<std::string> shape_names;
+  int frame_count = 0;
+  std::string created_at;
+  int stride() const { return 7 + static_cast<int>(shape_names.size()); }
+};
+
+// Result of SessionStore::verify().
+struct VerifyReport {
+  std::string integrity;  // PRAGMA integrity_check's answer, "ok" when healthy
+  int files_checked = 0;
+  std::vector<std::string> problems;  // missing or mismatching files, one line each
+  bool ok() const { return integrity == "ok" && problems.empty(); }
+};
+
+class SessionStore {
+ public:
+  // Opens (and, for a writer, creates and migrates) the store in `root`: root/facebooth.db plus
+  // data folders. A writer also deletes orphaned data files (written but never committed) and
+  // temporary files left by a crash. Fails without touching anything when the database is from a
+  // newer facebooth, is not a facebooth database, or is corrupt.
+  static Result<SessionStore> open(const std::filesystem::path& root,
+                                   const StoreOptions& options = {});
+
+  SessionStore(SessionStore&&) noexcept;
+  SessionStore& operator=(SessionStore&&) noexcept;
+  ~SessionStore();
+
+  const std::filesystem::path& root() const;
+  int schema_version() const;
+  bool read_only() const;
+  // Data files removed by the orphan cleanup at open (0 for readers).
+  int orphans_removed() const;
+
+  // --- subjects and sessions
+  Result<SubjectId> add_subject(const std::string& name);
+  Result<std::vector<SubjectInfo>> subjects() const;
+  Result<SubjectInfo> subject(SubjectId id) const;
+
+  // A session with one pending capture per guide expression, in order.
+  Result<SessionId> create_session(SubjectId subject, const std::vector<std::string>& guide);
+  Result<SessionInfo> session(SessionId id) const;
+  Result<std::vector<SessionInfo>> sessions() const;
+
+  // --- captures
+  Result<std::vector<CaptureInfo>> captures(SessionId session) const;
+  Result<CaptureInfo> capture(SessionId session, int index) const;
+  // Resume point: the first capture (in guide order) that is not done, or nullopt when the
+  // session is complete.
+  Result<std::optional<CaptureInfo>> next_capture(SessionId session) const;
+  // Marks a capture as being captured and counts the attempt.
+  Result<void> begin_capture(SessionId session, int index);
+  // Marks the current attempt as failed QA (scores kept); next_capture() returns it again.
+  Result<void> reject_capture(SessionId session, int index,
+                              const std::map<std::string, double>& qa_scores);
+  // Stores frames, fused depth, automatic landmarks and QA scores and marks the capture done, in
+  // one durable step (data files written and fsynced first, then one synchronous=FULL commit).
+  // A crash at any point leaves either the whole capture or none of it.
+  Result<void> commit_capture(SessionId session, int index, const CaptureInput& input);
+  // Reads a done capture back, verifying every data file's SHA-256.
+  Result<CaptureData> read_capture(SessionId session, int index) const;
+  // Stores (or replaces) the operator's landmark correction of a done capture.
+  Result<void> set_operator_landmarks(SessionId session, int index,
+                                      const std::vector<Landmark>& landmarks);
+
+  // --- meshes, rigs, models, takes
+  Result<MeshId> add_mesh(SessionId session, std::optional<int> capture_index, MeshRole role,
+                          const std::string& name, const MeshData& mesh);
+  Result<std::vector<MeshInfo>> meshes(SessionId session) const;
+  Result<MeshData> read_mesh(MeshId id) const;
+
+  Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
+  Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first
+  Result<RigData> read_rig(RigId id) const;
+
+  Result<ModelId> add_model(const std::string& kind, const std::string& params_json,
+                            std::span<const std::uint8_t> bytes);
+  Result<std::vector<ModelInfo>> models() const;
+  Result<std::vector<std::uint8_t>> read_model(ModelId id) const;
+
+  // `values` holds frame_count * stride() floats (see TakeInfo).
+  Result<TakeId> add_take(const TakeInfo& info, std::span<const float> values);
+  Result<std::vector<TakeInfo>> takes(SubjectId subject) const;
+  Result<std::vector<float>> read_take(TakeId id, TakeInfo* info = nullptr) const;
+
+  // PRAGMA integrity_check plus existence, size and SHA-256 of every referenced data file.
+  Result<VerifyReport> verify() const;
+
+  struct Impl;
+
+ private:
+  explicit SessionStore(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fb

@@ -1,0 +1,299 @@
+// Session store round trips: captures, resume, rejections, landmarks, meshes, rigs, models,
+// takes, migrations, orphan cleanup and the one-writer/many-readers thread model.
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <atomic>
+#include <fstream>
+#include <thread>
+
+#include "storage/crash_trials.hpp"
+#include "storage/session_store.hpp"
+#include "tests/storage/test_dir.hpp"
+
+namespace fb {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr int kFrames = 3, kW = 32, kH = 24;
+
+std::vector<std::string> guide(int n) {
+  std::vector<std::string> g;
+  for (int i = 0; i < n; ++i) g.push_back("expr" + std::to_string(i));
+  return g;
+}
+
+Result<void> capture(SessionStore& store, SessionId s, int index) {
+  if (auto r = store.begin_capture(s, index); !r) return r;
+  return store.commit_capture(s, index, make_test_capture(s, index, kFrames, kW, kH));
+}
+
+TEST(SessionStore, CommitReadResumeAndComplete) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store) << store.error().message;
+  EXPECT_EQ(store->schema_version(), kSessionStoreSchemaVersion);
+  auto subject = store->add_subject("alice");
+  ASSERT_TRUE(subject);
+  auto session = store->create_session(*subject, guide(3));
+  ASSERT_TRUE(session) << session.error().message;
+
+  auto next = store->next_capture(*session);
+  ASSERT_TRUE(next && *next);
+  EXPECT_EQ((*next)->index, 0);
+  EXPECT_EQ((*next)->expression, "expr0");
+  ASSERT_TRUE(capture(*store, *session, 0));
+  next = store->next_capture(*session);
+  ASSERT_TRUE(next && *next);
+  EXPECT_EQ((*next)->index, 1);
+
+  auto data = store->read_capture(*session, 0);
+  ASSERT_TRUE(data) << data.error().message;
+  EXPECT_EQ(compare_test_capture(*data, *session, 0, kFrames, kW, kH), "");
+  EXPECT_EQ(data->info.state, CaptureState::kDone);
+  EXPECT_EQ(data->info.attempts, 1);
+  EXPECT_EQ(data->info.frame_count, kFrames);
+  EXPECT_FALSE(data->info.completed_at.empty());
+
+  // Committing a done capture again is refused and changes nothing.
+  auto again = store->commit_capture(*session, 0, make_test_capture(*session, 0, 1, 4, 4));
+  ASSERT_FALSE(again);
+  EXPECT_NE(again.error().message.find("already done"), std::string::npos);
+  EXPECT_EQ(store->read_capture(*session, 0)->frames.size(), std::size_t{kFrames});
+
+  // A reopened store resumes at the same place.
+  store = Result<SessionStore>(fail("closed"));
+  auto reopened = SessionStore::open(dir.path());
+  ASSERT_TRUE(reopened) << reopened.error().message;
+  EXPECT_EQ(reopened->orphans_removed(), 0);
+  next = reopened->next_capture(*session);
+  ASSERT_TRUE(next && *next);
+  EXPECT_EQ((*next)->index, 1);
+  ASSERT_TRUE(capture(*reopened, *session, 1));
+  ASSERT_TRUE(capture(*reopened, *session, 2));
+  next = reopened->next_capture(*session);
+  ASSERT_TRUE(next);
+  EXPECT_FALSE(next->has_value());
+  auto info = reopened->session(*session);
+  ASSERT_TRUE(info);
+  EXPECT_TRUE(info->complete);
+  EXPECT_EQ(info->done_count, 3);
+  auto report = reopened->verify();
+  ASSERT_TRUE(report);
+  EXPECT_TRUE(report->ok()) << report->integrity;
+  EXPECT_EQ(report->files_checked, 6);
+}
+
+TEST(SessionStore, RejectedCaptureIsRetakenAndAttemptsCount) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  auto session = store->create_session(*store->add_subject("bob"), guide(2));
+  ASSERT_TRUE(session);
+  ASSERT_TRUE(store->begin_capture(*session, 0));
+  ASSERT_TRUE(store->reject_capture(*session, 0, {{"landmark_confidence", 0.2}}));
+  auto c = store->capture(*session, 0);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->state, CaptureState::kRejected);
+  EXPECT_DOUBLE_EQ(c->qa_scores.at("landmark_confidence"), 0.2);
+  EXPECT_EQ((*store->next_capture(*session))->index, 0);
+  ASSERT_TRUE(capture(*store, *session, 0));
+  c = store->capture(*session, 0);
+  EXPECT_EQ(c->attempts, 2);
+  EXPECT_EQ(c->state, CaptureState::kDone);
+  EXPECT_FALSE(store->reject_capture(*session, 0, {}));
+}
+
+TEST(SessionStore, OperatorLandmarksReplaceAutomaticOnes) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  auto session = store->create_session(*store->add_subject("c"), guide(1));
+  ASSERT_FALSE(store->set_operator_landmarks(*session, 0, {}));  // not done yet
+  ASSERT_TRUE(capture(*store, *session, 0));
+  auto before = store->read_capture(*session, 0);
+  ASSERT_TRUE(before);
+  EXPECT_EQ(before->landmark_source, LandmarkSource::kAutomatic);
+  std::vector<Landmark> moved = before->landmarks;
+  moved[30].u += 5.0f;
+  ASSERT_TRUE(store->set_operator_landmarks(*session, 0, moved));
+  moved[30].u += 1.0f;
+  ASSERT_TRUE(store->set_operator_landmarks(*session, 0, moved));  // replaces, not duplicates
+  auto after = store->read_capture(*session, 0);
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->landmark_source, LandmarkSource::kOperator);
+  EXPECT_FLOAT_EQ(after->landmarks[30].u, before->landmarks[30].u + 6.0f);
+  EXPECT_EQ(after->landmarks.size(), before->landmarks.size());
+}
+
+TEST(SessionStore, MeshesRigsModelsAndTakesRoundTrip) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  auto subject = store->add_subject("d");
+  auto session = store->create_session(*subject, guide(1));
+  ASSERT_TRUE(session);
+  MeshData mesh{{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0.5f}, {0, 1, 2, 1, 3, 2}};
+  auto mesh_id = store->add_mesh(*session, 0, MeshRole::kFitted, "pose_0", mesh);
+  ASSERT_TRUE(mesh_id) << mesh_id.error().message;
+  auto back = store->read_mesh(*mesh_id);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->positions, mesh.positions);
+  EXPECT_EQ(back->triangles, mesh.triangles);
+  auto listed = store->meshes(*session);
+  ASSERT_TRUE(listed);
+  ASSERT_EQ(listed->size(), 1u);
+  EXPECT_EQ(listed->front().name, "pose_0");
+  EXPECT_EQ(listed->front().capture_index, 0);
+  EXPECT_EQ(listed->front().triangle_count, 2);
+  // Bad meshes are refused before anything is written.
+  EXPECT_FALSE(
+      store->add_mesh(*session, std::nullopt, MeshRole::kScan, "bad", {{0, 0, 0}, {0, 1, 2}}));
+
+  RigData rig;
+  rig.neutral = mesh.positions;
+  rig.triangles = mesh.triangles;
+  rig.shapes = {mesh.positions, mesh.positions};
+  rig.shapes[1][2] = 3.0f;
+  rig.shape_names = {"jawOpen", "mouthSmile_L"};
+  auto rig_id = store->add_rig(*subject, *session, rig);
+  ASSERT_TRUE(rig_id) << rig_id.error().message;
+  auto rig_back = store->read_rig(*rig_id);
+  ASSERT_TRUE(rig_back);
+  EXPECT_EQ(rig_back->shapes, rig.shapes);
+  EXPECT_EQ(rig_back->shape_names, rig.shape_names);
+  auto rigs = store->rigs(*subject);
+  ASSERT_TRUE(rigs);
+  ASSERT_EQ(rigs->size(), 1u);
+  EXPECT_EQ(rigs->front().session, *session);
+
+  const std::vector<std::uint8_t> model_bytes = {1, 2, 3, 4, 5};
+  auto model = store->add_model("bilinear", R"({"identities":1})", model_bytes);
+  ASSERT_TRUE(model);
+  EXPECT_EQ(*store->read_model(*model), model_bytes);
+  EXPECT_EQ(store->models()->front().bytes, 5);
+
+  TakeInfo take;
+  take.subject = *subject;
+  take.fps = 30.0;
+  take.shape_names = {"jawOpen"};
+  take.frame_count = 2;
+  std::vector<float> values(16, 0.5f);
+  auto take_id = store->add_take(take, values);
+  ASSERT_TRUE(take_id) << take_id.error().message;
+  TakeInfo take_back;
+  auto values_back = store->read_take(*take_id, &take_back);
+  ASSERT_TRUE(values_back);
+  EXPECT_EQ(*values_back, values);
+  EXPECT_EQ(take_back.frame_count, 2);
+  EXPECT_EQ(take_back.shape_names, take.shape_names);
+  EXPECT_FALSE(store->add_take(take, std::span<const float>(values).first(15)));
+  EXPECT_TRUE(store->verify()->ok());
+}
+
+TEST(SessionStore, OneWriterManyReaders) {
+  test::ScratchDir dir;
+  auto writer = SessionStore::open(dir.path());
+  ASSERT_TRUE(writer);
+  auto session = writer->create_session(*writer->add_subject("e"), guide(12));
+  ASSERT_TRUE(session);
+  // A second writer (here in the same process, normally another process) is refused.
+  auto second = SessionStore::open(dir.path());
+  ASSERT_FALSE(second);
+  EXPECT_NE(second.error().message.find("another facebooth process"), std::string::npos);
+
+  // Readers on their own threads and connections see only committed, complete captures while
+  // the writer keeps committing.
+  std::atomic<bool> stop{false};
+  std::atomic<int> reads{0}, errors{0};
+  std::vector<std::thread> readers;
+  std::vector<std::string> messages(2);
+  for (int t = 0; t < 2; ++t) {
+    readers.emplace_back([&, t] {
+      StoreOptions ro;
+      ro.read_only = true;
+      auto reader = SessionStore::open(dir.path(), ro);
+      if (!reader) {
+        messages[t] = reader.error().message;
+        ++errors;
+        return;
+      }
+      EXPECT_FALSE(reader->add_subject("nope"));
+      while (!stop) {
+        auto caps = reader->captures(*session);
+        if (!caps) {
+          messages[t] = caps.error().message;
+          ++errors;
+          continue;
+        }
+        for (const auto& c : *caps) {
+          if (c.state != CaptureState::kDone) continue;
+          auto data = reader->read_capture(*session, c.index);
+          if (!data || !compare_test_capture(*data, *session, c.index, kFrames, kW, kH).empty()) {
+            messages[t] = data ? "content differs" : data.error().message;
+            ++errors;
+          }
+          ++reads;
+        }
+      }
+    });
+  }
+  for (int i = 0; i < 12; ++i) ASSERT_TRUE(capture(*writer, *session, i));
+  stop = true;
+  for (auto& r : readers) r.join();
+  EXPECT_EQ(errors.load(), 0) << messages[0] << " / " << messages[1];
+  EXPECT_GT(reads.load(), 0);
+}
+
+TEST(SessionStore, MigratesAnOlderSchemaKeepingData) {
+  test::ScratchDir dir;
+  SessionId session = 0;
+  {
+    StoreOptions v1;
+    v1.migrate_to = 1;
+    auto store = SessionStore::open(dir.path(), v1);
+    ASSERT_TRUE(store);
+    EXPECT_EQ(store->schema_version(), 1);
+    session = *store->create_session(*store->add_subject("old"), guide(2));
+    ASSERT_TRUE(capture(*store, session, 0));
+  }
+  {
+    StoreOptions ro;
+    ro.read_only = true;
+    auto reader = SessionStore::open(dir.path(), ro);
+    ASSERT_FALSE(reader);  // readers never migrate
+    EXPECT_NE(reader.error().message.find("migrate"), std::string::npos);
+  }
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store) << store.error().message;
+  EXPECT_EQ(store->schema_version(), 2);
+  EXPECT_TRUE(store->read_capture(session, 0));
+  TakeInfo take;
+  take.subject = store->session(session)->subject;
+  take.frame_count = 1;
+  EXPECT_TRUE(store->add_take(take, std::vector<float>(7, 0.0f)));
+}
+
+TEST(SessionStore, OrphansAndTemporariesAreCleanedAtOpen) {
+  test::ScratchDir dir;
+  SessionId session = 0;
+  fs::path folder;
+  {
+    auto store = SessionStore::open(dir.path());
+    session = *store->create_session(*store->add_subject("f"), guide(2));
+    ASSERT_TRUE(capture(*store, session, 0));
+    folder = store->session(session)->folder;
+  }
+  std::ofstream(folder / "c1-a1-frames-deadbeef.fbseq") << "written, never committed";
+  std::ofstream(folder / ".tmp-c1-a1-fused.fbdep-123") << "half";
+  std::ofstream(dir.path() / "models" / ".tmp-bilinear.bin-9") << "half";
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  EXPECT_EQ(store->orphans_removed(), 3);
+  EXPECT_FALSE(fs::exists(folder / "c1-a1-frames-deadbeef.fbseq"));
+  EXPECT_TRUE(store->read_capture(session, 0));
+  EXPECT_TRUE(store->verify()->ok());
+}
+
+}  // namespace
+}  // namespace fb

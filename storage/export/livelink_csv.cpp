@@ -9,7 +9,7 @@ namespace fb {
 namespace {
 
 constexpr std::array<std::string_view, 9> kAngleColumns = {
-    "HeadYaw",     "HeadPitch",     "HeadRoll",      "LeftEyeYaw", "LeftEyePitch",
+    "HeadYaw",     "HeadPitch",   "HeadRoll",      "LeftEyeYaw",  "LeftEyePitch",
     "LeftEyeRoll", "RightEyeYaw", "RightEyePitch", "RightEyeRoll"};
 constexpr int kBlendShapeCount = kArkitShapeCount + 9;  // 61, as the app writes
 
@@ -37,7 +37,8 @@ std::vector<std::string_view> split(std::string_view line) {
   std::size_t start = 0;
   while (true) {
     const auto comma = line.find(',', start);
-    fields.push_back(line.substr(start, comma == std::string_view::npos ? line.npos : comma - start));
+    fields.push_back(
+        line.substr(start, comma == std::string_view::npos ? line.npos : comma - start));
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
@@ -67,7 +68,7 @@ std::string livelink_timecode(double time_s, double fps) {
   const long long per_second = std::max(1LL, std::llround(fps));
   const long long seconds_total = whole / per_second;
   const long long frame = whole % per_second;
-  char buffer[64];
+  char buffer[128];
   std::snprintf(buffer, sizeof(buffer), "%02lld:%02lld:%02lld:%02lld.%03lld", seconds_total / 3600,
                 (seconds_total / 60) % 60, seconds_total % 60, frame, milli);
   return buffer;
@@ -77,8 +78,8 @@ Result<double> parse_livelink_timecode(std::string_view text, double fps) {
   int h = 0, m = 0, s = 0;
   double f = 0.0;
   const std::string copy(text);
-  if (std::sscanf(copy.c_str(), "%d:%d:%d:%lf", &h, &m, &s, &f) != 4 || h < 0 || m < 0 ||
-      m > 59 || s < 0 || s > 59 || f < 0.0) {
+  if (std::sscanf(copy.c_str(), "%d:%d:%d:%lf", &h, &m, &s, &f) != 4 || h < 0 || m < 0 || m > 59 ||
+      s < 0 || s > 59 || f < 0.0) {
     return fail("Live Link CSV: bad timecode '" + copy + "'; expected HH:MM:SS:FF.fff");
   }
   const long long per_second = std::max(1LL, std::llround(fps));
@@ -117,8 +118,8 @@ std::string format_livelink_row(const LiveLinkRow& row, double fps) {
   return out;
 }
 
-Result<void> write_livelink_csv(const std::filesystem::path& path, std::span<const LiveLinkRow> rows,
-                                double fps) {
+Result<void> write_livelink_csv(const std::filesystem::path& path,
+                                std::span<const LiveLinkRow> rows, double fps) {
   auto writer = LiveLinkCsvWriter::open(path, fps);
   if (!writer) return writer.failure();
   for (const auto& row : rows) {
@@ -166,7 +167,8 @@ Result<std::vector<LiveLinkRow>> read_livelink_csv(const std::filesystem::path& 
     for (std::size_t c = 1; c < fields.size(); ++c) {
       if (slot[c] < 0) continue;
       auto value = parse_double(fields[c], header[c]);
-      if (!value) return fail(value.error().message + " (line " + std::to_string(line_number) + ")");
+      if (!value)
+        return fail(value.error().message + " (line " + std::to_string(line_number) + ")");
       if (slot[c] < 100) {
         row.weights[static_cast<std::size_t>(slot[c])] = static_cast<float>(*value);
       } else if (slot[c] == 100) {

@@ -26,8 +26,8 @@ namespace fb {
 struct LiveLinkRow {
   double time_s = 0.0;
   std::array<float, kArkitShapeCount> weights{};
-  HeadAngles head;                // radians
-  std::array<float, 6> eyes{};    // LeftEyeYaw ... RightEyeRoll, radians
+  HeadAngles head;              // radians
+  std::array<float, 6> eyes{};  // LeftEyeYaw ... RightEyeRoll, radians
 };
 
 LiveLinkRow to_livelink_row(const ArkitFrame& frame);
@@ -41,8 +41,8 @@ std::string livelink_timecode(double time_s, double fps);
 Result<double> parse_livelink_timecode(std::string_view text, double fps);
 
 // Writes a whole take.
-Result<void> write_livelink_csv(const std::filesystem::path& path, std::span<const LiveLinkRow> rows,
-                                double fps);
+Result<void> write_livelink_csv(const std::filesystem::path& path,
+                                std::span<const LiveLinkRow> rows, double fps);
 Result<std::vector<LiveLinkRow>> read_livelink_csv(const std::filesystem::path& path, double fps);
 
 // Appends rows as they come (the live `facebooth track --csv`); flushes on close/destruction.

@@ -1,1 +1,55 @@
-// placeholder
+#include "storage/export/png_file.hpp"
+
+#include <png.h>
+
+#include <cstring>
+#include <memory>
+
+namespace fb {
+
+namespace {
+// png_image owns internal state until png_image_free; this keeps that exception-safe.
+struct PngImageFree {
+  void operator()(png_image* image) const { png_image_free(image); }
+};
+}  // namespace
+
+Result<std::vector<std::uint8_t>> encode_png(const ColorImage& image) {
+  if (image.empty()) return fail("cannot encode an empty image as PNG");
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(image.width);
+  png.height = static_cast<png_uint_32>(image.height);
+  png.format = PNG_FORMAT_RGB;
+  const std::unique_ptr<png_image, PngImageFree> guard(&png);
+  png_alloc_size_t size = 0;
+  if (!png_image_write_to_memory(&png, nullptr, &size, 0, image.pixels.data(), 0, nullptr)) {
+    return fail(std::string("PNG encoding failed: ") + png.message);
+  }
+  std::vector<std::uint8_t> out(size);
+  if (!png_image_write_to_memory(&png, out.data(), &size, 0, image.pixels.data(), 0, nullptr)) {
+    return fail(std::string("PNG encoding failed: ") + png.message);
+  }
+  out.resize(size);
+  return out;
+}
+
+Result<ColorImage> decode_png(const std::vector<std::uint8_t>& bytes) {
+  png_image png;
+  std::memset(&png, 0, sizeof png);
+  png.version = PNG_IMAGE_VERSION;
+  const std::unique_ptr<png_image, PngImageFree> guard(&png);
+  if (!png_image_begin_read_from_memory(&png, bytes.data(), bytes.size())) {
+    return fail(std::string("not a readable PNG: ") + png.message);
+  }
+  png.format = PNG_FORMAT_RGB;
+  ColorImage image;
+  image.resize(static_cast<int>(png.width), static_cast<int>(png.height));
+  if (!png_image_finish_read(&png, nullptr, image.pixels.data(), 0, nullptr)) {
+    return fail(std::string("PNG decoding failed: ") + png.message);
+  }
+  return image;
+}
+
+}  // namespace fb

@@ -1,0 +1,60 @@
+// `facebooth export`: what to export (a stored session's rig, fitted meshes and colour frames,
+// or a synthetic subject from the face model) and the formats, each written as a folder with a
+// manifest through ExportFolder (temporary name, renamed when complete).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "storage/export/synthetic_subject.hpp"
+#include "storage/session_store.hpp"
+#include "storage/stored_data.hpp"
+
+namespace fb {
+
+enum class ExportFormat { kFaceWarehouse, kGlb, kObj, kPly };
+Result<ExportFormat> parse_export_format(std::string_view name);
+const char* to_string(ExportFormat format);
+
+struct ExportContent {
+  std::string name = "face";  // file stem for single-file formats
+  RigData rig;
+  std::vector<MeshData> poses;  // fitted expressions, in capture order
+  std::vector<std::string> pose_names;
+  std::vector<ColorImage> pose_colors;  // first frame of each capture (may be empty)
+  std::vector<std::vector<Landmark>> pose_landmarks;
+  std::map<std::string, std::string> source;  // goes into the manifest
+};
+
+// The session's subject's newest rig (preferring one built from this session), the session's
+// fitted meshes by capture index (a kNeutral mesh counts as pose 0), and each done capture's
+// first colour frame and landmarks.
+Result<ExportContent> load_session_content(const SessionStore& store, SessionId session);
+ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t seed,
+                                const std::string& face_model_path);
+
+struct ExportRequest {
+  ExportFormat format = ExportFormat::kFaceWarehouse;
+  std::filesystem::path out;  // the folder to create
+  bool overwrite = false;
+  int tester_number = 1;  // FaceWarehouse's Tester_N
+};
+
+struct ExportSummary {
+  std::filesystem::path path;
+  std::uint64_t bytes = 0;  // all files including the manifest
+  int files = 0;
+  double seconds = 0.0;
+};
+
+// Layouts: facewarehouse -> Tester_N/... (see facewarehouse.hpp); glb -> NAME.glb; obj and ply
+// -> neutral.EXT, blendshapes/NN_NAME.EXT, poses/pose_I.EXT. Always plus manifest.json.
+Result<ExportSummary> export_content(const ExportContent& content, const ExportRequest& request);
+
+}  // namespace fb

@@ -1,0 +1,311 @@
+// Exports of a synthetic subject (the face model with a random identity): FaceWarehouse folder
+// and its import, glTF checked by the Khronos validator and loaded by assimp, OBJ/PLY,
+// manifests with checksums, and exports that are never visible half-written.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "storage/asset_files.hpp"
+#include "storage/durable_file.hpp"
+#include "storage/export/export_folder.hpp"
+#include "storage/export/export_session.hpp"
+#include "storage/export/facewarehouse.hpp"
+#include "storage/export/gltf.hpp"
+#include "storage/export/mesh_files.hpp"
+#include "storage/export/png_file.hpp"
+#include "storage/export/synthetic_subject.hpp"
+
+namespace fb {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+CommandResult run(const std::string& command) {
+  CommandResult result;
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen((command + " 2>&1").c_str(), "r"), ::pclose);
+  if (!pipe) return result;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) {
+    result.output.append(buf, n);
+  }
+  const int status = ::pclose(pipe.release());
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+class Export : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto model = load_face_model();
+    ASSERT_TRUE(model) << model.error().message;
+    SyntheticSubjectOptions options;
+    options.seed = 5;
+    auto subject = make_synthetic_subject(*model, options);
+    ASSERT_TRUE(subject) << subject.error().message;
+    subject_ = std::make_unique<SyntheticSubject>(std::move(*subject));
+    expression_count_ = model->expression_count;
+  }
+  static void TearDownTestSuite() { subject_.reset(); }
+
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("fb-export-" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "-" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  ExportSummary export_as(ExportFormat format, const std::string& name) {
+    ExportRequest request;
+    request.format = format;
+    request.out = dir_ / name;
+    auto summary = export_content(synthetic_content(*subject_, 5, "facemodel.fbfm"), request);
+    EXPECT_TRUE(summary) << summary.error().message;
+    return summary ? *summary : ExportSummary{};
+  }
+
+  static std::unique_ptr<SyntheticSubject> subject_;
+  static int expression_count_;
+  fs::path dir_;
+};
+std::unique_ptr<SyntheticSubject> Export::subject_;
+int Export::expression_count_ = 0;
+
+TEST_F(Export, SyntheticSubjectIsTheRigAtKnownWeights) {
+  const auto& s = *subject_;
+  ASSERT_EQ(s.rig.shape_count(), expression_count_);
+  ASSERT_EQ(s.poses.size(), 20u);
+  EXPECT_EQ(s.poses[0].positions, s.rig.neutral);
+  // Pose i = neutral + sum_j w_j (shape_j - neutral).
+  for (int p : {1, 7, 19}) {
+    double worst = 0.0;
+    for (std::size_t i = 0; i < s.rig.neutral.size(); ++i) {
+      double v = s.rig.neutral[i];
+      for (int j = 0; j < s.rig.shape_count(); ++j) {
+        v += s.pose_weights[p][j] * (s.rig.shapes[j][i] - s.rig.neutral[i]);
+      }
+      worst = std::max(worst, std::abs(v - s.poses[p].positions[i]));
+    }
+    EXPECT_LT(worst, 1e-3) << "pose " << p;
+  }
+}
+
+TEST_F(Export, FaceWarehouseFolderRoundTripsThroughImport) {
+  const auto summary = export_as(ExportFormat::kFaceWarehouse, "fw");
+  const fs::path tester = summary.path / "Tester_1";
+  const int nv = subject_->rig.vertex_count();
+  const int ns = subject_->rig.shape_count();
+  const int nf = static_cast<int>(subject_->rig.triangles.size() / 3);
+  // shape.bs: header + (K+1) x nVerts x 3 floats, neutral first.
+  auto bs = read_file_bytes(tester / "Blendshape" / "shape.bs");
+  ASSERT_TRUE(bs);
+  ASSERT_EQ(bs->size(), 12u + std::size_t(ns + 1) * nv * 12);
+  std::int32_t header[3];
+  std::memcpy(header, bs->data(), 12);
+  EXPECT_EQ(header[0], ns);
+  EXPECT_EQ(header[1], nv);
+  EXPECT_EQ(header[2], nf);
+  float first;
+  std::memcpy(&first, bs->data() + 12, 4);
+  EXPECT_EQ(first, subject_->rig.neutral[0]);
+  for (int k = 0; k <= ns; ++k) {
+    EXPECT_TRUE(fs::exists(tester / "Blendshape" / ("shape_" + std::to_string(k) + ".obj")));
+  }
+  EXPECT_FALSE(fs::exists(tester / "Blendshape" / ("shape_" + std::to_string(ns + 1) + ".obj")));
+  for (int p = 0; p < 20; ++p) {
+    EXPECT_TRUE(fs::exists(tester / "TrainingPose" / ("pose_" + std::to_string(p) + ".obj")));
+  }
+  auto verified = verify_export_folder(summary.path);
+  ASSERT_TRUE(verified) << verified.error().message;
+  EXPECT_EQ(verified->size(), std::size_t(ns + 1 + 1 + 1 + 20));  // objs, .bs, names, poses
+
+  auto imported = import_facewarehouse(summary.path);
+  ASSERT_TRUE(imported) << imported.error().message;
+  ASSERT_EQ(imported->size(), 1u);
+  const auto& t = imported->front();
+  EXPECT_EQ(t.number, 1);
+  EXPECT_EQ(t.rig.neutral, subject_->rig.neutral);
+  EXPECT_EQ(t.rig.shapes, subject_->rig.shapes);
+  EXPECT_EQ(t.rig.triangles, subject_->rig.triangles);
+  EXPECT_EQ(t.rig.shape_names, subject_->rig.shape_names);
+  ASSERT_EQ(t.poses.size(), 20u);
+  for (int p = 0; p < 20; ++p) {
+    EXPECT_EQ(t.poses[p].positions, subject_->poses[p].positions) << p;  // exact float text
+  }
+}
+
+TEST_F(Export, FaceWarehouseImportRejectsBrokenFolders) {
+  const auto summary = export_as(ExportFormat::kFaceWarehouse, "fw");
+  const fs::path bs = summary.path / "Tester_1" / "Blendshape" / "shape.bs";
+  fs::resize_file(bs, fs::file_size(bs) - 100);
+  auto truncated = import_facewarehouse(summary.path);
+  ASSERT_FALSE(truncated);
+  EXPECT_NE(truncated.error().message.find("truncated"), std::string::npos)
+      << truncated.error().message;
+  EXPECT_FALSE(import_facewarehouse(dir_ / "nothing-here"));
+  fs::create_directories(dir_ / "empty");
+  auto empty = import_facewarehouse(dir_ / "empty");
+  ASSERT_FALSE(empty);
+  EXPECT_NE(empty.error().message.find("Tester_"), std::string::npos);
+  // Original FaceWarehouse OBJs carry texture coordinates and quads.
+  auto quad = parse_obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1 -1/1\n", "q");
+  ASSERT_TRUE(quad) << quad.error().message;
+  EXPECT_EQ(quad->face_count, 1);
+  EXPECT_EQ(quad->mesh.triangles, (std::vector<std::uint32_t>{0, 1, 2, 0, 2, 3}));
+  auto bad = parse_obj("v 0 0 0\nf 1 2 3\n", "bad.obj");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("line 2"), std::string::npos);
+}
+
+TEST_F(Export, SessionExportCarriesColourFramesAndLandmarks) {
+  auto store = SessionStore::open(dir_ / "store");
+  ASSERT_TRUE(store);
+  auto session = store_synthetic_subject(*store, *subject_, "synthetic");
+  ASSERT_TRUE(session) << session.error().message;
+  auto content = load_session_content(*store, *session);
+  ASSERT_TRUE(content) << content.error().message;
+  ASSERT_EQ(content->poses.size(), 20u);
+  EXPECT_EQ(content->poses[3].positions, subject_->poses[3].positions);
+  EXPECT_EQ(content->source.at("session"), std::to_string(*session));
+  ExportRequest request;
+  request.out = dir_ / "fw";
+  auto summary = export_content(*content, request);
+  ASSERT_TRUE(summary) << summary.error().message;
+  const fs::path pose = summary->path / "Tester_1" / "TrainingPose";
+  auto png = read_file_bytes(pose / "pose_4.png");
+  ASSERT_TRUE(png);
+  auto image = decode_png(*png);
+  ASSERT_TRUE(image) << image.error().message;
+  auto capture = store->read_capture(*session, 4);
+  ASSERT_TRUE(capture);
+  const auto& color = capture->frames.front().color;
+  ASSERT_EQ(image->width, color.width);
+  EXPECT_EQ(std::memcmp(image->pixels.data(), color.pixels.data(), color.pixels.size() * 3), 0);
+  EXPECT_TRUE(fs::exists(pose / "pose_4.land"));
+  auto manifest = read_file_bytes(summary->path / "manifest.json");
+  auto j = nlohmann::json::parse(manifest->begin(), manifest->end());
+  EXPECT_EQ(j["what"], "facewarehouse");
+  EXPECT_EQ(j["source"]["session"], std::to_string(*session));
+  EXPECT_EQ(j["versions"]["store_schema"], kSessionStoreSchemaVersion);
+  EXPECT_EQ(j["files"].size(), std::size_t(subject_->rig.shape_count() + 3 + 20 * 3));
+  // A session without a rig says what to do.
+  auto bare = store->create_session(*store->add_subject("no rig"), {"a"});
+  auto no_rig = load_session_content(*store, *bare);
+  ASSERT_FALSE(no_rig);
+  EXPECT_NE(no_rig.error().message.find("no rig"), std::string::npos);
+}
+
+TEST_F(Export, GlbPassesTheKhronosValidatorAndLoadsInAssimp) {
+  const auto summary = export_as(ExportFormat::kGlb, "glb");
+  const fs::path glb = summary.path / "synthetic5.glb";
+  ASSERT_TRUE(fs::exists(glb));
+  ASSERT_TRUE(verify_export_folder(summary.path));
+
+  // Our own reading of the container: header, chunk layout, target names.
+  auto bytes = read_file_bytes(glb);
+  ASSERT_TRUE(bytes);
+  std::uint32_t head[5];
+  std::memcpy(head, bytes->data(), sizeof head);
+  EXPECT_EQ(head[0], 0x46546C67u);
+  EXPECT_EQ(head[1], 2u);
+  EXPECT_EQ(head[2], bytes->size());
+  auto j = nlohmann::json::parse(bytes->begin() + 20, bytes->begin() + 20 + head[3]);
+  const auto& names = j["meshes"][0]["extras"]["targetNames"];
+  ASSERT_EQ(names.size(), std::size_t(subject_->rig.shape_count()));
+  EXPECT_EQ(names[0], subject_->rig.shape_names[0]);
+  EXPECT_EQ(j["meshes"][0]["primitives"][0]["targets"].size(), names.size());
+
+  if (std::string(FB_NODE_PATH).empty()) GTEST_SKIP() << "node is not installed";
+  ASSERT_TRUE(fs::exists(FB_GLTF_VALIDATOR_MODULE))
+      << "gltf-validator is missing: run ctest (fixture export_install_gltf_validator) or npm "
+         "install --prefix <build>/node gltf-validator";
+  const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
+                             FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
+  ASSERT_EQ(validated.exit_code, 0) << validated.output;
+  auto report = nlohmann::json::parse(validated.output, nullptr, false);
+  ASSERT_FALSE(report.is_discarded()) << validated.output;
+  std::cout << "gltf-validator " << report["validatorVersion"] << ": " << report["numErrors"]
+            << " errors, " << report["numWarnings"] << " warnings, " << report["numInfos"]
+            << " infos\n";
+  EXPECT_EQ(report["numErrors"], 0) << report["messages"].dump(1);
+
+  if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
+  const auto info = run(std::string(FB_ASSIMP_PATH) + " info " + glb.string());
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find(std::to_string(subject_->rig.vertex_count())), std::string::npos)
+      << info.output;
+}
+
+TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
+  for (auto format : {ExportFormat::kObj, ExportFormat::kPly}) {
+    const std::string ext = format == ExportFormat::kObj ? "obj" : "ply";
+    const auto summary = export_as(format, ext);
+    ASSERT_TRUE(verify_export_folder(summary.path));
+    EXPECT_TRUE(fs::exists(summary.path / ("neutral." + ext)));
+    EXPECT_TRUE(fs::exists(summary.path / "poses" / ("pose_19." + ext)));
+    EXPECT_TRUE(fs::exists(summary.path / "blendshapes" /
+                           ("01_" + subject_->rig.shape_names[0] + "." + ext)));
+    if (format == ExportFormat::kObj) {
+      auto back = read_obj(summary.path / "neutral.obj");
+      ASSERT_TRUE(back);
+      EXPECT_EQ(back->mesh.positions, subject_->rig.neutral);
+    } else {
+      const auto size = fs::file_size(summary.path / "neutral.ply");
+      const std::size_t payload =
+          std::size_t(subject_->rig.vertex_count()) * 12 + subject_->rig.triangles.size() / 3 * 13;
+      EXPECT_GT(size, payload);
+      EXPECT_LT(size, payload + 400);
+    }
+    if (std::string(FB_ASSIMP_PATH).empty()) continue;
+    const auto info =
+        run(std::string(FB_ASSIMP_PATH) + " info " + (summary.path / ("neutral." + ext)).string());
+    ASSERT_EQ(info.exit_code, 0) << info.output;
+    EXPECT_NE(info.output.find(std::to_string(subject_->rig.triangles.size() / 3)),
+              std::string::npos)
+        << info.output;
+  }
+}
+
+TEST_F(Export, InterruptedExportNeverLooksComplete) {
+  const fs::path dest = dir_ / "out";
+  {
+    auto folder = ExportFolder::create(dest, false);
+    ASSERT_TRUE(folder);
+    ASSERT_TRUE(folder->write_text("a.txt", "partial"));
+    EXPECT_FALSE(fs::exists(dest));  // only a hidden temporary exists while writing
+  }                                  // destroyed without finish(): as if the export failed half-way
+  EXPECT_FALSE(fs::exists(dest));
+  for (const auto& e : fs::directory_iterator(dir_)) ADD_FAILURE() << "left behind: " << e.path();
+
+  const auto first = export_as(ExportFormat::kGlb, "out");
+  ExportRequest again;
+  again.format = ExportFormat::kObj;
+  again.out = dest;
+  auto refused = export_content(synthetic_content(*subject_, 5, "m"), again);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("--force"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dest / "synthetic5.glb"));  // untouched
+  again.overwrite = true;
+  ASSERT_TRUE(export_content(synthetic_content(*subject_, 5, "m"), again));
+  EXPECT_FALSE(fs::exists(dest / "synthetic5.glb"));
+  EXPECT_TRUE(fs::exists(dest / "neutral.obj"));
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir_)) (void)e, ++entries;
+  EXPECT_EQ(entries, 1);  // no temporaries or old copies
+  EXPECT_TRUE(verify_export_folder(dest));
+}
+
+}  // namespace
+}  // namespace fb

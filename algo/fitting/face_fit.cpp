@@ -1,0 +1,663 @@
+#include "algo/fitting/face_fit.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+
+#include "algo/fitting/mesh_ops.hpp"
+#include "algo/render/rasterizer.hpp"
+
+namespace fb {
+
+using namespace fitting_detail;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// Gate for the reported residuals (initial and final alike, so they compare).
+constexpr double kMetricGateMm = 10.0;
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
+  Eigen::Matrix3d m;
+  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return m;
+}
+
+Points posed(const Points& v, const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+  Points x = v * r.transpose();
+  x.rowwise() += t.transpose();
+  return x;
+}
+
+// Projective correspondence: the depth sample under the vertex's projection, its normal, and
+// gates on distance and on the angle between the vertex normal and the depth normal.
+struct Correspondence {
+  Eigen::Vector3d q;  // depth point
+  Eigen::Vector3d n;  // unit, towards the camera
+};
+
+bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vector3d& vn,
+                double gate_mm, double cos_min, Correspondence& c) {
+  if (x.z() <= 1.0) return false;
+  const Eigen::Vector2d uv = t.intrinsics.project(x);
+  const int px = static_cast<int>(std::lround(uv.x())), py = static_cast<int>(std::lround(uv.y()));
+  if (!t.depth_mm.contains(px, py)) return false;
+  const float d = t.depth_mm.at(px, py);
+  if (!(d > 0.0f)) return false;
+  const Eigen::Vector3f nf = t.normals.at(px, py);
+  if (nf.squaredNorm() < 0.5f) return false;
+  c.n = nf.cast<double>();
+  c.q = t.intrinsics.unproject(px, py, d);
+  if (vn.squaredNorm() > 0.5 && vn.dot(c.n) < cos_min) return false;
+  const double plane = c.n.dot(x - c.q);
+  return std::abs(plane) <= gate_mm && (x - c.q).norm() <= 2.0 * gate_mm + 3.0;
+}
+
+// Vertices that the mesh itself does not hide from the camera: rasterise the posed mesh and
+// keep vertices within `slack_mm` of the z-buffer at their pixel. Hidden vertices (behind the
+// nose, under the jaw) would otherwise match the occluder's depth.
+std::vector<char> visible_vertices(const FitTarget& t, const Points& x,
+                                   std::span<const std::uint32_t> triangles,
+                                   double slack_mm = 2.0) {
+  std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(x.rows()));
+  for (Eigen::Index i = 0; i < x.rows(); ++i)
+    v[static_cast<std::size_t>(i)] = x.row(i).transpose().cast<float>();
+  RasterBuffers rb;
+  rb.reset(t.intrinsics.width, t.intrinsics.height);
+  std::vector<char> vis(static_cast<std::size_t>(x.rows()), 0);
+  if (!rasterize(t.intrinsics, v, triangles, RasterOptions{}, rb)) return vis;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    if (x(i, 2) <= 1.0) continue;
+    const Eigen::Vector2d uv = t.intrinsics.project(x.row(i).transpose());
+    const int px = static_cast<int>(std::lround(uv.x())),
+              py = static_cast<int>(std::lround(uv.y()));
+    if (px < 0 || py < 0 || px >= rb.width || py >= rb.height) continue;
+    vis[static_cast<std::size_t>(i)] = x(i, 2) <= rb.depth[rb.index(px, py)] + slack_mm;
+  }
+  return vis;
+}
+
+// Rigid transform (Kabsch/Umeyama without scale) mapping src onto dst.
+bool procrustes(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                Eigen::Matrix3d& r, Eigen::Vector3d& t) {
+  if (src.size() < 3) return false;
+  Eigen::Matrix3Xd a(3, src.size()), b(3, dst.size());
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    a.col(static_cast<Eigen::Index>(i)) = src[i];
+    b.col(static_cast<Eigen::Index>(i)) = dst[i];
+  }
+  const Eigen::Matrix4d m = Eigen::umeyama(a, b, false);
+  r = m.topLeftCorner<3, 3>();
+  t = m.topRightCorner<3, 1>();
+  return r.allFinite() && t.allFinite();
+}
+
+// Contour sliding (section 3.2.1, after Yang et al.): project the face vertices, take the 2D
+// convex hull, and give each contour landmark the nearest hull vertex; if none is within
+// `max_px`, the model's fixed landmark vertex stays.
+std::array<int, kFitLandmarkCount> landmark_vertices(const FaceModel& model,
+                                                     const FitTarget& target, const Points& x,
+                                                     double max_px = 12.0) {
+  std::array<int, kFitLandmarkCount> out{};
+  for (int i = 0; i < kFitLandmarkCount; ++i)
+    out[static_cast<std::size_t>(i)] =
+        static_cast<int>(model.landmark_vertices[static_cast<std::size_t>(i)]);
+  std::vector<Eigen::Vector2d> proj;
+  std::vector<int> ids;
+  proj.reserve(model.fitting_vertices.size());
+  for (std::uint32_t v : model.fitting_vertices) {
+    const Eigen::Vector3d p = x.row(v).transpose();
+    if (p.z() <= 1.0) continue;
+    proj.push_back(target.intrinsics.project(p));
+    ids.push_back(static_cast<int>(v));
+  }
+  const std::vector<int> hull = convex_hull(proj);
+  for (int k = 0; k <= 16; ++k) {
+    const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(k)];
+    if (!lm.valid) continue;
+    double best = max_px * max_px;
+    for (int h : hull) {
+      const double d = (proj[static_cast<std::size_t>(h)] - lm.pixel).squaredNorm();
+      if (d < best) {
+        best = d;
+        out[static_cast<std::size_t>(k)] = ids[static_cast<std::size_t>(h)];
+      }
+    }
+  }
+  return out;
+}
+
+// Direction of the viewing ray through a pixel (z = 1).
+Eigen::Vector3d ray(const PinholeIntrinsics& k, const Eigen::Vector2d& px) {
+  return {(px.x() - k.cx) / k.fx, (px.y() - k.cy) / k.fy, 1.0};
+}
+
+// Per-vertex residuals against the depth, and their RMS over the fitting vertices.
+void residuals(const FaceModel& model, const FitTarget& target, const Points& x,
+               std::span<const std::uint32_t> triangles, std::vector<float>& out, double& rms,
+               int& count) {
+  const Points vn = vertex_normals(x, triangles);
+  const std::vector<char> vis = visible_vertices(target, x, triangles);
+  out.assign(static_cast<std::size_t>(x.rows()), std::numeric_limits<float>::quiet_NaN());
+  const double cos_min = std::cos(70.0 * M_PI / 180.0);
+  for (Eigen::Index i = 0; i < std::min<Eigen::Index>(x.rows(), model.face_vertex_count); ++i) {
+    if (!vis[static_cast<std::size_t>(i)]) continue;
+    Correspondence c;
+    if (correspond(target, x.row(i).transpose(), vn.row(i).transpose(), kMetricGateMm, cos_min, c))
+      out[static_cast<std::size_t>(i)] = static_cast<float>(c.n.dot(x.row(i).transpose() - c.q));
+  }
+  double sum = 0;
+  count = 0;
+  for (std::uint32_t v : model.fitting_vertices) {
+    const float r = out[v];
+    if (std::isnan(r)) continue;
+    sum += static_cast<double>(r) * r;
+    ++count;
+  }
+  rms = count > 0 ? std::sqrt(sum / count) : kNaN;
+}
+
+void landmark_residuals(const FitTarget& target, const Points& x,
+                        const std::array<int, kFitLandmarkCount>& verts,
+                        std::array<double, kFitLandmarkCount>& out) {
+  for (int l = 0; l < kFitLandmarkCount; ++l) {
+    const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+    const Eigen::Vector3d p = x.row(verts[static_cast<std::size_t>(l)]).transpose();
+    if (!lm.valid) {
+      out[static_cast<std::size_t>(l)] = kNaN;
+    } else if (lm.point && !is_contour_landmark(l)) {
+      out[static_cast<std::size_t>(l)] = (p - *lm.point).norm();
+    } else {
+      const Eigen::Vector3d d = ray(target.intrinsics, lm.pixel).normalized();
+      out[static_cast<std::size_t>(l)] = (p - d * d.dot(p)).norm();
+    }
+  }
+}
+
+RigidPose to_pose(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+  RigidPose p;
+  p.rotation = Eigen::Quaterniond(r).normalized();
+  p.translation = t;
+  return p;
+}
+
+// Interior landmarks with a 3D point, as (landmark index, point).
+std::vector<int> interior_3d(const FitTarget& target) {
+  std::vector<int> out;
+  for (int l = 17; l < kFitLandmarkCount; ++l) {
+    const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+    if (lm.valid && lm.point) out.push_back(l);
+  }
+  return out;
+}
+
+Result<void> check_ready(const FaceModel& model, const FitTarget& target) {
+  if (model.vertex_count <= 0 || model.fitting_vertices.empty())
+    return fail("fit: the face model is empty");
+  if (target.depth_mm.empty()) return fail("fit: the depth map is empty");
+  if (target.normals.width != target.depth_mm.width ||
+      target.normals.height != target.depth_mm.height)
+    return fail("fit: the target has no normals; call prepare_fit_target() first");
+  if (interior_3d(target).size() < 6)
+    return fail(
+        "fit: fewer than 6 interior landmarks have depth (no face found, or no depth in "
+        "the face region)");
+  return success();
+}
+
+}  // namespace
+
+Eigen::Vector3d FitResult::camera_vertex(int i) const {
+  const Eigen::Vector3d v(vertices[static_cast<std::size_t>(3 * i)],
+                          vertices[static_cast<std::size_t>(3 * i + 1)],
+                          vertices[static_cast<std::size_t>(3 * i + 2)]);
+  return camera_from_model.apply(v);
+}
+
+std::optional<Eigen::Vector3d> lift_depth(const Image<float>& depth, const PinholeIntrinsics& k,
+                                          const Eigen::Vector2d& px, int radius_px, bool strict) {
+  // Bilinear depth where the 2x2 neighbourhood is one surface (no rim or silhouette).
+  const int x0 = static_cast<int>(std::floor(px.x())), y0 = static_cast<int>(std::floor(px.y()));
+  if (depth.contains(x0, y0) && depth.contains(x0 + 1, y0 + 1)) {
+    const float d00 = depth.at(x0, y0), d10 = depth.at(x0 + 1, y0), d01 = depth.at(x0, y0 + 1),
+                d11 = depth.at(x0 + 1, y0 + 1);
+    const float lo = std::min({d00, d10, d01, d11}), hi = std::max({d00, d10, d01, d11});
+    if (lo > 0.0f && hi - lo < 3.0f) {
+      const double fx = px.x() - x0, fy = px.y() - y0;
+      const double z = (1 - fy) * ((1 - fx) * d00 + fx * d10) + fy * ((1 - fx) * d01 + fx * d11);
+      return k.unproject(px.x(), px.y(), z);
+    }
+  }
+  if (strict) return std::nullopt;
+  const int cx = static_cast<int>(std::lround(px.x())), cy = static_cast<int>(std::lround(px.y()));
+  std::vector<float> d;
+  for (int y = cy - radius_px; y <= cy + radius_px; ++y)
+    for (int x = cx - radius_px; x <= cx + radius_px; ++x)
+      if (depth.contains(x, y) && depth.at(x, y) > 0.0f) d.push_back(depth.at(x, y));
+  if (d.empty()) return std::nullopt;
+  // At a rim: the lower quartile, not the median. Lid and lip points sit at the rim of the eye
+  // and mouth openings, and the surface behind an opening must not win.
+  std::nth_element(d.begin(), d.begin() + d.size() / 4, d.end());
+  return k.unproject(px.x(), px.y(), d[d.size() / 4]);
+}
+
+std::optional<Eigen::Vector3d> lift_with_depth(const FitTarget& target, const Eigen::Vector2d& px,
+                                               int radius_px, bool strict) {
+  return lift_depth(target.depth_mm, target.intrinsics, px, radius_px, strict);
+}
+
+Result<void> prepare_fit_target(FitTarget& target) {
+  const int w = target.depth_mm.width, h = target.depth_mm.height;
+  if (target.depth_mm.empty() || w < 3 || h < 3) return fail("fit: the depth map is empty");
+  if (target.intrinsics.fx <= 0 || target.intrinsics.fy <= 0)
+    return fail("fit: the depth intrinsics are not set");
+  if (target.normals.width != w || target.normals.height != h) {
+    target.normals.resize(w, h);
+    const auto& k = target.intrinsics;
+    auto point = [&](int x, int y, Eigen::Vector3d& p) {
+      const float d = target.depth_mm.at(x, y);
+      if (!(d > 0.0f)) return false;
+      p = k.unproject(x, y, d);
+      return true;
+    };
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        Eigen::Vector3f& n = target.normals.at(x, y);
+        n.setZero();
+        if (x == 0 || y == 0 || x == w - 1 || y == h - 1) continue;
+        Eigen::Vector3d c, l, r, u, d;
+        if (!point(x, y, c) || !point(x - 1, y, l) || !point(x + 1, y, r) || !point(x, y - 1, u) ||
+            !point(x, y + 1, d))
+          continue;
+        // Depth jumps (silhouettes) break the surface: no normal there.
+        if (std::abs(l.z() - r.z()) > 20.0 || std::abs(u.z() - d.z()) > 20.0) continue;
+        Eigen::Vector3d nn = (r - l).cross(d - u);
+        if (nn.norm() <= 0) continue;
+        nn.normalize();
+        if (nn.z() > 0) nn = -nn;  // towards the camera
+        n = nn.cast<float>();
+      }
+  }
+  int valid = 0;
+  for (const auto& lm : target.landmarks) valid += lm.valid;
+  if (valid == 0) return fail("fit: no face landmarks (no face found in the image)");
+  const auto interior = interior_3d(target);
+  if (interior.size() < 6)
+    return fail("fit: only " + std::to_string(interior.size()) +
+                " interior landmarks have depth; the face region of the depth map is missing");
+  return success();
+}
+
+Result<void> apply_corrections(FitTarget& target, std::span<const LandmarkCorrection> corrections) {
+  for (const auto& c : corrections) {
+    if (c.index < 0 || c.index >= kFitLandmarkCount)
+      return fail("landmark correction: index " + std::to_string(c.index) + " is not in 0..67");
+    FitLandmark& lm = target.landmarks[static_cast<std::size_t>(c.index)];
+    if (c.remove) {
+      lm = FitLandmark{};
+      continue;
+    }
+    if (!c.pixel.allFinite()) return fail("landmark correction: pixel is not finite");
+    lm.valid = true;
+    lm.pixel = c.pixel;
+    lm.point.reset();
+    if (!is_contour_landmark(c.index)) lm.point = lift_with_depth(target, c.pixel, 2, true);
+  }
+  return success();
+}
+
+Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
+                              std::span<const float> mesh, int iterations,
+                              const std::optional<RigidPose>& initial) {
+  if (auto ok = check_ready(model, target); !ok) return ok.failure();
+  const Points v = to_points(mesh);
+  Eigen::Matrix3d r;
+  Eigen::Vector3d t;
+  const std::vector<int> interior = interior_3d(target);
+  if (initial) {
+    r = initial->rotation.toRotationMatrix();
+    t = initial->translation;
+  } else {
+    std::vector<Eigen::Vector3d> src, dst;
+    for (int l : interior) {
+      src.push_back(v.row(model.landmark_vertices[static_cast<std::size_t>(l)]).transpose());
+      dst.push_back(*target.landmarks[static_cast<std::size_t>(l)].point);
+    }
+    if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
+  }
+  // Point-to-plane ICP on the rigid vertices, with the interior landmarks (weight as Efea).
+  const Points n_model = vertex_normals(v, model.triangles);
+  const double cos_min = std::cos(70.0 * M_PI / 180.0);
+  for (int it = 0; it < iterations; ++it) {
+    Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+    const double gate = std::max(4.0, 15.0 * (1.0 - it / std::max(1.0, iterations - 1.0)));
+    for (std::uint32_t i : model.rigid_vertices) {
+      const Eigen::Vector3d a = r * v.row(i).transpose();
+      const Eigen::Vector3d x = a + t;
+      Correspondence c;
+      if (!correspond(target, x, r * n_model.row(i).transpose(), gate, cos_min, c)) continue;
+      Eigen::Matrix<double, 6, 1> j;
+      j << a.cross(c.n), c.n;
+      const double res = c.n.dot(x - c.q);
+      h += j * j.transpose();
+      g += j * res;
+    }
+    for (int l : interior) {
+      const Eigen::Vector3d a =
+          r * v.row(model.landmark_vertices[static_cast<std::size_t>(l)]).transpose();
+      const Eigen::Vector3d res = a + t - *target.landmarks[static_cast<std::size_t>(l)].point;
+      Eigen::Matrix<double, 3, 6> j;
+      j << -skew(a), Eigen::Matrix3d::Identity();
+      h += 0.25 * j.transpose() * j;  // landmarks are noisier than depth: a light weight
+      g += 0.25 * j.transpose() * res;
+    }
+    h.diagonal().array() += 1e-6;
+    const Eigen::Matrix<double, 6, 1> d = h.ldlt().solve(-g);
+    if (!d.allFinite()) break;
+    const Eigen::Vector3d w = d.head<3>();
+    const double angle = w.norm();
+    if (angle > 0) r = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * r;
+    t += d.tail<3>();
+    if (d.norm() < 1e-6) break;
+  }
+  return to_pose(r, t);
+}
+
+Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
+                             std::span<const float> start, const RigidPose& camera_from_model,
+                             const RefineOptions& o) {
+  if (auto ok = check_ready(model, target); !ok) return ok.failure();
+  if (start.size() != static_cast<std::size_t>(model.vertex_count) * 3)
+    return fail("refine: the start mesh has the wrong vertex count");
+  const auto t0 = Clock::now();
+  const Eigen::Matrix3d r = camera_from_model.rotation.toRotationMatrix();
+  const Eigen::Vector3d t = camera_from_model.translation;
+  const Points x0 = posed(to_points(start), r, t);
+  const Eigen::Index n = x0.rows();
+
+  FitResult res;
+  res.camera_from_model = camera_from_model;
+  res.initial_vertices.assign(start.begin(), start.end());
+  residuals(model, target, x0, model.triangles, res.initial_vertex_residual_mm,
+            res.rms_to_depth_mm_initial, res.depth_correspondences);
+
+  // Elap: cotangent Laplacian of the start mesh, target lengths |L x0|.
+  const Eigen::SparseMatrix<double> lap = cotangent_laplacian(x0, model.triangles);
+  const Points lx0 = lap * x0;
+  const Eigen::VectorXd delta = lx0.rowwise().norm();
+
+  // Constraint sets are fixed for the whole refinement so the matrix stays the same:
+  // depth vertices (those with a correspondence at the start), landmark vertices.
+  const Points vn0 = vertex_normals(x0, model.triangles);
+  const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
+  std::vector<int> depth_vertices;
+  const std::vector<char> vis0 = visible_vertices(target, x0, model.triangles);
+  for (std::uint32_t v : model.fitting_vertices) {
+    if (!vis0[v]) continue;
+    Correspondence c;
+    if (correspond(target, x0.row(v).transpose(), vn0.row(v).transpose(), o.max_distance_mm,
+                   cos_min, c))
+      depth_vertices.push_back(static_cast<int>(v));
+  }
+  const auto lm_verts = landmark_vertices(model, target, x0);
+  Eigen::VectorXd diag = Eigen::VectorXd::Constant(n, 1e-4);  // soft anchor: no null space
+  for (int v : depth_vertices) diag[v] += o.w_pos;
+  for (int l = 0; l < kFitLandmarkCount; ++l)
+    if (target.landmarks[static_cast<std::size_t>(l)].valid)
+      diag[lm_verts[static_cast<std::size_t>(l)]] += o.w_fea;
+
+  // A = w_lap L^T L + D, factorized once and reused by every Gauss-Newton step.
+  Eigen::SparseMatrix<double> a = o.w_lap * Eigen::SparseMatrix<double>(lap.transpose() * lap);
+  for (Eigen::Index i = 0; i < n; ++i) a.coeffRef(i, i) += diag[i];
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  solver.compute(a);
+  if (solver.info() != Eigen::Success) return fail("refine: sparse factorization failed");
+  const Eigen::SparseMatrix<double> lap_t = lap.transpose();
+
+  Points x = x0;
+  std::vector<Eigen::Vector3d> depth_target(depth_vertices.size());
+  for (int it = 0; it < o.iterations; ++it) {
+    const Points vn = vertex_normals(x, model.triangles);
+    // Epos: closest point on the depth surface's tangent plane (foot of the perpendicular),
+    // re-found from the current mesh; a vertex that lost its correspondence stays put.
+    if (it % std::max(1, o.reassociate_every) == 0)
+      for (std::size_t k = 0; k < depth_vertices.size(); ++k) {
+        const int v = depth_vertices[k];
+        const Eigen::Vector3d p = x.row(v).transpose();
+        Correspondence c;
+        depth_target[k] =
+            correspond(target, p, vn.row(v).transpose(), o.max_distance_mm, cos_min, c)
+                ? Eigen::Vector3d(p - c.n * c.n.dot(p - c.q))
+                : p;
+      }
+    // Elap target: current Laplacian direction, original length.
+    const Points lx = lap * x;
+    Points lt(n, 3);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double len = lx.row(i).norm();
+      lt.row(i) = len > 1e-9 ? Eigen::RowVector3d(lx.row(i) * (delta[i] / len))
+                             : Eigen::RowVector3d(lx0.row(i));
+    }
+    Points rhs = o.w_lap * (lap_t * lt);
+    rhs += 1e-4 * x0;
+    for (std::size_t k = 0; k < depth_vertices.size(); ++k)
+      rhs.row(depth_vertices[k]) += o.w_pos * depth_target[k].transpose();
+    for (int l = 0; l < kFitLandmarkCount; ++l) {
+      const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+      if (!lm.valid) continue;
+      const int v = lm_verts[static_cast<std::size_t>(l)];
+      Eigen::Vector3d goal;
+      if (lm.point && !is_contour_landmark(l)) {
+        goal = *lm.point;
+      } else {  // 2D: closest point on the viewing ray
+        const Eigen::Vector3d d = ray(target.intrinsics, lm.pixel).normalized();
+        goal = d * d.dot(x.row(v).transpose());
+      }
+      // Huber with a fixed matrix: the pull is capped at landmark_huber_mm.
+      const Eigen::Vector3d cur = x.row(v).transpose();
+      Eigen::Vector3d step = goal - cur;
+      if (o.landmark_huber_mm > 0 && step.norm() > o.landmark_huber_mm)
+        step *= o.landmark_huber_mm / step.norm();
+      rhs.row(v) += o.w_fea * (cur + step).transpose();
+    }
+    x = solver.solve(rhs);
+    if (!x.allFinite()) return fail("refine: the solve diverged");
+  }
+
+  // Back to the model frame.
+  const Points v_model = (x.rowwise() - t.transpose()) * r;
+  from_points(v_model, res.vertices);
+  residuals(model, target, x, model.triangles, res.vertex_residual_mm, res.rms_to_depth_mm,
+            res.depth_correspondences);
+  res.landmark_vertex = lm_verts;
+  landmark_residuals(target, x, lm_verts, res.landmark_residual_mm);
+  res.times.refine_ms = ms_since(t0);
+  return res;
+}
+
+Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
+                              const NeutralFitOptions& o, const FitResult* initial) {
+  if (auto ok = check_ready(model, target); !ok) return ok.failure();
+  const auto t0 = Clock::now();
+  const int m = std::clamp(o.identity_modes, 0, model.identity_count);
+  const int nv = model.vertex_count;
+  const std::size_t stride = static_cast<std::size_t>(nv) * 3;
+
+  // Identity basis gathered per vertex (rows 3i..3i+2), only for the vertices step 1 touches.
+  std::vector<int> depth_set;
+  for (std::size_t k = 0; k < model.fitting_vertices.size();
+       k += static_cast<std::size_t>(std::max(1, o.depth_vertex_stride)))
+    depth_set.push_back(static_cast<int>(model.fitting_vertices[k]));
+
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(m);
+  Eigen::Matrix3d r;
+  Eigen::Vector3d t;
+  std::vector<float> mesh(stride);
+  if (initial && initial->identity_coeffs.size() == static_cast<std::size_t>(m)) {
+    for (int k = 0; k < m; ++k) c[k] = initial->identity_coeffs[static_cast<std::size_t>(k)];
+    r = initial->camera_from_model.rotation.toRotationMatrix();
+    t = initial->camera_from_model.translation;
+  } else {
+    model.evaluate({}, {}, mesh);
+    auto pose = align_rigid(model, target, mesh, 0);
+    if (!pose) return pose.failure();
+    r = pose->rotation.toRotationMatrix();
+    t = pose->translation;
+  }
+  std::vector<float> coeffs(static_cast<std::size_t>(m));
+  const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
+  const std::vector<int> interior = interior_3d(target);
+  auto basis_row = [&](int v, int d, int k) {
+    return static_cast<double>(model.identity_basis[static_cast<std::size_t>(k) * stride +
+                                                    static_cast<std::size_t>(3 * v + d)]);
+  };
+  const int unknowns = 6 + m;
+  std::array<int, kFitLandmarkCount> lm_verts{};
+  for (int round = 0; round < o.rounds; ++round) {
+    for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
+    model.evaluate(coeffs, {}, mesh);
+    const Points v = to_points(mesh);
+    const Points x = posed(v, r, t);
+    const Points vn = vertex_normals(x, model.triangles);
+    lm_verts = landmark_vertices(model, target, x);
+    const double f = o.rounds > 1 ? static_cast<double>(round) / (o.rounds - 1) : 1.0;
+    const double gate = o.max_distance_mm + f * (o.final_distance_mm - o.max_distance_mm);
+
+    // Rows: 3 per interior landmark, 2 per contour landmark, 1 per depth correspondence; each
+    // scaled by sqrt(2 w) so that J^T J + w_coef I is the Gauss-Newton matrix of E1.
+    std::vector<Correspondence> corr;
+    std::vector<int> corr_v;
+    const std::vector<char> vis = visible_vertices(target, x, model.triangles);
+    for (int vtx : depth_set) {
+      if (!vis[static_cast<std::size_t>(vtx)]) continue;
+      Correspondence cc;
+      if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc)) {
+        corr.push_back(cc);
+        corr_v.push_back(vtx);
+      }
+    }
+    // 2D rows: the contour, and interior points without depth (rims of eyes and mouth).
+    std::vector<int> contour;
+    for (int l = 0; l < kFitLandmarkCount; ++l) {
+      const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+      if (lm.valid && (is_contour_landmark(l) || !lm.point)) contour.push_back(l);
+    }
+    const Eigen::Index rows =
+        static_cast<Eigen::Index>(3 * interior.size() + 2 * contour.size() + corr.size());
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(rows, unknowns);
+    Eigen::VectorXd res(rows);
+    Eigen::Index row = 0;
+    const double sf = std::sqrt(2.0 * o.w_fea), sp = std::sqrt(2.0 * o.w_pos);
+    // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v].
+    auto point_rows = [&](int vtx, const Eigen::MatrixXd& proj, const Eigen::VectorXd& r0, double s,
+                          double huber_mm = 0) {
+      // Huber (IRLS): residuals beyond huber_mm get weight huber_mm / |r|, so one wrong
+      // landmark cannot drag the whole face.
+      if (huber_mm > 0 && r0.norm() > huber_mm) s *= std::sqrt(huber_mm / r0.norm());
+      const Eigen::Vector3d a = r * v.row(vtx).transpose();
+      const Eigen::Index k = proj.rows();
+      Eigen::MatrixXd jx(3, unknowns);
+      jx.leftCols<3>() = -skew(a);
+      jx.block<3, 3>(0, 3).setIdentity();
+      for (int mode = 0; mode < m; ++mode) {
+        const Eigen::Vector3d b(basis_row(vtx, 0, mode), basis_row(vtx, 1, mode),
+                                basis_row(vtx, 2, mode));
+        jx.col(6 + mode) = r * b;
+      }
+      j.middleRows(row, k) = s * proj * jx;
+      res.segment(row, k) = s * r0;
+      row += k;
+    };
+    for (int l : interior) {
+      const int vtx = lm_verts[static_cast<std::size_t>(l)];
+      point_rows(vtx, Eigen::Matrix3d::Identity(),
+                 x.row(vtx).transpose() - *target.landmarks[static_cast<std::size_t>(l)].point, sf,
+                 o.landmark_huber_mm);
+    }
+    for (int l : contour) {
+      // Image distance measured in mm at the vertex depth: r = [x - a z, y - b z] with
+      // (a, b) the ray through the landmark; linear in x.
+      const int vtx = lm_verts[static_cast<std::size_t>(l)];
+      const Eigen::Vector3d d =
+          ray(target.intrinsics, target.landmarks[static_cast<std::size_t>(l)].pixel);
+      Eigen::Matrix<double, 2, 3> p;
+      p << 1, 0, -d.x(), 0, 1, -d.y();
+      point_rows(vtx, p, p * x.row(vtx).transpose(), sf, o.landmark_huber_mm);
+    }
+    for (std::size_t k = 0; k < corr.size(); ++k) {
+      const int vtx = corr_v[k];
+      Eigen::VectorXd r0(1);
+      r0[0] = corr[k].n.dot(x.row(vtx).transpose() - corr[k].q);
+      point_rows(vtx, corr[k].n.transpose(), r0, sp);
+    }
+    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
+    h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
+    h = h.selfadjointView<Eigen::Lower>();
+    Eigen::VectorXd g = j.transpose() * res;
+    // Ecoef = 1/2 c^T c (the basis carries sigma): Hessian w I, gradient w c.
+    h.diagonal().tail(m).array() += o.w_coef;
+    g.tail(m) += o.w_coef * c;
+    h.diagonal().head(6).array() += 1e-6;
+    const Eigen::VectorXd d = h.ldlt().solve(-g);
+    if (!d.allFinite()) return fail("fit: the least-squares step diverged");
+    const Eigen::Vector3d w = d.head<3>();
+    const double angle = w.norm();
+    if (angle > 0) r = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * r;
+    t += d.segment<3>(3);
+    c += d.tail(m);
+  }
+  for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
+  model.evaluate(coeffs, {}, mesh);
+  const RigidPose pose = to_pose(r, t);
+  const double initial_ms = ms_since(t0);
+
+  FitResult out;
+  if (o.refine) {
+    auto refined = refine_fit(model, target, mesh, pose, o.refine_options);
+    if (!refined) return refined.failure();
+    out = std::move(*refined);
+  } else {
+    out.vertices = mesh;
+    out.initial_vertices = mesh;
+    out.camera_from_model = pose;
+    const Points x = posed(to_points(mesh), r, t);
+    residuals(model, target, x, model.triangles, out.vertex_residual_mm, out.rms_to_depth_mm,
+              out.depth_correspondences);
+    out.initial_vertex_residual_mm = out.vertex_residual_mm;
+    out.rms_to_depth_mm_initial = out.rms_to_depth_mm;
+    out.landmark_vertex = landmark_vertices(model, target, x);
+    landmark_residuals(target, x, out.landmark_vertex, out.landmark_residual_mm);
+  }
+  out.identity_coeffs = coeffs;
+  out.times.initial_ms = initial_ms;
+  return out;
+}
+
+double mean_vertex_distance(std::span<const float> a, const RigidPose& pose_a,
+                            std::span<const float> b, const RigidPose& pose_b,
+                            std::span<const std::uint32_t> subset) {
+  double sum = 0;
+  int n = 0;
+  for (std::uint32_t v : subset) {
+    const std::size_t i = 3 * static_cast<std::size_t>(v);
+    if (i + 2 >= a.size() || i + 2 >= b.size()) continue;
+    const Eigen::Vector3d pa = pose_a.apply({a[i], a[i + 1], a[i + 2]});
+    const Eigen::Vector3d pb = pose_b.apply({b[i], b[i + 1], b[i + 2]});
+    sum += (pa - pb).norm();
+    ++n;
+  }
+  return n > 0 ? sum / n : kNaN;
+}
+
+}  // namespace fb

@@ -1,0 +1,166 @@
+// Fitting the face model to one capture (FaceWarehouse sections 3.2.1-3.2.2): a fused depth map
+// in the depth camera plus 68 landmarks -> a mesh in the model's topology.
+//
+//   neutral, step 1: PCA morphable fit + rigid pose, E1 = 2 Efea + 0.5 Epos + 1 Ecoef, a few
+//                    rounds of least squares with contour and closest-point updates;
+//   neutral, step 2: Laplacian refinement E2 = 0.5 Efea + Epos + Elap (cotangent Laplacian,
+//                    length-preserving target), inexact Gauss-Newton with one factorization;
+//   expressions:     deformation transfer G0 -> Gi onto the fitted neutral
+//   (expression_transfer.hpp),
+//                    rigid alignment, then the same refinement with that capture's landmarks.
+//
+// Units mm, camera frame = the depth camera (OpenCV axes). Landmarks are given in the depth
+// image (algo/landmarks converts colour-image detections and lifts interior points).
+#pragma once
+
+#include <array>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+
+namespace fb {
+
+inline constexpr int kFitLandmarkCount = 68;
+// iBUG 0-16 are the face contour: 2D only, their mesh vertex slides along the silhouette.
+inline constexpr bool is_contour_landmark(int i) {
+  return i >= 0 && i <= 16;
+}
+
+struct FitLandmark {
+  bool valid = false;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // depth image, px
+  // Camera-frame 3D point for interior landmarks (lifted from depth); unset = use 2D only.
+  std::optional<Eigen::Vector3d> point;
+};
+
+// What a fit matches: a depth map (e.g. ray-cast from the fused volume) and its landmarks.
+struct FitTarget {
+  PinholeIntrinsics intrinsics;
+  Image<float> depth_mm;           // z in mm, 0 = no data
+  Image<Eigen::Vector3f> normals;  // optional; computed from depth when empty
+  std::array<FitLandmark, kFitLandmarkCount> landmarks;
+};
+
+// Fills target.normals from target.depth_mm (central differences, unit, towards the camera)
+// and checks the target: sizes, enough depth in the landmarks' region, enough landmarks.
+// Errors say what is missing ("no face landmarks", "no depth in the face region").
+Result<void> prepare_fit_target(FitTarget& target);
+
+// Lifts a depth-image point to 3D: bilinear depth where the 2x2 neighbourhood is one surface,
+// else (unless `strict`) the lower quartile of valid depth within `radius_px`; nullopt where
+// there is no depth. Landmark lifting is strict: a point on the rim of an eye or the mouth
+// (depth jumps there) stays 2D rather than take the depth of the wrong side.
+std::optional<Eigen::Vector3d> lift_depth(const Image<float>& depth, const PinholeIntrinsics& k,
+                                          const Eigen::Vector2d& px, int radius_px = 2,
+                                          bool strict = false);
+// The same with the target's own depth. Used for operator corrections (strict).
+std::optional<Eigen::Vector3d> lift_with_depth(const FitTarget& target, const Eigen::Vector2d& px,
+                                               int radius_px = 2, bool strict = false);
+
+struct RefineOptions {
+  // E2 = w_fea Efea + w_pos Epos + w_lap Elap (paper: 0.5, 1, 1).
+  double w_fea = 0.5;
+  double w_pos = 1.0;
+  double w_lap = 1.0;
+  double landmark_huber_mm = 3.0;    // landmark pulls are capped at this distance
+  int iterations = 12;               // inexact Gauss-Newton steps, one factorization
+  int reassociate_every = 1;         // closest points are re-found every k steps
+  double max_distance_mm = 6.0;      // depth correspondence gate
+  double max_normal_angle_deg = 70;  // between the vertex normal and the depth normal
+};
+
+struct NeutralFitOptions {
+  // E1 = w_fea Efea + w_pos Epos + w_coef Ecoef (paper: 2, 0.5, 1).
+  double w_fea = 2.0;
+  double w_pos = 0.5;
+  double w_coef = 1.0;
+  double landmark_huber_mm = 3.0;  // Huber loss on landmark residuals (robust to wrong points)
+  int rounds = 7;                  // least-squares rounds (paper: 5-8)
+  int identity_modes = 100;        // leading modes used (<= model.identity_count)
+  int depth_vertex_stride = 2;     // every k-th fitting vertex takes part in Epos in step 1
+  double max_distance_mm = 15.0;   // depth gate of the first round, shrinking to
+  double final_distance_mm = 6.0;  // this by the last round
+  double max_normal_angle_deg = 70;
+  bool refine = true;  // run step 2
+  RefineOptions refine_options;
+};
+
+struct ExpressionFitOptions {
+  int rigid_iterations = 8;  // point-to-plane ICP on the rigid vertices + landmarks
+  bool refine = true;
+  RefineOptions refine_options;
+};
+
+struct FitTimes {
+  double initial_ms = 0;  // step 1 (neutral) or transfer + rigid (expression)
+  double refine_ms = 0;
+  double total_ms() const { return initial_ms + refine_ms; }
+};
+
+struct FitResult {
+  // Final mesh (refined when refinement ran), model frame, 3 * vertex_count floats, mm.
+  std::vector<float> vertices;
+  // Before refinement: the PCA fit (neutral) or the transferred, aligned start (expressions).
+  std::vector<float> initial_vertices;
+  RigidPose camera_from_model;
+  std::vector<float> identity_coeffs;  // sigma units (neutral fits; empty for expressions)
+  // Per-vertex point-to-plane distance to the depth map, mm (signed: + in front of the
+  // surface); NaN where the vertex has no valid correspondence. For the final and the
+  // initial mesh.
+  std::vector<float> vertex_residual_mm;
+  std::vector<float> initial_vertex_residual_mm;
+  double rms_to_depth_mm = 0;  // over face vertices with a correspondence
+  double rms_to_depth_mm_initial = 0;
+  int depth_correspondences = 0;
+  // Landmark residuals of the final mesh: 3D distance (interior) or ray distance (contour), mm.
+  std::array<double, kFitLandmarkCount> landmark_residual_mm{};
+  std::array<int, kFitLandmarkCount> landmark_vertex{};  // mesh vertex used (contour slides)
+  FitTimes times;
+
+  // Camera-frame position of vertex i.
+  Eigen::Vector3d camera_vertex(int i) const;
+};
+
+// Neutral fit (steps 1 and 2). `initial` (optional) starts from a previous fit's pose and
+// identity, as a refit after operator corrections does.
+Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
+                              const NeutralFitOptions& options = {},
+                              const FitResult* initial = nullptr);
+
+// Step 2 alone: refines `start` (model frame, with `camera_from_model`) against the target.
+// The result's initial_* fields describe `start`.
+Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
+                             std::span<const float> start, const RigidPose& camera_from_model,
+                             const RefineOptions& options = {});
+
+// Rigid pose of a fixed-shape mesh (model frame) against the target: Procrustes on the
+// interior landmarks, then point-to-plane ICP on the model's rigid vertices.
+Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
+                              std::span<const float> mesh, int iterations,
+                              const std::optional<RigidPose>& initial = std::nullopt);
+
+// An operator's correction: landmark `index` moved to `pixel` (depth image). Interior points
+// are re-lifted with the target's depth.
+struct LandmarkCorrection {
+  int index = 0;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+  bool remove = false;  // drop the point instead of moving it
+};
+
+// Applies corrections to a target (errors on a bad index).
+Result<void> apply_corrections(FitTarget& target, std::span<const LandmarkCorrection> corrections);
+
+// Metrics helpers for evaluation: mean distance between two meshes (camera frames) over a
+// vertex subset, and RMS of a residual vector over a subset (NaNs skipped).
+double mean_vertex_distance(std::span<const float> a, const RigidPose& pose_a,
+                            std::span<const float> b, const RigidPose& pose_b,
+                            std::span<const std::uint32_t> subset);
+
+}  // namespace fb

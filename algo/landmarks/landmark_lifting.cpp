@@ -1,0 +1,113 @@
+#include "algo/landmarks/landmark_lifting.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace fb {
+
+namespace {
+
+double median(std::vector<float>& v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+Image<float> depth_to_float(const DepthImage& depth_mm) {
+  Image<float> out;
+  out.resize(depth_mm.width, depth_mm.height);
+  for (std::size_t i = 0; i < depth_mm.pixels.size(); ++i) out.pixels[i] = depth_mm.pixels[i];
+  return out;
+}
+
+std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color_px,
+                                                    const Image<float>& depth_mm,
+                                                    const KinectRegistration& registration,
+                                                    double reference_mm,
+                                                    const LiftOptions& options) {
+  const int w = depth_mm.width, h = depth_mm.height;
+  const auto ref16 = static_cast<std::uint16_t>(std::clamp(reference_mm, 1.0, 9999.0));
+  auto mapped = [&](int x, int y, Eigen::Vector2d& c) {
+    std::uint16_t mm = ref16;
+    if (depth_mm.contains(x, y)) {
+      const float d = depth_mm.at(x, y);
+      if (d > 0.0f && std::abs(d - reference_mm) <= options.depth_band_mm)
+        mm = static_cast<std::uint16_t>(std::lround(d));
+    }
+    double cx = 0, cy = 0;
+    if (!registration.depth_to_color(x, y, mm, cx, cy)) return false;
+    c = {cx, cy};
+    return true;
+  };
+  // First guess: the registration shift at the reference depth is nearly constant locally.
+  int gx = std::clamp(static_cast<int>(std::lround(color_px.x())), 0, w - 1);
+  int gy = std::clamp(static_cast<int>(std::lround(color_px.y())), 0, h - 1);
+  for (int pass = 0; pass < 2; ++pass) {
+    Eigen::Vector2d c;
+    if (!mapped(gx, gy, c)) break;
+    gx = std::clamp(static_cast<int>(std::lround(gx + color_px.x() - c.x())), 0, w - 1);
+    gy = std::clamp(static_cast<int>(std::lround(gy + color_px.y() - c.y())), 0, h - 1);
+  }
+  double best = 1e30;
+  Eigen::Vector2d best_px, best_c;
+  const int r = options.search_radius_px;
+  for (int y = gy - r; y <= gy + r; ++y)
+    for (int x = gx - r; x <= gx + r; ++x) {
+      if (x < 0 || y < 0 || x >= w || y >= h) continue;
+      Eigen::Vector2d c;
+      if (!mapped(x, y, c)) continue;
+      const double d = (c - color_px).squaredNorm();
+      if (d < best) {
+        best = d;
+        best_px = {x, y};
+        best_c = c;
+      }
+    }
+  if (best > 4.0 * 4.0) return std::nullopt;
+  // Sub-pixel: the mapping is a shift locally (unit Jacobian).
+  return best_px + (color_px - best_c);
+}
+
+Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
+    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options) {
+  if (color_px.size() != static_cast<std::size_t>(kFitLandmarkCount))
+    return fail("landmarks: expected 68 points, got " + std::to_string(color_px.size()));
+  if (depth_mm.empty()) return fail("landmarks: the depth map is empty");
+  // Reference depth: the median over the landmarks' bounding box (the face).
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  for (const auto& p : color_px) {
+    if (!p.allFinite()) return fail("landmarks: a point is not finite");
+    x0 = std::min(x0, p.x());
+    y0 = std::min(y0, p.y());
+    x1 = std::max(x1, p.x());
+    y1 = std::max(y1, p.y());
+  }
+  std::vector<float> box;
+  for (int y = std::max(0, static_cast<int>(y0)); y <= std::min<int>(depth_mm.height - 1, y1); ++y)
+    for (int x = std::max(0, static_cast<int>(x0)); x <= std::min<int>(depth_mm.width - 1, x1); ++x)
+      if (depth_mm.at(x, y) > 0.0f) box.push_back(depth_mm.at(x, y));
+  if (box.size() < 50)
+    return fail("landmarks: no depth in the face box (the depth map is missing there)");
+  // The nearest quarter of the box is the face, not the background behind the jaw.
+  std::sort(box.begin(), box.end());
+  const double reference = box[box.size() / 4];
+  std::array<FitLandmark, kFitLandmarkCount> out{};
+  for (int i = 0; i < kFitLandmarkCount; ++i) {
+    FitLandmark& lm = out[static_cast<std::size_t>(i)];
+    const auto px = color_to_depth_pixel(color_px[static_cast<std::size_t>(i)], depth_mm,
+                                         registration, reference, options);
+    if (!px) continue;
+    lm.valid = true;
+    lm.pixel = *px;
+    if (is_contour_landmark(i)) continue;
+    // Strict lifting: on a rim (eyes, mouth) the point stays 2D (see lift_depth).
+    lm.point =
+        lift_depth(depth_mm, registration.depth_intrinsics(), *px, options.depth_radius_px, true);
+  }
+  return out;
+}
+
+}  // namespace fb

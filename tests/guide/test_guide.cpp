@@ -1,0 +1,93 @@
+// Guide expression recipes: the committed data parses, references existing shapes, and bad
+// recipe text gives clear errors.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "algo/guide/guide_expressions.hpp"
+#include "storage/asset_files.hpp"
+
+namespace fb {
+namespace {
+
+std::string read_guide_file() {
+  std::ifstream in(std::string(FB_DATA_DIR) + "/guide_expressions.json");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+const FaceModel& model() {
+  static const FaceModel m = [] {
+    auto r = load_face_model();
+    EXPECT_TRUE(r.ok());
+    return r.ok() ? std::move(*r) : FaceModel{};
+  }();
+  return m;
+}
+
+TEST(Guide, CommittedRecipesParseAndReferenceModelShapes) {
+  auto guide = parse_guide_expressions(read_guide_file());
+  ASSERT_TRUE(guide.ok()) << guide.error().message;
+  ASSERT_EQ(guide->expressions.size(), 20u);
+  const char* names[] = {"neutral",     "mouth_stretch", "smile",         "brow_lower",
+                         "brow_raiser", "anger",         "jaw_left",      "jaw_right",
+                         "jaw_forward", "mouth_left",    "mouth_right",   "dimpler",
+                         "chin_raiser", "lip_pucker",    "lip_funneler",  "sadness",
+                         "lip_roll",    "grin",          "cheek_blowing", "eyes_closed"};
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_EQ(guide->expressions[i].id, i);
+    EXPECT_EQ(guide->expressions[i].name, names[i]);
+    if (i > 0) EXPECT_FALSE(guide->expressions[i].weights.empty()) << names[i];
+  }
+  auto ok = validate_guide(*guide, model());
+  EXPECT_TRUE(ok.ok()) << (ok.ok() ? "" : ok.error().message);
+  // Every non-neutral guide mesh differs from G0; G0 is the model's mean face.
+  auto g0 = guide_mesh(guide->expressions[0], model());
+  ASSERT_TRUE(g0.ok());
+  for (int i = 1; i < 20; ++i) {
+    auto gi = guide_mesh(guide->expressions[i], model());
+    ASSERT_TRUE(gi.ok());
+    double max_move = 0;
+    for (std::size_t k = 0; k < gi->size(); ++k)
+      max_move = std::max<double>(max_move, std::abs((*gi)[k] - (*g0)[k]));
+    EXPECT_GT(max_move, 2.0) << names[i];  // a visible expression (mm)
+  }
+  EXPECT_EQ(guide->find("smile"), 2);
+  EXPECT_EQ(guide->find("nope"), -1);
+}
+
+TEST(Guide, BadTextGivesClearErrors) {
+  auto expect_error = [](const std::string& text, const std::string& needle) {
+    auto r = parse_guide_expressions(text);
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_NE(r.error().message.find(needle), std::string::npos) << r.error().message;
+  };
+  expect_error("{", "not valid JSON");
+  expect_error(R"({"format":"other","version":1,"expressions":[]})", "format");
+  expect_error(R"({"format":"facebooth-guide-expressions","version":2,"expressions":[]})",
+               "version");
+  const std::string head = R"({"format":"facebooth-guide-expressions","version":1,"expressions":[)";
+  expect_error(
+      head + R"({"id":0,"name":"neutral","weights":{}},{"id":2,"name":"a","weights":{}}]})",
+      "missing id 1");
+  expect_error(head + R"({"id":0,"name":"neutral","weights":{"jawOpen":0.5}}]})", "neutral");
+  expect_error(
+      head +
+          R"({"id":0,"name":"neutral","weights":{}},{"id":1,"name":"a","weights":{"jawOpen":1.5}}]})",
+      "[0, 1]");
+  expect_error(
+      head + R"({"id":0,"name":"neutral","weights":{}},{"id":1,"name":"neutral","weights":{}}]})",
+      "duplicate");
+  auto unknown = parse_guide_expressions(
+      head +
+      R"({"id":0,"name":"neutral","weights":{}},{"id":1,"name":"a","weights":{"notAShape":0.5}}]})");
+  ASSERT_TRUE(unknown.ok());
+  auto v = validate_guide(*unknown, model());
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.error().message.find("notAShape"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace fb

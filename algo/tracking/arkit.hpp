@@ -1,0 +1,79 @@
+// Apple ARKit's 52 blendshape names and the mapping from the face model's 53 fitting shapes.
+//
+// Order: the Live Link Face / ARFaceAnchor order (EyeBlinkLeft ... TongueOut), the column order
+// of Live Link Face CSV files, so index i means the same curve everywhere in the project.
+//
+// Mapping from the ICT FaceKit shapes (model frame: +X = subject's left, so "_L" = subject's
+// left = ARKit "Left", which is also the subject's own left):
+//  - NAME_L / NAME_R -> NAMELeft / NAMERight (e.g. eyeBlink_L -> eyeBlinkLeft), 48 shapes;
+//  - unsided names map 1:1 (jawOpen, jawForward, jawLeft, jawRight, mouthClose, mouthFunnel,
+//    mouthPucker, mouthLeft, mouthRight, mouthRollLower/Upper, mouthShrugLower/Upper);
+//  - browInnerUp_L + browInnerUp_R -> browInnerUp and cheekPuff_L + cheekPuff_R -> cheekPuff,
+//    as the mean of the two halves (a symmetric ARKit value v is the model's L = R = v);
+//  - tongueOut has no model shape: always 0;
+//  - the model's 4 extras (cheekRaiser_L/R, PupilDilate_L/R) are not fitted and not sent.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string_view>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+
+namespace fb {
+
+inline constexpr int kArkitShapeCount = 52;
+
+// camelCase ARKit names (as VMC/VSeeFace and ARKit use them), Live Link Face order.
+extern const std::array<std::string_view, kArkitShapeCount> kArkitNames;
+// The same curves with Live Link Face's capitalised CSV column names (EyeBlinkLeft ...).
+extern const std::array<std::string_view, kArkitShapeCount> kLiveLinkNames;
+
+// For every ARKit curve, up to two model expression indices averaged into it (-1 = unused).
+struct ArkitMapping {
+  std::array<std::array<int, 2>, kArkitShapeCount> sources{};
+
+  // arkit[i] = mean of the model weights of its sources, clamped to [0, 1]; 0 without sources.
+  void to_arkit(std::span<const float> model_weights,
+                std::array<float, kArkitShapeCount>& arkit) const;
+  // The inverse used for scoring and tests: each source gets the ARKit value.
+  void to_model(const std::array<float, kArkitShapeCount>& arkit,
+                std::span<float> model_weights) const;
+};
+
+// Builds the mapping from the model's expression names; fails when a fitting shape has no
+// ARKit curve or an ARKit curve (other than tongueOut) has no model shape.
+Result<ArkitMapping> make_arkit_mapping(const FaceModel& model);
+
+// One tracked frame as the outputs (VMC, SSE, CSV) see it.
+struct ArkitFrame {
+  std::uint64_t index = 0;
+  double time_s = 0.0;
+  bool face_found = false;  // false: weights and pose hold the last good values
+  std::array<float, kArkitShapeCount> weights{};
+  // Head pose: camera_from_model (depth camera frame, mm), the filtered tracker output.
+  RigidPose camera_from_model;
+};
+
+// Head rotation relative to the frontal pose, in the model frame (+X subject's left, +Y up,
+// +Z out of the face): R_head = R_flip^T * R_camera_from_model, R_flip = 180 deg about x.
+Eigen::Quaterniond head_rotation(const RigidPose& camera_from_model);
+
+// Live Link Face head angles in radians: R_head = R_y(yaw) * R_x(pitch) * R_z(roll) in the model
+// frame (the synthetic camera's yaw/pitch convention). yaw > 0: the subject turns to their left;
+// pitch > 0: chin down; roll > 0: the head tilts towards the subject's right shoulder.
+struct HeadAngles {
+  double yaw = 0.0;
+  double pitch = 0.0;
+  double roll = 0.0;
+};
+HeadAngles head_angles(const Eigen::Quaterniond& head);
+Eigen::Quaterniond head_from_angles(const HeadAngles& angles);
+
+}  // namespace fb

@@ -1,0 +1,956 @@
+#include "algo/tracking/face_tracker.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <unordered_map>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+
+namespace fb {
+
+const char* to_string(TrackState state) {
+  switch (state) {
+    case TrackState::kSearching:
+      return "searching";
+    case TrackState::kCalibrating:
+      return "calibrating";
+    case TrackState::kTracking:
+      return "tracking";
+    case TrackState::kRecovered:
+      return "recovered";
+    case TrackState::kLost:
+      return "lost";
+    case TrackState::kBadInput:
+      return "bad_input";
+  }
+  return "unknown";
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// A float rigid transform for the hot loops: p_camera = r * p_model + t.
+struct Pose {
+  Eigen::Matrix3f r = Eigen::Matrix3f::Identity();
+  Eigen::Vector3f t = Eigen::Vector3f::Zero();
+  RigidPose to_rigid() const {
+    RigidPose p;
+    p.rotation = Eigen::Quaterniond(r.cast<double>()).normalized();
+    p.translation = t.cast<double>();
+    return p;
+  }
+  static Pose from(const RigidPose& p) {
+    return {p.rotation.normalized().toRotationMatrix().cast<float>(), p.translation.cast<float>()};
+  }
+};
+
+// Pixel rectangle [x0, x1) x [y0, y1).
+struct Box {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+// Tukey biweight: (1 - (r/c)^2)^2 inside the cut-off, 0 outside.
+inline float tukey(float r, float c) {
+  const float u = r / c;
+  if (u * u >= 1.0f) return 0.0f;
+  const float s = 1.0f - u * u;
+  return s * s;
+}
+
+const Eigen::Matrix3f kFlip = Eigen::Vector3f(1.0f, -1.0f, -1.0f).asDiagonal();
+
+}  // namespace
+
+struct FaceTracker::State {
+  const FaceModel* model = nullptr;  // non-owning; create() documents the lifetime
+  TrackerOptions options;
+  PinholeIntrinsics intrinsics;
+  float fx = 0, fy = 0, cx = 0, cy = 0;
+  int width = 0, height = 0;
+  int k = 0;  // fitting shapes
+  int n = 0;  // samples
+  int modes = 0;
+
+  std::vector<std::uint32_t> sample_vertices;
+  // Identity-independent: expression deltas and identity modes at the samples (3n x k, 3n x m).
+  RowMatrix expression_at_samples;
+  RowMatrix identity_at_samples;
+  RowMatrix expression_at_landmarks;  // 3*68 x k
+  RowMatrix identity_at_landmarks;    // 3*68 x m
+
+  // The subject's rig (rebuilt by build_rig()).
+  std::vector<float> identity;                         // m coefficients
+  Eigen::VectorXf base;                                // 3n: neutral + identity at the samples
+  std::vector<Eigen::Vector3f> normals;                // n, model frame, of the identity neutral
+  RowMatrix normal_rows;                               // n x k: n_i^T B_i (point-to-plane rows)
+  Eigen::VectorXf landmark_base;                       // 3*68
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  // of the samples, model frame
+  ShapeVector shape_ridge;  // per-shape Tikhonov weight (mm^2), see build_rig()
+  std::vector<int> weak_shapes;
+  float nose_z = 0.0f;  // largest model z of the samples
+  bool calibrated = false;
+
+  // Per-frame state.
+  Eigen::VectorXf current;           // 3n: base + B w
+  Eigen::VectorXf landmark_current;  // 3*68
+  ShapeVector weights;               // the current solution
+  ShapeVector previous_weights;      // last frame's output
+  Pose pose;                         // raw ICP pose
+  bool have_pose = false;
+  Pose last_good_pose;
+  bool have_last_good = false;
+  bool lost = false;
+  double last_time = 0.0;
+  bool have_time = false;
+  PoseFilter filter;
+  RigidPose filtered;
+
+  // Depth ring buffer and the smoothed face box.
+  std::vector<DepthImage> ring;
+  int ring_count = 0;
+  int ring_head = -1;
+  Image<float> smoothed;
+  Box box;
+
+  // Weight solve buffers.
+  RowMatrix rows;  // (n + 2*68) x k
+  Eigen::VectorXf targets;
+  ShapeMatrix h;
+  ShapeVector g;
+
+  // Calibration frames.
+  std::vector<Image<float>> calib_depth;
+  std::vector<Box> calib_box;
+  std::vector<Pose> calib_pose;
+  std::vector<ShapeVector> calib_weights;
+  int calib_count = 0;
+  std::vector<float> mesh_scratch;
+  std::vector<Eigen::Vector3f> mesh_normals;
+
+  // --- helpers ---
+  // Rigid part of each identity mode at the samples ([omega; t] about `rigid_pivot`, 6 x m),
+  // removed from the calibration basis: depth of the front of the face cannot tell a head
+  // rotated by a degree from a differently shaped head, so calibrated identities carry no
+  // rigid motion and the pose is determined by the data alone.
+  Eigen::Matrix<float, 6, Eigen::Dynamic> rigid_of_mode;
+  Eigen::Vector3f rigid_pivot = Eigen::Vector3f::Zero();
+  using Twist = Eigen::Matrix<float, 6, 1>;
+  void build_rig(std::span<const float> coefficients, const Twist& rigid_offset = Twist::Zero());
+  void update_current() {
+    current = base;
+    current.noalias() += expression_at_samples * weights;
+    landmark_current = landmark_base;
+    landmark_current.noalias() += expression_at_landmarks * weights;
+  }
+  Eigen::Vector3f sample(int i) const { return current.segment<3>(3 * i); }
+  bool depth_at(const Image<float>& image, const Box& b, float u, float v, float& z) const;
+  Box predicted_box(const Pose& p) const;
+  int smooth(const DepthImage& depth, const Box& b);
+  struct IcpStats {
+    int facing = 0;
+    int used = 0;
+    int inliers = 0;
+    float rms = 0.0f;
+  };
+  IcpStats icp(const Image<float>& image, const Box& b, Pose& p, int iterations, float first_gate,
+               float gate) const;
+  void solve_weights(const Image<float>& image, const Box& b, const Pose& p,
+                     const TrackLandmarks* landmarks, int& landmarks_used);
+  bool acceptable(const IcpStats& s, bool acquiring) const;
+  bool acquire(const TrackLandmarks* landmarks, IcpStats& stats);
+  void calibrate();
+  void output(TrackReport& report, double time_s);
+};
+
+void FaceTracker::State::build_rig(std::span<const float> coefficients, const Twist& rigid_offset) {
+  identity.assign(std::max<std::size_t>(static_cast<std::size_t>(modes), coefficients.size()),
+                  0.0f);
+  std::copy(coefficients.begin(), coefficients.end(), identity.begin());
+  // Full-mesh neutral of this identity for the normals (area-weighted vertex normals).
+  const FaceModel& m = *model;
+  mesh_scratch.resize(static_cast<std::size_t>(3 * m.vertex_count));
+  m.evaluate(identity, {}, mesh_scratch);
+  if (!rigid_offset.isZero()) {
+    // Minus the linearised rigid motion: v -= omega x (mean_v - pivot) + t.
+    const Eigen::Vector3f omega = rigid_offset.head<3>(), t = rigid_offset.tail<3>();
+    for (int v = 0; v < m.vertex_count; ++v) {
+      const Eigen::Vector3f mean(m.neutral[3 * v], m.neutral[3 * v + 1], m.neutral[3 * v + 2]);
+      const Eigen::Vector3f d = omega.cross(mean - rigid_pivot) + t;
+      for (int a = 0; a < 3; ++a) mesh_scratch[3 * v + a] -= d[a];
+    }
+  }
+  mesh_normals.assign(static_cast<std::size_t>(m.vertex_count), Eigen::Vector3f::Zero());
+  auto vertex = [&](std::uint32_t v) {
+    return Eigen::Vector3f(mesh_scratch[3 * v], mesh_scratch[3 * v + 1], mesh_scratch[3 * v + 2]);
+  };
+  for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
+    const auto a = m.triangles[t], b = m.triangles[t + 1], cc = m.triangles[t + 2];
+    const Eigen::Vector3f nn = (vertex(b) - vertex(a)).cross(vertex(cc) - vertex(a));
+    mesh_normals[a] += nn;
+    mesh_normals[b] += nn;
+    mesh_normals[cc] += nn;
+  }
+  base.resize(3 * n);
+  normals.resize(static_cast<std::size_t>(n));
+  centroid.setZero();
+  nose_z = -std::numeric_limits<float>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const auto v = sample_vertices[static_cast<std::size_t>(i)];
+    base.segment<3>(3 * i) = vertex(v);
+    normals[static_cast<std::size_t>(i)] = mesh_normals[v].normalized();
+    centroid += vertex(v);
+    nose_z = std::max(nose_z, vertex(v).z());
+  }
+  centroid /= static_cast<float>(n);
+  // Point-to-plane rows of the weight solve: n_i . (B_i w). With the normals of the neutral
+  // they do not depend on the pose (n_camera . R B_i w = n_model . B_i w).
+  normal_rows.resize(n, k);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f& nn = normals[static_cast<std::size_t>(i)];
+    normal_rows.row(i) = nn.x() * expression_at_samples.row(3 * i) +
+                         nn.y() * expression_at_samples.row(3 * i + 1) +
+                         nn.z() * expression_at_samples.row(3 * i + 2);
+  }
+  landmark_base.resize(3 * 68);
+  for (int l = 0; l < 68; ++l) landmark_base.segment<3>(3 * l) = vertex(m.landmark_vertices[l]);
+  // Depth signal of each shape: H0_jj = sum_i (n_i . B_ij)^2. Shapes far below the median
+  // (eyeLook*: they rotate eyeballs the skin model does not have) are nearly invisible in
+  // depth; opposing pairs of them would wander on noise, so they get a strong prior to 0.
+  const Eigen::VectorXf signal = normal_rows.colwise().squaredNorm().transpose();
+  std::vector<float> sorted(signal.data(), signal.data() + k);
+  std::nth_element(sorted.begin(), sorted.begin() + k / 2, sorted.end());
+  const float median = sorted[static_cast<std::size_t>(k / 2)];
+  shape_ridge.resize(k);
+  weak_shapes.clear();
+  for (int j = 0; j < k; ++j) {
+    const bool weak = signal[j] < options.weak_shape_fraction * median;
+    shape_ridge[j] = options.ridge + (weak ? options.weak_shape_ridge * median : 0.0f);
+    if (weak) weak_shapes.push_back(j);
+  }
+  update_current();
+}
+
+bool FaceTracker::State::depth_at(const Image<float>& image, const Box& b, float u, float v,
+                                  float& z) const {
+  // Bilinear between the 4 pixel centres around (u, v) when all are valid and on one surface.
+  const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+  if (x0 < b.x0 || y0 < b.y0 || x0 + 1 >= b.x1 || y0 + 1 >= b.y1) return false;
+  const float* row0 = &image.pixels[static_cast<std::size_t>(y0) * width + x0];
+  const float* row1 = row0 + width;
+  const float d00 = row0[0], d10 = row0[1], d01 = row1[0], d11 = row1[1];
+  if (d00 <= 0.0f || d10 <= 0.0f || d01 <= 0.0f || d11 <= 0.0f) return false;
+  const float lo = std::min(std::min(d00, d10), std::min(d01, d11));
+  const float hi = std::max(std::max(d00, d10), std::max(d01, d11));
+  if (hi - lo > 12.0f) return false;
+  const float ax = u - x0, ay = v - y0;
+  z = (1 - ay) * ((1 - ax) * d00 + ax * d10) + ay * ((1 - ax) * d01 + ax * d11);
+  return true;
+}
+
+Box FaceTracker::State::predicted_box(const Pose& p) const {
+  float u0 = 1e9f, v0 = 1e9f, u1 = -1e9f, v1 = -1e9f;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f x = p.r * sample(i) + p.t;
+    if (x.z() <= 1.0f) continue;
+    const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+    u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+  }
+  constexpr int kMargin = 16;  // px: a frame's motion plus the bilinear footprint
+  Box b;
+  b.x0 = std::clamp(static_cast<int>(u0) - kMargin, 0, width);
+  b.y0 = std::clamp(static_cast<int>(v0) - kMargin, 0, height);
+  b.x1 = std::clamp(static_cast<int>(u1) + kMargin, 0, width);
+  b.y1 = std::clamp(static_cast<int>(v1) + kMargin, 0, height);
+  return b;
+}
+
+int FaceTracker::State::smooth(const DepthImage& depth, const Box& b) {
+  // Weighted temporal mean: w_a = decay^a * (1 - (d_a - d_0)^2 / range^2)^2 for frames that
+  // agree with the newest within `range`; the newest frame defines validity.
+  const int count = ring_count;
+  const float range = options.temporal_range_mm, inv_range2 = 1.0f / (range * range);
+  const float lo = options.min_depth_mm, hi = options.max_depth_mm;
+  std::array<const std::uint16_t*, 16> frames{};
+  std::array<float, 16> decay{};
+  for (int a = 0; a < count && a < 16; ++a) {
+    const int slot =
+        (ring_head - a + static_cast<int>(ring.size())) % static_cast<int>(ring.size());
+    frames[a] = a == 0 ? depth.pixels.data() : ring[static_cast<std::size_t>(slot)].pixels.data();
+    decay[a] = std::pow(options.temporal_decay, static_cast<float>(a));
+  }
+  int valid = 0;
+  for (int y = b.y0; y < b.y1; ++y) {
+    const std::size_t row = static_cast<std::size_t>(y) * width;
+    for (int x = b.x0; x < b.x1; ++x) {
+      const std::size_t i = row + x;
+      const float d0 = frames[0][i];
+      if (!(d0 >= lo && d0 <= hi)) {
+        smoothed.pixels[i] = 0.0f;
+        continue;
+      }
+      float sum = d0, wsum = 1.0f;
+      for (int a = 1; a < count; ++a) {
+        const float d = frames[a][i];
+        const float diff = d - d0;
+        const float q = diff * diff * inv_range2;
+        if (d <= 0.0f || q >= 1.0f) continue;
+        const float w = decay[a] * (1.0f - q) * (1.0f - q);
+        sum += w * d;
+        wsum += w;
+      }
+      smoothed.pixels[i] = sum / wsum;
+      ++valid;
+    }
+  }
+  return valid;
+}
+
+FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, const Box& b,
+                                                     Pose& p, int iterations, float first_gate,
+                                                     float gate) const {
+  IcpStats stats;
+  for (int it = 0; it < iterations; ++it) {
+    // Gate shrinks geometrically from first_gate to gate over the first iterations.
+    const float c = std::max(gate, first_gate * std::pow(0.5f, static_cast<float>(it)));
+    const Eigen::Vector3f pivot = p.r * centroid + p.t;
+    Eigen::Matrix<float, 6, 6> jtj = Eigen::Matrix<float, 6, 6>::Zero();
+    Eigen::Matrix<float, 6, 1> jtr = Eigen::Matrix<float, 6, 1>::Zero();
+    IcpStats s;
+    double r2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3f x = p.r * sample(i) + p.t;
+      const Eigen::Vector3f nn = p.r * normals[static_cast<std::size_t>(i)];
+      if (x.z() <= 1.0f || nn.dot(x) > -0.2f * x.norm()) continue;  // faces away / grazing
+      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+      if (u < 0.0f || v < 0.0f || u > width - 1.0f || v > height - 1.0f) continue;
+      ++s.facing;
+      float z = 0.0f;
+      if (!depth_at(image, b, u, v, z)) continue;
+      ++s.used;
+      // The measured point on the same ray as x: p = x * z / x_z.
+      const Eigen::Vector3f q = x * (z / x.z());
+      const float r = nn.dot(x - q);
+      const float w = tukey(r, c);
+      if (w <= 0.0f) continue;
+      ++s.inliers;
+      r2 += static_cast<double>(r) * r;
+      Eigen::Matrix<float, 6, 1> j;
+      j.head<3>() = (x - pivot).cross(nn);
+      j.tail<3>() = nn;
+      jtj.noalias() += w * j * j.transpose();
+      jtr.noalias() += w * r * j;
+    }
+    s.rms = s.inliers > 0 ? static_cast<float>(std::sqrt(r2 / s.inliers)) : 1e9f;
+    stats = s;
+    if (s.inliers < 12) break;
+    jtj.diagonal().array() += 1e-3f;
+    const Eigen::Matrix<float, 6, 1> xi = jtj.ldlt().solve(-jtr);
+    const Eigen::Vector3f omega = xi.head<3>();
+    const float angle = omega.norm();
+    const Eigen::Matrix3f rw = angle > 1e-9f
+                                   ? Eigen::AngleAxisf(angle, omega / angle).toRotationMatrix()
+                                   : Eigen::Matrix3f::Identity();
+    // x' = Rw (x - pivot) + pivot + dt.
+    p.r = rw * p.r;
+    p.t = rw * (p.t - pivot) + pivot + xi.tail<3>();
+    // Orthonormalise now and then against float drift.
+    if (it == iterations - 1) p.r = Eigen::Quaternionf(p.r).normalized().toRotationMatrix();
+    if (angle < 2e-5f && xi.tail<3>().norm() < 0.01f && it > 0) break;
+  }
+  return stats;
+}
+
+void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, const Pose& p,
+                                       const TrackLandmarks* landmarks, int& landmarks_used) {
+  const Eigen::Matrix3f rt = p.r.transpose();
+  for (int it = 0; it < options.weight_iterations; ++it) {
+    int count = 0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3f xm = sample(i);
+      const Eigen::Vector3f x = p.r * xm + p.t;
+      const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
+      if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
+      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+      float z = 0.0f;
+      if (!depth_at(image, b, u, v, z)) continue;
+      // Data point in the model frame; the row says n_i . (B_i w) = n_i . (q - base_i).
+      const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
+      const float residual = nm.dot(xm - q);
+      const float w = tukey(residual, options.icp_gate_mm);
+      if (w <= 0.0f) continue;
+      const float s = std::sqrt(w);
+      rows.row(count) = s * normal_rows.row(i);
+      targets[count] = s * nm.dot(q - base.segment<3>(3 * i));
+      ++count;
+    }
+    landmarks_used = 0;
+    if (landmarks != nullptr && landmarks->points.size() >= 68) {
+      const float lw = options.landmark_weight;
+      for (int l = 17; l < 68; ++l) {
+        if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
+        const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+        if (x.z() <= 1.0f) continue;
+        const float iz = 1.0f / x.z();
+        const Eigen::Vector2f proj(fx * x.x() * iz + cx, fy * x.y() * iz + cy);
+        const Eigen::Vector2f r = proj - landmarks->points[static_cast<std::size_t>(l)];
+        const float rn = r.norm();
+        const float hw = rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn;
+        // d proj / d x (2x3) times R: the landmark's image motion per model-frame motion.
+        Eigen::Matrix<float, 2, 3> jp;
+        jp << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
+        const Eigen::Matrix<float, 2, 3> jr = jp * p.r;
+        const float s = std::sqrt(lw * hw);
+        for (int a = 0; a < 2; ++a) {
+          // Linearised at the current w: J w_new = J w - r.
+          rows.row(count) = s * (jr(a, 0) * expression_at_landmarks.row(3 * l) +
+                                 jr(a, 1) * expression_at_landmarks.row(3 * l + 1) +
+                                 jr(a, 2) * expression_at_landmarks.row(3 * l + 2));
+          targets[count] = rows.row(count).dot(weights) - s * r[a];
+          ++count;
+        }
+        ++landmarks_used;
+      }
+    }
+    if (count < 8) return;
+    h.noalias() = rows.topRows(count).transpose() * rows.topRows(count);
+    g.noalias() = rows.topRows(count).transpose() * targets.head(count);
+    const float lt = options.temporal_weight;
+    h.diagonal().array() += lt + shape_ridge.array();
+    g += lt * previous_weights;
+    g.array() -= options.sparsity;
+    solve_bounded_lsq(h, g, 0.0f, 1.0f, weights);
+    update_current();
+  }
+}
+
+bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring) const {
+  // Acquisition is stricter on coverage (a flat wall must not pass for a face).
+  const float fraction =
+      acquiring ? std::max(0.5f, options.min_inlier_fraction) : options.min_inlier_fraction;
+  const float rms = options.max_rms_mm;
+  return s.inliers >= options.min_inliers &&
+         static_cast<float>(s.inliers) >= fraction * static_cast<float>(s.facing) && s.rms <= rms;
+}
+
+bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stats) {
+  // Candidate starting poses, best first: the last good pose (a short occlusion), a pose from
+  // the landmarks (detection), and a frontal face on the nearest surface (depth detection) at
+  // three yaws.
+  std::array<Pose, 5> candidates;
+  int count = 0;
+  const Box full{0, 0, width, height};
+  if (have_last_good) candidates[count++] = last_good_pose;
+  if (landmarks != nullptr && landmarks->points.size() >= 68) {
+    // Kabsch between the model landmarks and the landmarks lifted with the depth.
+    Eigen::Matrix<float, 3, 68> src, dst;
+    int m = 0;
+    for (int l = 17; l < 68; ++l) {
+      if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
+      const Eigen::Vector2f& px = landmarks->points[static_cast<std::size_t>(l)];
+      float z = 0.0f;
+      if (!depth_at(smoothed, full, px.x(), px.y(), z)) continue;
+      src.col(m) = landmark_current.segment<3>(3 * l);
+      dst.col(m) = Eigen::Vector3f((px.x() - cx) * z / fx, (px.y() - cy) * z / fy, z);
+      ++m;
+    }
+    if (m >= 10) {
+      const Eigen::Matrix3f t = Eigen::umeyama(src.leftCols(m), dst.leftCols(m), false)
+                                    .topLeftCorner<4, 4>()
+                                    .eval()
+                                    .block<3, 3>(0, 0);
+      Pose p;
+      p.r = t;
+      const Eigen::Vector3f sc = src.leftCols(m).rowwise().mean();
+      const Eigen::Vector3f dc = dst.leftCols(m).rowwise().mean();
+      p.t = dc - p.r * sc;
+      candidates[count++] = p;
+    }
+  }
+  {
+    // Nearest surface: a 1 cm depth histogram of every 4th pixel; the first bin with a few
+    // dozen samples is the front of the nearest object (the face, for a seated subject).
+    std::array<int, 256> histogram{};
+    const float lo = options.min_depth_mm;
+    for (int y = 0; y < height; y += 4) {
+      for (int x = 0; x < width; x += 4) {
+        const float d = smoothed.pixels[static_cast<std::size_t>(y) * width + x];
+        if (d <= 0.0f) continue;
+        const int bin = std::clamp(static_cast<int>((d - lo) / 10.0f), 0, 255);
+        ++histogram[static_cast<std::size_t>(bin)];
+      }
+    }
+    int bin = 0;
+    while (bin < 256 && histogram[static_cast<std::size_t>(bin)] < 20) ++bin;
+    if (bin < 256) {
+      const float front = lo + 10.0f * bin;
+      double su = 0, sv = 0, sz = 0;
+      int m = 0;
+      for (int y = 0; y < height; y += 2) {
+        for (int x = 0; x < width; x += 2) {
+          const float d = smoothed.pixels[static_cast<std::size_t>(y) * width + x];
+          if (d <= 0.0f || d > front + options.acquire_band_mm) continue;
+          su += x, sv += y, sz += d;
+          ++m;
+        }
+      }
+      if (m > 50) {
+        const float z = static_cast<float>(sz / m);
+        const Eigen::Vector3f centre(static_cast<float>((su / m - cx) * z / fx),
+                                     static_cast<float>((sv / m - cy) * z / fy), z);
+        for (float yaw_deg : {0.0f, 25.0f, -25.0f}) {
+          if (count >= static_cast<int>(candidates.size())) break;
+          Pose p;
+          p.r = kFlip * Eigen::AngleAxisf(yaw_deg * std::numbers::pi_v<float> / 180.0f,
+                                          Eigen::Vector3f::UnitY())
+                            .toRotationMatrix();
+          // Samples' centroid at the blob centre in x, y; the nose tip on the nearest surface.
+          p.t = centre - p.r * centroid;
+          const Eigen::Vector3f nose =
+              centroid + Eigen::Vector3f(0.0f, 0.0f, nose_z - centroid.z());
+          p.t.z() = front - (p.r * nose).z();
+          candidates[count++] = p;
+        }
+      }
+    }
+  }
+  bool found = false;
+  IcpStats best;
+  Pose best_pose;
+  for (int c = 0; c < count; ++c) {
+    Pose p = candidates[c];
+    const IcpStats s =
+        icp(smoothed, full, p, options.acquire_iterations, 40.0f, options.icp_gate_mm);
+    if (!acceptable(s, true)) continue;
+    if (!found || s.inliers > best.inliers) {
+      found = true;
+      best = s;
+      best_pose = p;
+    }
+    if (c == 0 && have_last_good) break;  // the last pose fits: no need to search
+  }
+  stats = best;
+  if (found) pose = best_pose;
+  return found;
+}
+
+void FaceTracker::State::calibrate() {
+  // Identity by alternation: (1) with poses and expressions fixed, a linear least-squares fit
+  // of the identity coefficients to the point-to-plane residuals of all stored frames, with a
+  // Tikhonov prior (coefficients are in sigma units); (2) re-track every stored frame with the
+  // new face. Rows: n_i . (U_i c) = n_i . (q - neutral_i - B_i w).
+  Eigen::MatrixXd hc(modes, modes);
+  Eigen::VectorXd gc(modes);
+  Eigen::VectorXf row(modes);
+  for (int round = 0; round < options.calibration_rounds; ++round) {
+    hc.setZero();
+    gc.setZero();
+    const Eigen::Map<const Eigen::VectorXf> c(identity.data(), modes);
+    for (int f = 0; f < calib_count; ++f) {
+      const Pose& p = calib_pose[static_cast<std::size_t>(f)];
+      weights.setZero();  // the subject holds a neutral face while calibrating
+      update_current();
+      const Eigen::Matrix3f rt = p.r.transpose();
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector3f xm = sample(i);
+        const Eigen::Vector3f x = p.r * xm + p.t;
+        const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
+        if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
+        const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+        float z = 0.0f;
+        if (!depth_at(calib_depth[static_cast<std::size_t>(f)],
+                      calib_box[static_cast<std::size_t>(f)], u, v, z)) {
+          continue;
+        }
+        const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
+        const float residual = nm.dot(xm - q);
+        const float w = tukey(residual, options.icp_gate_mm);
+        if (w <= 0.0f) continue;
+        row = nm.x() * identity_at_samples.row(3 * i) +
+              nm.y() * identity_at_samples.row(3 * i + 1) +
+              nm.z() * identity_at_samples.row(3 * i + 2);
+        const float target = nm.dot(q - xm) + row.dot(c);
+        const Eigen::VectorXd rd = row.cast<double>();
+        hc.selfadjointView<Eigen::Lower>().rankUpdate(rd, w);
+        gc += (w * target) * rd;
+      }
+    }
+    hc = hc.selfadjointView<Eigen::Lower>();
+    hc.diagonal().array() += options.identity_prior;
+    const Eigen::VectorXd solution = hc.ldlt().solve(gc);
+    std::vector<float> coefficients(static_cast<std::size_t>(modes));
+    for (int j = 0; j < modes; ++j)
+      coefficients[static_cast<std::size_t>(j)] = static_cast<float>(solution[j]);
+    const Twist rigid = rigid_of_mode * solution.cast<float>();
+    build_rig(coefficients, rigid);
+    // Re-track the stored frames with the new face.
+    for (int f = 0; f < calib_count; ++f) {
+      Pose& p = calib_pose[static_cast<std::size_t>(f)];
+      weights.setZero();
+      update_current();
+      icp(calib_depth[static_cast<std::size_t>(f)], calib_box[static_cast<std::size_t>(f)], p,
+          options.icp_iterations, options.icp_gate_mm, options.icp_gate_mm);
+    }
+  }
+  // Continue from the last calibration frame.
+  pose = calib_pose[static_cast<std::size_t>(calib_count - 1)];
+  weights.setZero();
+  previous_weights = weights;
+  update_current();
+  calibrated = true;
+}
+
+void FaceTracker::State::output(TrackReport& report, double time_s) {
+  const double dt = have_time ? time_s - last_time : 0.0;
+  filtered = filter.update(pose.to_rigid(), dt);
+  last_time = time_s;
+  have_time = true;
+  report.camera_from_model = filtered;
+  report.raw_camera_from_model = pose.to_rigid();
+  report.shape_count = k;
+  std::fill(report.weights.begin(), report.weights.end(), 0.0f);
+  for (int j = 0; j < k; ++j) report.weights[static_cast<std::size_t>(j)] = weights[j];
+}
+
+FaceTracker::FaceTracker(std::unique_ptr<State> state) : state_(std::move(state)) {}
+FaceTracker::~FaceTracker() = default;
+
+Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
+                                                         const PinholeIntrinsics& intrinsics,
+                                                         const TrackerOptions& options) {
+  if (model.vertex_count <= 0 || model.fitting_expression_count <= 0 ||
+      model.neutral.size() != static_cast<std::size_t>(3 * model.vertex_count)) {
+    return fail("tracking: the face model is empty; load data/facemodel.fbfm first");
+  }
+  if (model.fitting_expression_count > kMaxTrackedShapes) {
+    return fail("tracking: the model has " + std::to_string(model.fitting_expression_count) +
+                " fitting shapes; at most " + std::to_string(kMaxTrackedShapes) + " are supported");
+  }
+  if (intrinsics.fx <= 0.0 || intrinsics.fy <= 0.0 || intrinsics.width <= 0 ||
+      intrinsics.height <= 0) {
+    return fail("tracking: the camera reports no depth intrinsics");
+  }
+  if (options.temporal_frames < 1 || options.temporal_frames > 16) {
+    return fail("tracking: temporal_frames must be in [1, 16]");
+  }
+  if (options.calibration_frames < 1) return fail("tracking: calibration_frames must be >= 1");
+  auto s = std::make_unique<State>();
+  s->model = &model;
+  s->options = options;
+  s->intrinsics = intrinsics;
+  s->fx = static_cast<float>(intrinsics.fx), s->fy = static_cast<float>(intrinsics.fy);
+  s->cx = static_cast<float>(intrinsics.cx), s->cy = static_cast<float>(intrinsics.cy);
+  s->width = intrinsics.width, s->height = intrinsics.height;
+  s->k = model.fitting_expression_count;
+  s->modes = std::clamp(options.identity_modes, 0, model.identity_count);
+  s->filter = PoseFilter(options.pose_filter);
+
+  // --- Sample selection on the mean face: front-facing fitting vertices, one per grid cell,
+  // plus the most-displaced vertices of every shape so small shapes (blinks, brows) are seen.
+  const int v_count = model.vertex_count;
+  std::vector<float> neutral = model.neutral;
+  std::vector<Eigen::Vector3f> vn(static_cast<std::size_t>(v_count), Eigen::Vector3f::Zero());
+  auto nv = [&](std::uint32_t v) {
+    return Eigen::Vector3f(neutral[3 * v], neutral[3 * v + 1], neutral[3 * v + 2]);
+  };
+  for (std::size_t t = 0; t + 2 < model.triangles.size(); t += 3) {
+    const auto a = model.triangles[t], b = model.triangles[t + 1], c = model.triangles[t + 2];
+    const Eigen::Vector3f nn = (nv(b) - nv(a)).cross(nv(c) - nv(a));
+    vn[a] += nn, vn[b] += nn, vn[c] += nn;
+  }
+  // Boundary vertices (edges of one triangle): the eye and mouth openings. Depth there sees
+  // eyeballs, teeth or the mouth cavity, which the skin model does not have, so vertices within
+  // `hole_margin` of them are not sampled.
+  std::vector<char> boundary(static_cast<std::size_t>(v_count), 0);
+  {
+    std::unordered_map<long long, int> edges;
+    auto key = [](std::uint32_t a, std::uint32_t b) {
+      return static_cast<long long>(std::min(a, b)) * 1000003LL + std::max(a, b);
+    };
+    for (std::size_t t = 0; t + 2 < model.triangles.size(); t += 3) {
+      for (int e = 0; e < 3; ++e)
+        ++edges[key(model.triangles[t + e], model.triangles[t + (e + 1) % 3])];
+    }
+    for (const auto& [k, count] : edges) {
+      if (count == 1) {
+        boundary[static_cast<std::size_t>(k / 1000003LL)] = 1;
+        boundary[static_cast<std::size_t>(k % 1000003LL)] = 1;
+      }
+    }
+  }
+  std::vector<Eigen::Vector3f> hole_points;
+  for (int v = 0; v < model.face_vertex_count; ++v) {
+    if (boundary[static_cast<std::size_t>(v)])
+      hole_points.push_back(nv(static_cast<std::uint32_t>(v)));
+  }
+  std::vector<std::uint32_t> candidates;
+  for (auto v : model.fitting_vertices) {
+    if (static_cast<int>(v) >= model.face_vertex_count) continue;
+    if (vn[v].normalized().z() < 0.25f) continue;
+    bool near_hole = false;
+    for (const auto& h : hole_points) {
+      if ((h - nv(v)).squaredNorm() < options.hole_margin_mm * options.hole_margin_mm) {
+        near_hole = true;
+        break;
+      }
+    }
+    if (!near_hole) candidates.push_back(v);
+  }
+  if (candidates.size() < 200) return fail("tracking: the face model has too few face vertices");
+  std::unordered_map<long long, std::uint32_t> cells;
+  std::vector<char> chosen(static_cast<std::size_t>(v_count), 0);
+  const float spacing = std::max(1.0f, options.sample_spacing_mm);
+  for (auto v : candidates) {
+    const Eigen::Vector3f p = nv(v);
+    const long long key = (static_cast<long long>(std::floor(p.x() / spacing)) + 100000) * 200001 +
+                          static_cast<long long>(std::floor(p.y() / spacing)) + 100000;
+    if (cells.emplace(key, v).second) chosen[v] = 1;
+  }
+  for (int j = 0; j < s->k; ++j) {
+    const auto shape = model.expression_shape(j);
+    std::vector<std::pair<float, std::uint32_t>> moved;
+    for (auto v : candidates) {
+      const float d = Eigen::Vector3f(shape[3 * v], shape[3 * v + 1], shape[3 * v + 2]).norm();
+      if (d > 0.5f) moved.emplace_back(d, v);
+    }
+    const std::size_t take = std::min<std::size_t>(
+        moved.size(), static_cast<std::size_t>(options.extra_samples_per_shape));
+    std::partial_sort(moved.begin(), moved.begin() + take, moved.end(),
+                      [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (std::size_t i = 0; i < take; ++i) chosen[moved[i].second] = 1;
+  }
+  for (int v = 0; v < v_count; ++v) {
+    if (chosen[static_cast<std::size_t>(v)])
+      s->sample_vertices.push_back(static_cast<std::uint32_t>(v));
+  }
+  const int n = static_cast<int>(s->sample_vertices.size());
+  s->n = n;
+
+  // --- Identity-independent bases at the samples and landmarks.
+  s->expression_at_samples.resize(3 * n, s->k);
+  s->identity_at_samples.resize(3 * n, s->modes);
+  s->expression_at_landmarks.resize(3 * 68, s->k);
+  s->identity_at_landmarks.resize(3 * 68, s->modes);
+  auto fill = [&](RowMatrix& out, std::span<const std::uint32_t> vertices, bool expression) {
+    const int columns = expression ? s->k : s->modes;
+    for (int j = 0; j < columns; ++j) {
+      const auto shape = expression ? model.expression_shape(j) : model.identity_mode(j);
+      for (std::size_t i = 0; i < vertices.size(); ++i) {
+        for (int a = 0; a < 3; ++a)
+          out(3 * static_cast<int>(i) + a, j) = shape[3 * vertices[i] + a];
+      }
+    }
+  };
+  fill(s->expression_at_samples, s->sample_vertices, true);
+  fill(s->identity_at_samples, s->sample_vertices, false);
+  fill(s->expression_at_landmarks, model.landmark_vertices, true);
+  fill(s->identity_at_landmarks, model.landmark_vertices, false);
+  {
+    // Rigid part of every identity mode at the samples: least squares against the 6 rigid
+    // motions of the mean face about its sample centroid, then removed from the basis.
+    Eigen::Vector3f pivot = Eigen::Vector3f::Zero();
+    for (auto v : s->sample_vertices) pivot += nv(v);
+    pivot /= static_cast<float>(n);
+    s->rigid_pivot = pivot;
+    Eigen::MatrixXd g(3 * n, 6);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d x =
+          (nv(s->sample_vertices[static_cast<std::size_t>(i)]) - pivot).cast<double>();
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector3d e = Eigen::Vector3d::Unit(a);
+        g.block<3, 1>(3 * i, a) = e.cross(x);  // rotation about axis a
+        g.block<3, 1>(3 * i, 3 + a) = e;       // translation along a
+      }
+    }
+    const Eigen::MatrixXd alpha =
+        (g.transpose() * g).ldlt().solve(g.transpose() * s->identity_at_samples.cast<double>());
+    s->rigid_of_mode = alpha.cast<float>();
+    s->identity_at_samples -= (g * alpha).cast<float>();
+  }
+
+  // --- Buffers at their final size.
+  s->weights = ShapeVector::Zero(s->k);
+  s->previous_weights = ShapeVector::Zero(s->k);
+  s->h.resize(s->k, s->k);
+  s->g.resize(s->k);
+  s->rows.resize(n + 2 * 68, s->k);
+  s->targets.resize(n + 2 * 68);
+  s->current.resize(3 * n);
+  s->landmark_current.resize(3 * 68);
+  s->ring.resize(static_cast<std::size_t>(options.temporal_frames));
+  for (auto& f : s->ring) f.resize(s->width, s->height);
+  s->smoothed.resize(s->width, s->height);
+  s->calib_depth.resize(static_cast<std::size_t>(options.calibration_frames));
+  for (auto& f : s->calib_depth) f.resize(s->width, s->height);
+  s->calib_box.resize(static_cast<std::size_t>(options.calibration_frames));
+  s->calib_pose.resize(static_cast<std::size_t>(options.calibration_frames));
+  s->calib_weights.assign(static_cast<std::size_t>(options.calibration_frames),
+                          ShapeVector::Zero(s->k));
+  s->build_rig({});
+  return std::unique_ptr<FaceTracker>(new FaceTracker(std::move(s)));
+}
+
+Result<void> FaceTracker::set_identity(std::span<const float> coefficients) {
+  State& s = *state_;
+  if (coefficients.size() > static_cast<std::size_t>(s.model->identity_count)) {
+    return fail("tracking: " + std::to_string(coefficients.size()) +
+                " identity coefficients given, the model has " +
+                std::to_string(s.model->identity_count));
+  }
+  s.build_rig(coefficients);
+  s.calibrated = true;
+  s.calib_count = 0;
+  return success();
+}
+
+void FaceTracker::reset() {
+  State& s = *state_;
+  s.calibrated = false;
+  s.calib_count = 0;
+  s.have_pose = s.have_last_good = s.lost = s.have_time = false;
+  s.ring_count = 0;
+  s.weights.setZero();
+  s.previous_weights.setZero();
+  s.filter.reset();
+  s.build_rig({});
+}
+
+bool FaceTracker::calibrated() const {
+  return state_->calibrated;
+}
+std::span<const float> FaceTracker::identity() const {
+  return state_->identity;
+}
+int FaceTracker::sample_count() const {
+  return state_->n;
+}
+int FaceTracker::shape_count() const {
+  return state_->k;
+}
+std::span<const int> FaceTracker::weak_shapes() const {
+  return state_->weak_shapes;
+}
+std::span<const std::string> FaceTracker::shape_names() const {
+  return std::span<const std::string>(state_->model->expression_names)
+      .first(static_cast<std::size_t>(state_->k));
+}
+
+void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandmarks* landmarks,
+                        TrackReport& report) {
+  State& s = *state_;
+  report.times = {};
+  report.face_found = false;
+  report.loss_reason = "";
+  report.samples_used = report.inliers = report.landmarks_used = 0;
+  report.rms_mm = 0.0f;
+  report.calibration_frames_left = s.calibrated ? 0 : s.options.calibration_frames - s.calib_count;
+  auto keep_last = [&](TrackState state, const char* reason) {
+    report.state = state;
+    report.loss_reason = reason;
+    report.camera_from_model = s.filtered;
+    report.raw_camera_from_model = s.pose.to_rigid();
+    report.shape_count = s.k;
+    for (int j = 0; j < s.k; ++j)
+      report.weights[static_cast<std::size_t>(j)] = s.previous_weights[j];
+  };
+  if (depth.width != s.width || depth.height != s.height ||
+      depth.pixels.size() != static_cast<std::size_t>(s.width) * s.height) {
+    keep_last(TrackState::kBadInput, "depth frame size does not match the camera intrinsics");
+    return;
+  }
+  auto start = Clock::now();
+
+  // Ring buffer: the newest frame goes into the next slot (a copy, so callers reuse theirs).
+  s.ring_head = (s.ring_head + 1) % static_cast<int>(s.ring.size());
+  std::copy(depth.pixels.begin(), depth.pixels.end(),
+            s.ring[static_cast<std::size_t>(s.ring_head)].pixels.begin());
+  s.ring_count = std::min(s.ring_count + 1, static_cast<int>(s.ring.size()));
+
+  const bool searching = !s.have_pose || s.lost;
+  s.box = searching ? Box{0, 0, s.width, s.height} : s.predicted_box(s.pose);
+  const int valid = s.smooth(depth, s.box);
+  report.times.smooth_ms = ms_since(start);
+  if (valid < 50) {
+    s.lost = s.have_pose;
+    keep_last(searching ? TrackState::kBadInput : TrackState::kLost,
+              searching ? "no valid depth in the frame" : "no valid depth where the face was");
+    return;
+  }
+
+  State::IcpStats stats;
+  bool recovered = false;
+  if (searching) {
+    start = Clock::now();
+    const bool found = s.acquire(landmarks, stats);
+    report.times.acquire_ms = ms_since(start);
+    if (!found) {
+      keep_last(s.have_pose ? TrackState::kLost : TrackState::kSearching, "no face found");
+      if (s.have_pose) report.state = TrackState::kSearching;
+      return;
+    }
+    recovered = s.have_pose;
+    s.have_pose = true;
+    s.lost = false;
+    s.box = s.predicted_box(s.pose);
+    s.smooth(depth, s.box);
+  }
+
+  start = Clock::now();
+  stats = s.icp(s.smoothed, s.box, s.pose, s.options.icp_iterations, s.options.icp_first_gate_mm,
+                s.options.icp_gate_mm);
+  report.times.icp_ms = ms_since(start);
+  report.samples_used = stats.used;
+  report.inliers = stats.inliers;
+  report.rms_mm = stats.rms;
+  if (!s.acceptable(stats, false)) {
+    s.lost = true;
+    s.pose = s.last_good_pose;
+    keep_last(TrackState::kLost, stats.inliers < s.options.min_inliers ? "too few depth inliers"
+                                 : stats.rms > s.options.max_rms_mm    ? "residual too large"
+                                                                       : "too few inliers");
+    return;
+  }
+
+  start = Clock::now();
+  // While calibrating the face is assumed neutral: expression weights would absorb the
+  // identity difference the calibration is about to measure.
+  if (s.calibrated) s.solve_weights(s.smoothed, s.box, s.pose, landmarks, report.landmarks_used);
+  report.times.weights_ms = ms_since(start);
+  s.previous_weights = s.weights;
+  s.last_good_pose = s.pose;
+  s.have_last_good = true;
+  report.face_found = true;
+
+  if (!s.calibrated) {
+    const auto f = static_cast<std::size_t>(s.calib_count);
+    std::copy(s.smoothed.pixels.begin(), s.smoothed.pixels.end(), s.calib_depth[f].pixels.begin());
+    s.calib_box[f] = s.box;
+    s.calib_pose[f] = s.pose;
+    s.calib_weights[f] = s.weights;
+    ++s.calib_count;
+    report.calibration_frames_left = s.options.calibration_frames - s.calib_count;
+    if (s.calib_count >= s.options.calibration_frames) {
+      start = Clock::now();
+      s.calibrate();
+      report.times.calibrate_ms = ms_since(start);
+      s.filter.reset();
+    }
+  }
+  s.output(report, time_s);
+  report.state = !s.calibrated ? TrackState::kCalibrating
+                 : recovered   ? TrackState::kRecovered
+                               : TrackState::kTracking;
+}
+
+}  // namespace fb

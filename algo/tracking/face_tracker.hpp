@@ -1,0 +1,171 @@
+// Real-time head pose + blendshape tracking on depth frames (FaceWarehouse 4.3, wrinkle paper
+// 4.1): rigid projective point-to-plane ICP of the subject's current face against the
+// temporally smoothed depth, then blendshape weights in [0, 1] by bounded least squares on the
+// same depth samples plus optional 2D landmarks, with temporal smoothness. Robust weights keep
+// an occluder (a hand) from dragging pose or weights; a lost face is reported and re-acquired.
+//
+// Subject: the first `calibration_frames` usable frames fit identity coefficients with the
+// face model's identity PCA (Tikhonov prior, alternating with pose and expression), or
+// set_identity() loads a known identity. The subject's blendshapes (identity face + the
+// model's expression deltas) are then precomputed once at a fixed vertex subsample
+// ("rig"), so a frame only streams a 3N x K matrix and solves a K x K system.
+//
+// Per-frame cost: ring buffer + temporal smoothing in the face box, ICP on N samples, K x K
+// normal equations (N x K GEMM) and projected Gauss-Seidel. Steady-state track() does not
+// allocate; every buffer is sized in create() / calibration.
+//
+// Units mm; camera frame x right, y down, z forward (depth camera); model frame +X subject's
+// left, +Y up, +Z out of the face. Pure: no files, no sockets, no threads.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+#include "algo/tracking/bounded_lsq.hpp"
+#include "algo/tracking/pose_filter.hpp"
+
+namespace fb {
+
+struct TrackerOptions {
+  // --- Depth preprocessing ---
+  // Temporal smoothing: weighted mean of the last k depth frames per pixel (wrinkle paper:
+  // k = 5). Older frames only count where they agree with the newest one within
+  // temporal_range_mm (tri-weight), so motion does not smear.
+  int temporal_frames = 5;
+  float temporal_range_mm = 4.0f;
+  float temporal_decay = 0.7f;  // weight of frame age a: decay^a
+  float min_depth_mm = 400.0f;
+  float max_depth_mm = 2000.0f;
+
+  // --- Vertex subsample (front of the face) ---
+  float sample_spacing_mm = 4.0f;   // model-XY grid cell; one vertex per cell
+  int extra_samples_per_shape = 6;  // most-displaced vertices of every shape added
+  float hole_margin_mm = 0.0f;      // no samples this close to the eye / mouth openings
+
+  // --- Rigid ICP ---
+  int icp_iterations = 6;
+  float icp_first_gate_mm = 30.0f;  // association gate of the first iteration
+  float icp_gate_mm = 10.0f;        // Tukey biweight cut-off afterwards
+  float huber_mm = 2.5f;            // full weight below this
+
+  // --- Blendshape weights ---
+  int weight_iterations = 3;      // IRLS rounds (re-association + robust weights)
+  float temporal_weight = 30.0f;  // mm^2 per unit weight change: lambda_t ||w - w_prev||^2
+  // Priors, in mm^2 against a data term of ~2000 samples: small next to a visible shape's
+  // signal (H_jj ~ 1e3-1e5), large next to the near-null combinations of opposing shapes
+  // (blink + wide, lookUp + lookDown) that would otherwise wander on noise.
+  float sparsity = 20.0f;  // lambda_1 * sum w (w >= 0 makes it L1)
+  float ridge = 100.0f;    // lambda_r ||w||^2
+  // Shapes whose depth signal (sum of squared point-to-plane rows) is below this fraction of
+  // the median shape's get an extra prior of weak_shape_ridge * median signal.
+  float weak_shape_fraction = 0.1f;
+  float weak_shape_ridge = 2.0f;
+  float landmark_weight = 1.0f;  // mm^2 per px^2 of landmark residual
+  float landmark_huber_px = 4.0f;
+
+  // --- Loss detection ---
+  int min_inliers = 150;
+  float min_inlier_fraction = 0.35f;  // of the samples facing the camera inside the image
+  float max_rms_mm = 4.0f;
+
+  // --- Calibration ---
+  int calibration_frames = 10;
+  int calibration_rounds = 4;
+  int identity_modes = 100;      // leading identity PCA modes fitted
+  float identity_prior = 20.0f;  // mm^2 per unit coefficient^2 (coefficients are in sigma)
+
+  // --- Acquisition (first frame and after loss) ---
+  int acquire_iterations = 20;
+  float acquire_band_mm = 120.0f;  // the face: pixels within this of the nearest surface
+
+  PoseFilterOptions pose_filter;
+};
+
+enum class TrackState : std::uint8_t {
+  kSearching,    // no face yet (or still lost): outputs hold the last good values
+  kCalibrating,  // tracking with the provisional identity while collecting calibration frames
+  kTracking,
+  kRecovered,  // tracking again after loss on this frame
+  kLost,       // the face was lost on this frame (report + keep the last good values)
+  kBadInput,   // wrong size or no valid depth at all
+};
+const char* to_string(TrackState state);
+
+// Optional 2D landmarks: the 68 iBUG points in DEPTH image pixels (detect on colour, map
+// through the registration); `valid[i] == 0` drops point i. Contour points 0-16 are ignored
+// (they slide along the silhouette).
+struct TrackLandmarks {
+  std::span<const Eigen::Vector2f> points;
+  std::span<const std::uint8_t> valid;  // empty = all valid
+};
+
+struct TrackTimes {
+  double smooth_ms = 0.0;     // ring buffer + temporal smoothing in the face box
+  double icp_ms = 0.0;        // rigid ICP
+  double weights_ms = 0.0;    // blendshape solve (incl. landmark rows when given)
+  double acquire_ms = 0.0;    // re-acquisition (only on search frames)
+  double calibrate_ms = 0.0;  // identity fit (only on the frame that finishes calibration)
+  double total_ms() const { return smooth_ms + icp_ms + weights_ms + acquire_ms + calibrate_ms; }
+};
+
+struct TrackReport {
+  TrackState state = TrackState::kSearching;
+  bool face_found = false;       // pose and weights are from this frame
+  const char* loss_reason = "";  // why the face was lost / input rejected
+  RigidPose camera_from_model;   // filtered (what is streamed)
+  RigidPose raw_camera_from_model;
+  int shape_count = 0;
+  std::array<float, kMaxTrackedShapes> weights{};  // model fitting-shape order, [0, 1]
+  int samples_used = 0;                            // samples with a depth correspondence
+  int inliers = 0;                                 // of those, within the Tukey cut-off
+  float rms_mm = 0.0f;                             // point-to-plane RMS of the inliers
+  int landmarks_used = 0;
+  int calibration_frames_left = 0;
+  TrackTimes times;  // wall clock of the calling thread's work
+};
+
+class FaceTracker {
+ public:
+  // `model` must outlive the tracker (it is read, never copied: 20 MB). Allocates every buffer.
+  static Result<std::unique_ptr<FaceTracker>> create(const FaceModel& model,
+                                                     const PinholeIntrinsics& intrinsics,
+                                                     const TrackerOptions& options = {});
+  ~FaceTracker();
+  FaceTracker(const FaceTracker&) = delete;
+  FaceTracker& operator=(const FaceTracker&) = delete;
+
+  // Uses a known identity (sigma units) and skips calibration.
+  Result<void> set_identity(std::span<const float> coefficients);
+  // Forgets the subject and the pose: the next frames search and calibrate again.
+  void reset();
+
+  // Tracks one depth frame (depth camera, mm, 0 = invalid) taken at `time_s`; landmarks may be
+  // null. Never fails: bad input and loss are states of the report.
+  void track(const DepthImage& depth, double time_s, const TrackLandmarks* landmarks,
+             TrackReport& report);
+
+  bool calibrated() const;
+  std::span<const float> identity() const;  // identity_modes coefficients
+  int sample_count() const;
+  int shape_count() const;  // the model's fitting shapes (53)
+  // Shapes with little depth signal (held near 0 by a strong prior), model indices.
+  std::span<const int> weak_shapes() const;
+  std::span<const std::string> shape_names() const;
+
+  struct State;
+
+ private:
+  explicit FaceTracker(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace fb

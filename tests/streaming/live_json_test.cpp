@@ -1,0 +1,34 @@
+#include "firmware/streaming/live_json.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <gtest/gtest.h>
+
+namespace fb {
+namespace {
+
+TEST(LiveJson, SseEventCarriesTheFrameAsJson) {
+  ArkitFrame frame;
+  frame.index = 42;
+  frame.time_s = 1.4;
+  frame.face_found = true;
+  frame.weights[17] = 0.5f;  // jawOpen
+  const Eigen::Quaterniond flip(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  frame.camera_from_model.rotation = flip * head_from_angles({0.1, 0.0, 0.0});
+  frame.camera_from_model.translation = Eigen::Vector3d(1, 2, 700);
+  std::string event;
+  format_sse_event(frame, event);
+  ASSERT_EQ(event.rfind("event: face\nid: 42\ndata: {", 0), 0u) << event;
+  ASSERT_TRUE(event.ends_with("}\n\n"));
+  const auto start = event.find("data: ") + 6;
+  const auto json = nlohmann::json::parse(event.substr(start, event.size() - start - 2));
+  EXPECT_EQ(json["frame"], 42);
+  EXPECT_EQ(json["face"], true);
+  EXPECT_NEAR(json["weights"]["jawOpen"].get<double>(), 0.5, 1e-9);
+  EXPECT_EQ(json["weights"].size(), 52u);
+  EXPECT_NEAR(json["head"]["yaw"].get<double>(), 0.1 * 180 / M_PI, 0.01);
+  EXPECT_NEAR(json["head"]["z"].get<double>(), 700.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace fb

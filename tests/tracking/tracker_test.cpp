@@ -1,0 +1,323 @@
+#include "algo/tracking/face_tracker.hpp"
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <numbers>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "algo/tracking/arkit.hpp"
+#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "storage/asset_files.hpp"
+
+// Counts heap allocations while `g_count_allocations` is set (test binary only), to check that
+// steady-state track() reuses its buffers.
+namespace {
+std::atomic<bool> g_count_allocations{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_count_allocations.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+
+namespace fb {
+namespace {
+
+constexpr double kDeg = 180.0 / std::numbers::pi;
+
+const FaceModel& model() {
+  static const FaceModel loaded = [] {
+    auto m = load_face_model(std::filesystem::path(FB_DATA_DIR) / "facemodel.fbfm");
+    if (!m) {
+      ADD_FAILURE() << m.error().message;
+      return FaceModel{};
+    }
+    return std::move(*m);
+  }();
+  return loaded;
+}
+
+struct Frames {
+  std::vector<DepthImage> depth;
+  std::vector<FrameTruth> truth;
+  PinholeIntrinsics intrinsics;
+};
+
+Frames render(const SyntheticOptions& options) {
+  Frames out;
+  auto camera = make_synthetic_camera(model(), options);
+  EXPECT_TRUE(camera.ok()) << (camera.ok() ? "" : camera.error().message);
+  if (!camera) return out;
+  EXPECT_TRUE((*camera)->start().ok());
+  out.intrinsics = (*camera)->info().depth_intrinsics;
+  RgbdFrame frame;
+  while (true) {
+    auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
+    if (!status || *status != FrameStatus::kFrame) break;
+    out.depth.push_back(frame.depth_mm);
+    out.truth.push_back(*(*camera)->truth());
+  }
+  return out;
+}
+
+bool create_bad_model_ok() {
+  FaceModel empty;
+  return FaceTracker::create(empty, PinholeIntrinsics{640, 480, 580, 580, 320, 240}).ok();
+}
+
+double rotation_error_deg(const RigidPose& a, const RigidPose& b) {
+  return Eigen::AngleAxisd(a.rotation.conjugate() * b.rotation).angle() * kDeg;
+}
+
+TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
+  auto mapping = make_arkit_mapping(model());
+  ASSERT_TRUE(mapping.ok()) << mapping.error().message;
+  const auto index = [](std::string_view name) {
+    return static_cast<int>(std::find(kArkitNames.begin(), kArkitNames.end(), name) -
+                            kArkitNames.begin());
+  };
+  EXPECT_EQ(kArkitNames.front(), "eyeBlinkLeft");
+  EXPECT_EQ(kArkitNames.back(), "tongueOut");
+  const auto& s = mapping->sources;
+  EXPECT_EQ(s[index("tongueOut")][0], -1);
+  EXPECT_EQ(s[index("eyeBlinkLeft")][0], model().expression_index("eyeBlink_L"));
+  EXPECT_EQ(s[index("jawOpen")][0], model().expression_index("jawOpen"));
+  EXPECT_EQ(s[index("browInnerUp")][0], model().expression_index("browInnerUp_L"));
+  EXPECT_EQ(s[index("browInnerUp")][1], model().expression_index("browInnerUp_R"));
+  EXPECT_EQ(s[index("cheekPuff")][1], model().expression_index("cheekPuff_R"));
+  // Every fitting shape is used exactly once.
+  std::vector<int> used(model().fitting_expression_count, 0);
+  for (const auto& pair : s)
+    for (int j : pair)
+      if (j >= 0) ++used[j];
+  for (int j = 0; j < model().fitting_expression_count; ++j) EXPECT_EQ(used[j], 1) << j;
+  // "_L" is the subject's left = model +X: eyeBlink_L moves vertices with x > 0.
+  const auto shape = model().expression_shape(model().expression_index("eyeBlink_L"));
+  double weighted_x = 0, total = 0;
+  for (int v = 0; v < model().face_vertex_count; ++v) {
+    const double d = Eigen::Vector3d(shape[3 * v], shape[3 * v + 1], shape[3 * v + 2]).norm();
+    weighted_x += d * model().neutral[3 * v];
+    total += d;
+  }
+  EXPECT_GT(weighted_x / total, 10.0);
+  // Merged curves average their halves; to_model inverts.
+  std::vector<float> w(model().fitting_expression_count, 0.0f);
+  w[model().expression_index("browInnerUp_L")] = 0.2f;
+  w[model().expression_index("browInnerUp_R")] = 0.6f;
+  std::array<float, kArkitShapeCount> arkit{};
+  mapping->to_arkit(w, arkit);
+  EXPECT_NEAR(arkit[index("browInnerUp")], 0.4f, 1e-6f);
+}
+
+TEST(BoundedLsq, MatchesBruteForceOnABox) {
+  std::mt19937 rng(2);
+  std::normal_distribution<float> n(0.0f, 1.0f);
+  for (int trial = 0; trial < 20; ++trial) {
+    Eigen::Matrix<float, 6, 3> a;
+    for (int i = 0; i < a.size(); ++i) a.data()[i] = n(rng);
+    Eigen::Matrix<float, 6, 1> b;
+    for (int i = 0; i < 6; ++i) b[i] = 1.5f * n(rng);
+    ShapeMatrix h = a.transpose() * a;
+    ShapeVector g = a.transpose() * b;
+    ShapeVector w = ShapeVector::Zero(3);
+    solve_bounded_lsq(h, g, 0.0f, 1.0f, w, 500, 1e-7f);
+    auto cost = [&](const Eigen::Vector3f& x) { return (a * x - b).squaredNorm(); };
+    float best = 1e30f;
+    for (int i = 0; i <= 100; ++i)
+      for (int j = 0; j <= 100; ++j)
+        for (int k = 0; k <= 100; k += 1) {
+          if ((i + j + k) % 3) continue;  // thin the grid
+          best = std::min(best, cost(Eigen::Vector3f(i, j, k) / 100.0f));
+        }
+    EXPECT_LE(cost(w), best + 1e-3f);
+    EXPECT_TRUE((w.array() >= 0.0f).all() && (w.array() <= 1.0f).all());
+  }
+}
+
+// Known identity, static head, an expression, sensor noise, 2D landmarks (truth + 1.5 px
+// noise, the stand-in for the detector): weights and pose against the ground truth.
+TEST(Tracker, KnownIdentityExpressionWithNoise) {
+  SyntheticOptions o;
+  o.seed = 3;
+  o.motion = SyntheticMotion::kStatic;
+  o.frame_count = 12;
+  o.expression_weights.assign(model().expression_count, 0.0f);
+  o.expression_weights[model().expression_index("jawOpen")] = 0.5f;
+  o.expression_weights[model().expression_index("mouthSmile_L")] = 0.6f;
+  o.expression_weights[model().expression_index("browInnerUp_R")] = 0.4f;
+  const Frames frames = render(o);
+  ASSERT_EQ(frames.depth.size(), 12u);
+  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  ASSERT_TRUE(tracker.ok()) << tracker.error().message;
+  ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
+  TrackReport report;
+  std::mt19937 rng(1);
+  std::normal_distribution<float> noise(0.0f, 1.5f);
+  std::vector<Eigen::Vector2f> points(68);
+  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
+    for (int l = 0; l < 68; ++l) {
+      points[l] = frames.truth[f].landmarks_depth_px[l].cast<float>() +
+                  Eigen::Vector2f(noise(rng), noise(rng));
+    }
+    TrackLandmarks landmarks{points, {}};
+    (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
+  }
+  ASSERT_EQ(report.state, TrackState::kTracking);
+  const auto& t = frames.truth.back();
+  double mae = 0;
+  for (int j = 0; j < report.shape_count; ++j)
+    mae += std::abs(report.weights[j] - t.expression_weights[j]);
+  mae /= report.shape_count;
+  EXPECT_LT(mae, 0.03);
+  EXPECT_NEAR(report.weights[model().expression_index("jawOpen")], 0.5f, 0.1f);
+  EXPECT_NEAR(report.weights[model().expression_index("mouthSmile_L")], 0.6f, 0.1f);
+  // browInnerUp_R moves the brow along the forehead (tangential to the depth): it is
+  // under-estimated (about 0.1 for 0.4 here) and only counted in the MAE above.
+  EXPECT_LT(rotation_error_deg(report.camera_from_model, t.camera_from_model), 0.5);
+  const Eigen::Vector3d c = t.landmarks_3d[30];  // nose tip, camera frame
+  const Eigen::Vector3d c_model = t.camera_from_model.inverse().apply(c);
+  EXPECT_LT((report.camera_from_model.apply(c_model) - c).norm(), 1.0);
+}
+
+// Unknown identity: calibration on the first frames, then a neutral face stays neutral, and
+// head motion is followed (pose compared after the calibrated frame's constant offset).
+TEST(Tracker, CalibratesAndFollowsAHeadTurn) {
+  SyntheticOptions o;
+  o.seed = 5;
+  o.frame_count = 40;
+  o.yaw_amplitude_deg = 15.0;
+  o.pitch_amplitude_deg = 8.0;
+  const Frames frames = render(o);
+  ASSERT_EQ(frames.depth.size(), 40u);
+  TrackerOptions options;
+  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+  ASSERT_TRUE(tracker.ok()) << tracker.error().message;
+  TrackReport report;
+  std::vector<RigidPose> estimate, truth;
+  std::vector<double> weight_mae;
+  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
+    (*tracker)->track(frames.depth[f], f / 30.0, nullptr, report);
+    if (!(*tracker)->calibrated() || report.state == TrackState::kCalibrating) continue;
+    ASSERT_TRUE(report.face_found) << "frame " << f << ": " << report.loss_reason;
+    estimate.push_back(report.camera_from_model);
+    truth.push_back(frames.truth[f].camera_from_model);
+    double mae = 0;
+    for (int j = 0; j < report.shape_count; ++j) mae += report.weights[j];
+    weight_mae.push_back(mae / report.shape_count);
+  }
+  ASSERT_GT(estimate.size(), 20u);
+  EXPECT_TRUE((*tracker)->calibrated());
+  // Relative motion from the first tracked frame: gauge-free.
+  for (std::size_t i = 1; i < estimate.size(); ++i) {
+    const Eigen::Quaterniond de = estimate[i].rotation * estimate[0].rotation.conjugate();
+    const Eigen::Quaterniond dt = truth[i].rotation * truth[0].rotation.conjugate();
+    EXPECT_LT(Eigen::AngleAxisd(de * dt.conjugate()).angle() * kDeg, 1.0) << "frame " << i;
+  }
+  double mean = 0;
+  for (double e : weight_mae) mean += e;
+  EXPECT_LT(mean / weight_mae.size(), 0.03);
+}
+
+// Bad input never crashes; it is reported.
+TEST(Tracker, BadInputIsReported) {
+  PinholeIntrinsics k{640, 480, 580.0, 580.0, 319.5, 239.5};
+  auto tracker = FaceTracker::create(model(), k);
+  ASSERT_TRUE(tracker.ok());
+  TrackReport report;
+  DepthImage wrong;
+  wrong.resize(320, 240);
+  (*tracker)->track(wrong, 0.0, nullptr, report);
+  EXPECT_EQ(report.state, TrackState::kBadInput);
+  EXPECT_FALSE(report.face_found);
+  EXPECT_STRNE(report.loss_reason, "");
+  DepthImage empty;
+  empty.resize(640, 480);  // all invalid
+  (*tracker)->track(empty, 0.033, nullptr, report);
+  EXPECT_EQ(report.state, TrackState::kBadInput);
+  EXPECT_FALSE(report.face_found);
+  DepthImage wall;
+  wall.resize(640, 480);
+  std::fill(wall.pixels.begin(), wall.pixels.end(), std::uint16_t{1200});
+  for (int i = 0; i < 5; ++i) {
+    (*tracker)->track(wall, 0.066 + i / 30.0, nullptr, report);
+    EXPECT_EQ(report.state, TrackState::kSearching);
+    EXPECT_FALSE(report.face_found);
+  }
+  EXPECT_FALSE(create_bad_model_ok());
+}
+
+// The face disappears (all-invalid depth, then an empty room) and comes back: loss is
+// reported once, the outputs hold, and tracking resumes.
+TEST(Tracker, LossAndReacquisition) {
+  SyntheticOptions o;
+  o.seed = 6;
+  o.motion = SyntheticMotion::kStatic;
+  o.frame_count = 4;
+  const Frames frames = render(o);
+  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  ASSERT_TRUE(tracker.ok());
+  ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
+  TrackReport report;
+  for (int f = 0; f < 3; ++f) (*tracker)->track(frames.depth[f], f / 30.0, nullptr, report);
+  ASSERT_EQ(report.state, TrackState::kTracking);
+  const RigidPose before = report.camera_from_model;
+  DepthImage wall = frames.depth[0];
+  std::fill(wall.pixels.begin(), wall.pixels.end(), std::uint16_t{1200});
+  DepthImage nothing = frames.depth[0];
+  std::fill(nothing.pixels.begin(), nothing.pixels.end(), std::uint16_t{0});
+  (*tracker)->track(nothing, 0.1, nullptr, report);
+  EXPECT_EQ(report.state, TrackState::kLost);
+  EXPECT_FALSE(report.face_found);
+  EXPECT_STRNE(report.loss_reason, "");
+  EXPECT_LT(rotation_error_deg(report.camera_from_model, before), 1e-6);
+  for (int f = 0; f < 3; ++f) {
+    (*tracker)->track(wall, 0.13 + f / 30.0, nullptr, report);
+    EXPECT_FALSE(report.face_found);
+    EXPECT_NE(report.state, TrackState::kTracking);
+  }
+  (*tracker)->track(frames.depth[3], 0.3, nullptr, report);
+  EXPECT_EQ(report.state, TrackState::kRecovered);
+  EXPECT_TRUE(report.face_found);
+  EXPECT_LT(rotation_error_deg(report.raw_camera_from_model, frames.truth[3].camera_from_model),
+            0.5);
+}
+
+// Steady-state track() allocates nothing.
+TEST(Tracker, SteadyStateDoesNotAllocate) {
+  SyntheticOptions o;
+  o.seed = 8;
+  o.motion = SyntheticMotion::kStatic;
+  o.frame_count = 8;
+  const Frames frames = render(o);
+  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  ASSERT_TRUE(tracker.ok());
+  ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
+  std::vector<Eigen::Vector2f> points(68);
+  for (int l = 0; l < 68; ++l) points[l] = frames.truth[0].landmarks_depth_px[l].cast<float>();
+  TrackLandmarks landmarks{points, {}};
+  TrackReport report;
+  for (int f = 0; f < 4; ++f) (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
+  ASSERT_EQ(report.state, TrackState::kTracking);
+  g_allocations = 0;
+  g_count_allocations = true;
+  for (int f = 4; f < 8; ++f) (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
+  g_count_allocations = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(report.state, TrackState::kTracking);
+  EXPECT_GT(report.landmarks_used, 40);
+}
+
+}  // namespace
+}  // namespace fb

@@ -1,6 +1,473 @@
-// facebooth storage commands (filled in by the storage work).
+// facebooth export | import | store info | eval storage: the session store and the exporters
+// (storage/). JSON on stdout, progress on stderr.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+
 #include "host/cli/commands.hpp"
+#include "storage/asset_files.hpp"
+#include "storage/crash_trials.hpp"
+#include "storage/durable_file.hpp"
+#include "storage/export/export_session.hpp"
+#include "storage/export/facewarehouse.hpp"
+#include "storage/export/synthetic_subject.hpp"
+#include "storage/session_store.hpp"
 
 namespace fb::cli {
-std::vector<Command> storage_commands() { return {}; }
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::string default_store() {
+  const char* env = std::getenv("FACEBOOTH_STORE");
+  return env != nullptr && *env != '\0' ? env : "/var/lib/facebooth/store";
+}
+
+OptionSpec store_option() {
+  return {"store", "DIR", "session store folder ($FACEBOOTH_STORE sets the default)",
+          default_store()};
+}
+
+int usage_error(const std::string& message) {
+  std::cerr << "facebooth: " << message << "\n";
+  return kExitUsage;
+}
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// A scratch folder removed on scope exit (unless --keep), so an interrupted eval leaves nothing.
+class Scratch {
+ public:
+  Scratch(const std::string& base, bool keep) : keep_(keep) {
+    const fs::path parent = base.empty() ? fs::temp_directory_path() : fs::path(base);
+    path_ = parent / ("facebooth-eval-storage-" + random_token(8));
+  }
+  ~Scratch() {
+    if (keep_) return;
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+  bool keep_;
+};
+
+Result<std::uintmax_t> folder_bytes(const fs::path& dir) {
+  std::uintmax_t total = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it->is_regular_file(ec)) total += it->file_size(ec);
+  }
+  if (ec) return fail("cannot measure " + dir.string() + ": " + ec.message());
+  return total;
+}
+
+nlohmann::json summary_json(const ExportSummary& s) {
+  return {
+      {"path", s.path.string()}, {"bytes", s.bytes}, {"files", s.files}, {"seconds", s.seconds}};
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth export
+
+int run_export(const ParsedOptions& options) {
+  auto format = parse_export_format(options.get("format"));
+  if (!format) return report_failure(format.error());
+  if (options.get("out").empty()) return usage_error("--out DIR is required");
+  const bool from_model = options.flag("from-face-model");
+  const bool has_session = !options.get("session").empty();
+  if (from_model == has_session) {
+    return usage_error(
+        "give either --session ID (export a stored session) or --from-face-model (a synthetic "
+        "subject built from the face model)");
+  }
+  ExportRequest request;
+  request.format = *format;
+  request.out = options.get("out");
+  request.overwrite = options.flag("force");
+  auto tester = options.get_int("tester");
+  if (!tester) return report_failure(tester.error());
+  request.tester_number = static_cast<int>(*tester);
+
+  ExportContent content;
+  if (from_model) {
+    auto seed = options.get_int("seed");
+    if (!seed) return report_failure(seed.error());
+    const std::string model_path = options.get("face-model").empty()
+                                       ? default_face_model_path().string()
+                                       : options.get("face-model");
+    std::cerr << "export: loading the face model " << model_path << "...\n";
+    auto model = load_face_model(model_path);
+    if (!model) return report_failure(model.error());
+    SyntheticSubjectOptions subject_options;
+    subject_options.seed = static_cast<std::uint64_t>(*seed);
+    auto subject = make_synthetic_subject(*model, subject_options);
+    if (!subject) return report_failure(subject.error());
+    content = synthetic_content(*subject, subject_options.seed, model_path);
+  } else {
+    auto session = options.get_int("session");
+    if (!session) return report_failure(session.error());
+    StoreOptions ro;
+    ro.read_only = true;  // exports never write the store; the daemon may be running
+    auto store = SessionStore::open(options.get("store"), ro);
+    if (!store) return report_failure(store.error());
+    std::cerr << "export: reading session " << *session << " from " << options.get("store")
+              << "...\n";
+    auto loaded = load_session_content(*store, *session);
+    if (!loaded) return report_failure(loaded.error());
+    content = std::move(*loaded);
+  }
+  std::cerr << "export: writing " << to_string(*format) << " to " << request.out.string()
+            << "...\n";
+  auto summary = export_content(content, request);
+  if (!summary) return report_failure(summary.error());
+  nlohmann::json out = summary_json(*summary);
+  out["format"] = to_string(*format);
+  out["source"] = content.source;
+  out["blendshapes"] = content.rig.shape_count();
+  out["poses"] = content.poses.size();
+  std::cout << out.dump(2) << std::endl;
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth import
+
+int run_import(const ParsedOptions& options) {
+  if (options.get("format") != "facewarehouse") {
+    return report_failure({"only --format facewarehouse can be imported"});
+  }
+  if (options.get("in").empty()) return usage_error("--in DIR is required");
+  std::cerr << "import: reading " << options.get("in") << "...\n";
+  auto testers = import_facewarehouse(options.get("in"));
+  if (!testers) return report_failure(testers.error());
+  nlohmann::json out;
+  out["testers"] = nlohmann::json::array();
+  std::optional<SessionStore> store;
+  if (options.flag("save")) {
+    auto opened = SessionStore::open(options.get("store"));
+    if (!opened) return report_failure(opened.error());
+    store.emplace(std::move(*opened));
+  }
+  for (const auto& t : *testers) {
+    nlohmann::json j = {{"tester", t.number},
+                        {"vertices", t.rig.vertex_count()},
+                        {"triangles", t.rig.triangles.size() / 3},
+                        {"blendshapes", t.rig.shape_count()},
+                        {"poses", t.poses.size()}};
+    if (store) {
+      auto subject = store->add_subject("FaceWarehouse Tester_" + std::to_string(t.number));
+      if (!subject) return report_failure(subject.error());
+      auto rig = store->add_rig(*subject, std::nullopt, t.rig);
+      if (!rig) return report_failure(rig.error());
+      j["subject"] = *subject;
+      j["rig"] = *rig;
+      if (!t.poses.empty()) {
+        // The poses become the fitted meshes of a session with one capture per pose (no frames).
+        std::vector<std::string> guide;
+        for (std::size_t i = 0; i < t.poses.size(); ++i)
+          guide.push_back("pose_" + std::to_string(i));
+        auto session = store->create_session(*subject, guide);
+        if (!session) return report_failure(session.error());
+        for (std::size_t i = 0; i < t.poses.size(); ++i) {
+          auto mesh = store->add_mesh(*session, static_cast<int>(i),
+                                      i == 0 ? MeshRole::kNeutral : MeshRole::kFitted, guide[i],
+                                      t.poses[i]);
+          if (!mesh) return report_failure(mesh.error());
+        }
+        j["session"] = *session;
+      }
+    }
+    out["testers"].push_back(j);
+  }
+  std::cout << out.dump(2) << std::endl;
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth store info
+
+int run_store_info(const ParsedOptions& options) {
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(options.get("store"), ro);
+  if (!store) return report_failure(store.error());
+  nlohmann::json out;
+  out["store"] = store->root().string();
+  out["schema_version"] = store->schema_version();
+  auto subjects = store->subjects();
+  auto sessions = store->sessions();
+  if (!subjects) return report_failure(subjects.error());
+  if (!sessions) return report_failure(sessions.error());
+  out["subjects"] = nlohmann::json::array();
+  for (const auto& s : *subjects) {
+    out["subjects"].push_back({{"id", s.id}, {"name", s.name}, {"created_at", s.created_at}});
+  }
+  out["sessions"] = nlohmann::json::array();
+  for (const auto& s : *sessions) {
+    nlohmann::json j = {{"id", s.id},
+                        {"subject", s.subject},
+                        {"complete", s.complete},
+                        {"captures", s.capture_count},
+                        {"done", s.done_count},
+                        {"created_at", s.created_at}};
+    auto next = store->next_capture(s.id);
+    if (next && *next)
+      j["next_capture"] = {{"index", (*next)->index}, {"expression", (*next)->expression}};
+    out["sessions"].push_back(j);
+  }
+  if (options.flag("verify")) {
+    std::cerr << "store info: checking every data file...\n";
+    auto report = store->verify();
+    if (!report) return report_failure(report.error());
+    out["verify"] = {{"integrity", report->integrity},
+                     {"files_checked", report->files_checked},
+                     {"problems", report->problems},
+                     {"ok", report->ok()}};
+  }
+  std::cout << out.dump(2) << std::endl;
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
+// facebooth eval storage
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(p * (v.size() - 1) + 0.5));
+  return v[i];
+}
+
+int run_eval_storage(const ParsedOptions& options) {
+  auto trials = options.get_int("trials");
+  auto commits = options.get_int("commits");
+  auto frames = options.get_int("frames-per-capture");
+  auto seed = options.get_int("seed");
+  for (const auto* r : {&trials, &commits, &frames, &seed}) {
+    if (!*r) return report_failure(r->error());
+  }
+  if (*trials < 0 || *commits < 1 || *frames < 1) {
+    return report_failure({"--trials must be >= 0, --commits and --frames-per-capture >= 1"});
+  }
+  Scratch scratch(options.get("scratch"), options.flag("keep"));
+  std::error_code ec;
+  fs::create_directories(scratch.path(), ec);
+  if (ec) return report_failure({"cannot create " + scratch.path().string() + ": " + ec.message()});
+  nlohmann::json result;
+  result["scratch"] = scratch.path().string();
+
+  // 1. SIGKILL crash trials.
+  CrashTrialOptions crash;
+  crash.root = scratch.path() / "crash-store";
+  crash.trials = static_cast<int>(*trials);
+  crash.seed = static_cast<std::uint64_t>(*seed);
+  std::cerr << "eval storage: " << crash.trials << " SIGKILL crash trials...\n";
+  auto start = Clock::now();
+  auto report = run_crash_trials(crash);
+  if (!report) return report_failure(report.error());
+  result["crash_trials"] = report->trials;
+  result["crash_trials_survived"] = report->survived;
+  result["crash_trials_killed"] = report->killed;
+  result["crash_killed_in_phase"] = report->killed_in_phase;
+  result["crash_orphans_removed"] = report->orphans_removed;
+  result["crash_captures_committed"] = report->captures_committed;
+  result["crash_resumes_checked"] = report->resumes_checked;
+  result["crash_max_kill_delay_ms"] = report->max_kill_delay_ms;
+  result["crash_failures"] = report->failures;
+  result["crash_s"] = seconds_since(start);
+  for (const auto& f : report->failures) std::cerr << "  " << f << "\n";
+
+  // 2. Capture commit latency at the real frame size: a head-turn capture of N frames of
+  // 640x480 depth (mm), raw disparity and colour, plus the fused map and landmarks.
+  std::cerr << "eval storage: " << *commits << " capture commits of " << *frames
+            << " 640x480 frames...\n";
+  std::vector<double> commit_ms;
+  std::uint64_t capture_bytes = 0;
+  {
+    auto store = SessionStore::open(scratch.path() / "latency-store");
+    if (!store) return report_failure(store.error());
+    auto subject = store->add_subject("latency");
+    if (!subject) return report_failure(subject.error());
+    std::vector<std::string> guide;
+    for (long long i = 0; i < *commits; ++i) guide.push_back("pose_" + std::to_string(i));
+    auto session = store->create_session(*subject, guide);
+    if (!session) return report_failure(session.error());
+    for (int i = 0; i < static_cast<int>(*commits); ++i) {
+      const CaptureInput input =
+          make_test_capture(*session, i, static_cast<int>(*frames), kKinectWidth, kKinectHeight);
+      if (auto r = store->begin_capture(*session, i); !r) return report_failure(r.error());
+      const auto t0 = Clock::now();
+      if (auto r = store->commit_capture(*session, i, input); !r) return report_failure(r.error());
+      commit_ms.push_back(seconds_since(t0) * 1000.0);
+    }
+    auto bytes = folder_bytes(store->session(*session)->folder);
+    if (!bytes) return report_failure(bytes.error());
+    capture_bytes = *bytes / static_cast<std::uint64_t>(*commits);
+    const auto t0 = Clock::now();
+    auto data = store->read_capture(*session, 0);
+    if (!data) return report_failure(data.error());
+    result["capture_read_ms"] = seconds_since(t0) * 1000.0;
+  }
+  result["capture_commit_ms"] = percentile(commit_ms, 0.5);
+  result["capture_commit_ms_p95"] = percentile(commit_ms, 0.95);
+  result["capture_commit_ms_max"] = *std::max_element(commit_ms.begin(), commit_ms.end());
+  result["capture_commits"] = commit_ms.size();
+  result["capture_frames"] = *frames;
+  result["capture_bytes"] = capture_bytes;
+  result["capture_commit_mb_per_s"] =
+      static_cast<double>(capture_bytes) / 1e6 / (percentile(commit_ms, 0.5) / 1000.0);
+  result["capture_commit_note"] =
+      "frames file + fused depth written and fsynced, renamed, directory fsynced, then one "
+      "synchronous=FULL SQLite commit; median over the commits";
+
+  // 3. One full subject: the face model with a random identity, 20 captures (640x480 colour),
+  // the rig and 20 fitted meshes in a store; then every export format from that session.
+  const std::string model_path = options.get("face-model").empty()
+                                     ? default_face_model_path().string()
+                                     : options.get("face-model");
+  std::cerr << "eval storage: building a synthetic subject from " << model_path << "...\n";
+  auto model = load_face_model(model_path);
+  if (!model) return report_failure(model.error());
+  SyntheticSubjectOptions subject_options;
+  subject_options.seed = static_cast<std::uint64_t>(*seed);
+  auto subject = make_synthetic_subject(*model, subject_options);
+  if (!subject) return report_failure(subject.error());
+  const fs::path store_root = scratch.path() / "subject-store";
+  SessionId session = 0;
+  {
+    auto store = SessionStore::open(store_root);
+    if (!store) return report_failure(store.error());
+    SyntheticCaptureOptions capture;
+    capture.width = kKinectWidth;
+    capture.height = kKinectHeight;
+    capture.frames_per_capture = 2;
+    start = Clock::now();
+    auto stored = store_synthetic_subject(*store, *subject, "synthetic", capture);
+    if (!stored) return report_failure(stored.error());
+    session = *stored;
+    result["subject_store_s"] = seconds_since(start);
+  }
+  auto store_bytes = folder_bytes(store_root);
+  if (!store_bytes) return report_failure(store_bytes.error());
+  result["subject"] = {
+      {"vertices", subject->rig.vertex_count()},   {"triangles", subject->rig.triangles.size() / 3},
+      {"blendshapes", subject->rig.shape_count()}, {"poses", subject->poses.size()},
+      {"captures", subject->poses.size()},         {"store_bytes", *store_bytes}};
+  StoreOptions ro;
+  ro.read_only = true;
+  auto reader = SessionStore::open(store_root, ro);
+  if (!reader) return report_failure(reader.error());
+  start = Clock::now();
+  auto content = load_session_content(*reader, session);
+  if (!content) return report_failure(content.error());
+  const double load_s = seconds_since(start);
+  result["export_load_s"] = load_s;
+  nlohmann::json exports;
+  double export_total = load_s;
+  for (auto format :
+       {ExportFormat::kFaceWarehouse, ExportFormat::kGlb, ExportFormat::kObj, ExportFormat::kPly}) {
+    std::cerr << "eval storage: export " << to_string(format) << "...\n";
+    ExportRequest request;
+    request.format = format;
+    request.out = scratch.path() / "exports" / to_string(format);
+    auto summary = export_content(*content, request);
+    if (!summary) return report_failure(summary.error());
+    exports[to_string(format)] = summary_json(*summary);
+    export_total += summary->seconds;
+  }
+  result["exports"] = exports;
+  result["export_s"] = export_total;
+  result["export_s_note"] =
+      "reading the session (rig, 20 meshes, 20 captures, checksums verified) plus writing all "
+      "four formats (facewarehouse, glb, obj, ply) of one full subject";
+  start = Clock::now();
+  auto imported = import_facewarehouse(scratch.path() / "exports" / "facewarehouse");
+  if (!imported) return report_failure(imported.error());
+  result["facewarehouse_import_s"] = seconds_since(start);
+  result["facewarehouse_import_exact"] =
+      imported->size() == 1 && imported->front().rig.shapes == subject->rig.shapes &&
+      imported->front().rig.neutral == subject->rig.neutral &&
+      imported->front().poses.size() == subject->poses.size() &&
+      imported->front().poses.back().positions == subject->poses.back().positions;
+
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  result["peak_rss_mb"] = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  result["threads"] = 1;
+  std::cout << result.dump(2) << std::endl;
+  return report->survived == report->trials ? kExitOk : kExitFailure;
+}
+
+}  // namespace
+
+std::vector<Command> storage_commands() {
+  return {
+      {{"export",
+        "export a subject's blendshapes and fitted meshes (FaceWarehouse, glTF, OBJ, PLY)",
+        "Writes a folder with a manifest.json (source, versions, SHA-256 of every file). The "
+        "folder appears only when complete (written under a temporary name, then renamed).\n"
+        "Layouts: facewarehouse -> Tester_N/Blendshape/shape_0..K.obj + shape.bs, "
+        "Tester_N/TrainingPose/pose_i.obj/.png/.land; glb -> NAME.glb (neutral + one morph "
+        "target per blendshape, names in mesh.extras.targetNames, metres); obj/ply -> "
+        "neutral, blendshapes/NN_NAME, poses/pose_i.\n"
+        "Without a session, --from-face-model --seed N exports a synthetic subject: the face "
+        "model with a random identity and 20 poses at known weights.",
+        {{"session", "ID", "export this stored session (its subject's rig and fitted meshes)", ""},
+         store_option(),
+         {"from-face-model", "", "export a synthetic subject built from the face model", ""},
+         {"seed", "N", "identity seed for --from-face-model", "1"},
+         {"face-model", "PATH", "face model for --from-face-model (default: the installed one)",
+          ""},
+         {"format", "NAME", "facewarehouse, glb, obj or ply", "facewarehouse"},
+         {"out", "DIR", "folder to create", ""},
+         {"tester", "N", "FaceWarehouse Tester_N number", "1"},
+         {"force", "", "replace an existing --out folder", ""}}},
+       run_export},
+      {{"import",
+        "read a FaceWarehouse-layout folder (Tester_N/Blendshape, TrainingPose)",
+        "Prints what was read. With --save, each tester becomes a subject in the store with its "
+        "rig, and its training poses become the fitted meshes of a new session.",
+        {{"format", "NAME", "facewarehouse (the only import format)", "facewarehouse"},
+         {"in", "DIR", "folder holding Tester_N folders", ""},
+         store_option(),
+         {"save", "", "store the testers' rigs and poses in --store", ""}}},
+       run_import},
+      {{"store info",
+        "subjects, sessions and resume points of a session store (read-only)",
+        "",
+        {store_option(),
+         {"verify", "", "also run the integrity check and verify every data file's SHA-256", ""},
+         {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
+       run_store_info},
+      {{"eval storage",
+        "crash trials, capture commit latency, export sizes and times for one subject",
+        "Prints one JSON object: crash_trials, crash_trials_survived (SIGKILL at random moments "
+        "while a child commits captures), capture_commit_ms (median commit of a 640x480 "
+        "capture), export_s (one full synthetic subject in all four formats) and details. "
+        "Works in a scratch folder on the disk of --scratch, removed afterwards.",
+        {{"trials", "N", "SIGKILL crash trials", "30"},
+         {"commits", "N", "capture commits timed", "10"},
+         {"frames-per-capture", "N", "640x480 frames per timed capture (a 1 s head turn)", "30"},
+         {"seed", "N", "seed of the trials and the synthetic subject", "1"},
+         {"face-model", "PATH", "face model (default: the installed one)", ""},
+         {"scratch", "DIR", "parent folder of the scratch store (default: the temp folder)", ""},
+         {"keep", "", "keep the scratch folder", ""},
+         {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
+       run_eval_storage},
+  };
+}
+
 }  // namespace fb::cli

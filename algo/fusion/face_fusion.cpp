@@ -56,6 +56,8 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   if (!(options.truncation_mm > 0.0f)) return fail("truncation must be positive");
   if (!(options.volume_size_mm > 0.0f)) return fail("the volume size must be positive");
   if (options.threads < 1 || options.threads > 16) return fail("threads must be 1 to 16");
+  if (options.icp_level0_step < 1 || options.icp_level0_step > 2)
+    return fail("icp_level0_step must be 1 or 2");
   if (options.truncation_mm < 2.0f * options.volume_size_mm / options.volume_resolution)
     return fail("truncation must span at least 2 voxels (raise it or the resolution)");
   if (auto ok =
@@ -67,12 +69,12 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   box_ = box;
   if (runner_->parts() != options.threads)
     runner_ = std::make_unique<ParallelRunner>(options.threads);
-  preprocessor_.configure(options);
-  tracker_.configure(options);
-  integrator_.configure(options, volume_);
-  ray_caster_.configure(options);
+  preprocessor_.configure(options_);
+  tracker_.configure(options_);
+  integrator_.configure(options_, volume_);
+  ray_caster_.configure(options_);
   pyramid_.allocate(intrinsics, box);
-  model_.allocate(intrinsics, box);
+  model_.allocate(intrinsics, box, options_.model_view_level);
   scratch_depths_.clear();
   scratch_depths_.reserve(static_cast<std::size_t>(box.width) * box.height);
   last_good_ = PoseF{};
@@ -82,7 +84,7 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   return success();
 }
 
-void FaceFusion::place_volume() {
+void FaceFusion::place_volume(const PoseF& world_from_camera) {
   // The nearest part of the box is the face (nose, cheeks): take a low percentile of the depths
   // so background or shoulders do not pull the cube away, then centre the cube laterally on the
   // pixels near that depth and put its centre a fixed distance behind the face.
@@ -108,19 +110,22 @@ void FaceFusion::place_volume() {
     }
   Eigen::Vector3f centre = (sum / std::max(count, 1)).cast<float>();
   centre.z() = near + options_.volume_center_behind_face_mm;
-  volume_.set_origin(centre - Eigen::Vector3f::Constant(0.5f * volume_.size_mm()));
+  volume_.set_origin(world_from_camera.apply(centre) -
+                     Eigen::Vector3f::Constant(0.5f * volume_.size_mm()));
 }
 
 void FaceFusion::cast_model(const PoseF& pose) {
-  const Image<float>& hint =
-      options_.integrate_filtered_depth ? pyramid_.levels[0].depth : pyramid_.raw;
+  // The frame just fused is the hint: raw depth at full resolution, the pyramid level otherwise.
+  const Image<float>& hint = model_.first_level > 0 ? pyramid_.levels[model_.first_level].depth
+                             : options_.integrate_filtered_depth ? pyramid_.levels[0].depth
+                                                                 : pyramid_.raw;
   ray_caster_.cast(volume_, pose, &hint, false, model_.levels[0], *runner_);
   subsample_model_levels(model_);
   model_.world_from_camera = pose;
   model_.valid = true;
 }
 
-FrameReport FaceFusion::process(const DepthImage& depth_mm) {
+FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* known_pose) {
   FrameReport report;
   report.world_from_camera = last_good_.to_rigid();
   report.state = started_ ? TrackingState::kLost : TrackingState::kNotStarted;
@@ -150,8 +155,8 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm) {
       report.loss_reason = "too little valid depth in the face box to start fusion";
       return report;
     }
-    place_volume();
-    last_good_ = PoseF{};
+    last_good_ = known_pose ? PoseF::from(*known_pose) : PoseF{};
+    place_volume(last_good_);
     report.integrated_bricks =
         integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
     t.lap(report.times.integrate_ms, report.cpu_times.integrate_ms);
@@ -171,7 +176,15 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm) {
     return report;
   }
   t.restart();
-  const IcpResult icp = tracker_.track(pyramid_, model_, last_good_, *runner_);
+  IcpResult icp;
+  if (known_pose) {
+    // Poses given by the caller (ground truth, or a tracker elsewhere): fuse without ICP.
+    icp.world_from_camera = PoseF::from(*known_pose);
+    icp.solved = true;
+    icp.inliers = icp.candidates = pyramid_.valid_pixels;
+  } else {
+    icp = tracker_.track(pyramid_, model_, last_good_, *runner_);
+  }
   t.lap(report.times.track_ms, report.cpu_times.track_ms);
   report.inliers = icp.inliers;
   report.rms_mm = icp.rms_mm;

@@ -42,7 +42,11 @@ class FaceFusion {
   // Tracks and fuses one depth frame (mm, 0 = invalid). Never throws or crashes on bad input:
   // an empty or wrongly sized frame is reported as kBadInput, a frame that cannot be tracked as
   // kLost (and is not fused). While lost, every frame re-tries from the last good pose.
-  FrameReport process(const DepthImage& depth_mm);
+  //
+  // With `known_pose` (world_from_camera; the world being the first fused frame's camera when
+  // that frame's pose is the identity), the frame is fused at that pose without ICP: for
+  // ground-truth studies, or when another tracker supplies the poses.
+  FrameReport process(const DepthImage& depth_mm, const RigidPose* known_pose = nullptr);
 
   bool started() const { return started_; }
   bool lost() const { return lost_; }
@@ -60,7 +64,7 @@ class FaceFusion {
   TriangleMesh extract_mesh(const MeshOptions& options = {}) const;
 
  private:
-  void place_volume();
+  void place_volume(const PoseF& world_from_camera);
   void cast_model(const PoseF& pose);
 
   FusionOptions options_;

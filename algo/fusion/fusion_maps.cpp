@@ -62,10 +62,12 @@ void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& 
   valid_pixels = 0;
 }
 
-void ModelView::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {
+void ModelView::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first) {
+  first_level = std::clamp(first, 0, kPyramidLevels - 1);
   LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
-  for (int l = 0; l < kPyramidLevels; ++l) {
-    levels[l].allocate(k, face_box.at_level(l));
+  for (int l = 0; l < first_level; ++l) k = k.subsampled_half();
+  for (int j = 0; j < kPyramidLevels; ++j) {
+    levels[j].allocate(k, face_box.at_level(first_level + j));
     k = k.subsampled_half();
   }
   valid = false;

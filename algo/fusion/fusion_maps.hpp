@@ -77,12 +77,18 @@ struct DepthPyramid {
 };
 
 // The ray-cast model view (vertices and normals in the frame of the camera it was cast from).
+// levels[j] has the resolution of pyramid level first_level + j: levels[0] is ray-cast, the
+// others are subsampled from it. Input level l associates with levels[max(0, l - first_level)].
 struct ModelView {
-  std::array<MapLevel, kPyramidLevels> levels;  // level 0 ray-cast; 1, 2 subsampled
-  PoseF world_from_camera;                      // the pose it was cast from
+  std::array<MapLevel, kPyramidLevels> levels;
+  int first_level = 0;
+  PoseF world_from_camera;  // the pose it was cast from
   bool valid = false;
 
-  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box);
+  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first);
+  const MapLevel& for_input_level(int l) const {
+    return levels[l > first_level ? l - first_level : 0];
+  }
 };
 
 }  // namespace fb

@@ -43,9 +43,10 @@ struct FusionOptions {
   // TSDF truncation: Kinect v1 depth noise is ~1.5 mm (sigma) at 0.7 m and disparity steps are
   // ~1.3 mm there, so +/-8 mm (about 7 voxels) holds the noise band with margin.
   float truncation_mm = 8.0f;
-  // Running-average weight cap: 64 frames, so a 3 s head turn (90 frames) averages almost all
-  // observations and the model can still adapt slowly.
-  int max_weight = 64;
+  // Running-average weight cap (at most 31, the voxel's 5 weight bits): beyond it each frame
+  // enters with weight 1/32, an exponential average with the noise reduction of a 63-frame
+  // mean, so a 3 s head turn (90 frames) is averaged and the model still adapts slowly.
+  int max_weight = 31;
   // The volume centre sits behind the nearest face surface (percentile of depths in the box)
   // by this much, so the face and the sides of the head fit in the cube.
   float volume_center_behind_face_mm = 70.0f;
@@ -63,6 +64,11 @@ struct FusionOptions {
   // --- Tracking (projective point-to-plane ICP, coarse to fine) ---
   std::array<int, 3> icp_iterations = {4, 5, 8};  // per level, level 0 = full resolution
   float icp_distance_mm = 25.0f;                  // association gate
+  // Pyramid level the tracker's model view is ray-cast at: 1 = half resolution (a quarter of
+  // the rays; projective association tolerates the ~1 px lateral offset on a smooth face),
+  // 0 = full resolution. The frontal output of render() is always at full resolution.
+  int model_view_level = 1;
+  int icp_level0_step = 2;  // 1 = every full-resolution pixel, 2 = a checkerboard
   float icp_normal_angle_deg = 35.0f;
   float icp_huber_mm = 3.0f;    // robust weight: residuals beyond this get Huber weights
   float icp_converged = 1e-5f;  // stop a level when |increment| (rad + mm/1000) drops below

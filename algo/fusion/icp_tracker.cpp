@@ -79,7 +79,7 @@ IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, c
 
   for (int level = kPyramidLevels - 1; level >= 0; --level) {
     const MapLevel& in = input.levels[level];
-    const MapLevel& mv = model.levels[level];
+    const MapLevel& mv = model.for_input_level(level);
     const LevelIntrinsics& mk = mv.k;
     // Coarse levels tolerate larger misalignment.
     const float gate = options_.icp_distance_mm * (1.0f + 0.5f * static_cast<float>(level));
@@ -102,7 +102,11 @@ IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, c
           Normal6f row_acc;
           const Eigen::Vector3f* vrow = &in.vertices.at(0, y);
           const Eigen::Vector3f* nrow = &in.normals.at(0, y);
-          for (int x = box.x; x < box.x + box.width; ++x) {
+          // Full resolution: a checkerboard (every other pixel, alternating per row) halves the
+          // cost; the half-resolution level already holds the coarse structure.
+          const int x_step = level == 0 ? options_.icp_level0_step : 1;
+          const int x_start = box.x + (x_step > 1 ? (y & 1) : 0);
+          for (int x = x_start; x < box.x + box.width; x += x_step) {
             const Eigen::Vector3f& v = vrow[x];
             if (v.z() <= 0.0f) continue;
             const Eigen::Vector3f& nin = nrow[x];

@@ -4,16 +4,21 @@
 #include <cmath>
 
 namespace fb {
+namespace {
+
+using V4f = float __attribute__((vector_size(16)));
+using V4i = int __attribute__((vector_size(16)));
+constexpr V4f kLane = {0.0f, 1.0f, 2.0f, 3.0f};
+constexpr V4f kHalf = {0.5f, 0.5f, 0.5f, 0.5f};
+
+}  // namespace
 
 void TsdfIntegrator::configure(const FusionOptions& options, const TsdfVolume& volume) {
   truncation_ = options.truncation_mm;
-  max_weight_ = std::clamp(options.max_weight, 1, 65535);
+  max_weight_ = std::clamp(options.max_weight, 1, Voxel::kMaxWeight);
   const std::size_t n = static_cast<std::size_t>(volume.bricks_per_side()) *
                         volume.bricks_per_side() * volume.bricks_per_side();
   marks_.assign(n, 0);
-  // 1 / (w + 1) for every weight the cap allows (no division per voxel).
-  inv_count_.resize(static_cast<std::size_t>(max_weight_) + 1);
-  for (int w = 0; w <= max_weight_; ++w) inv_count_[w] = 1.0f / static_cast<float>(w + 1);
   bricks_.clear();
   bricks_.reserve(n);
 }
@@ -75,7 +80,6 @@ int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& 
       cam.apply(volume.origin() + Eigen::Vector3f::Constant(0.5f * vs));
   const float inv_mu = 1.0f / mu;
   const int max_w = max_weight_;
-  const float* inv_count = inv_count_.data();
   const int bx0 = box.x, bx1 = box.x + box.width, by0 = box.y, by1 = box.y + box.height;
   const int stride = depth.width;
   const float* dpix = depth.pixels.data();
@@ -94,35 +98,38 @@ int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& 
           const Eigen::Vector3f p0 =
               base + step_z * static_cast<float>(z) + step_y * static_cast<float>(y);
           Voxel* v = vox + (z << 6) + (y << 3);
-          // One row of 8 voxels as fixed-length loops over plain arrays, so the compiler
-          // vectorises everything but the depth gather (SSE2 here, NEON on the device). The
-          // body is branch-free: voxels outside the band are rewritten unchanged.
-          float pz[8], su[8], sv[8];
-          int idx[8];
-          for (int x = 0; x < 8; ++x) {
-            const float fx = static_cast<float>(x);
-            pz[x] = p0.z() + fx * step_x.z();
-            const float iz = 1.0f / std::max(pz[x], 1e-3f);
-            su[x] = k.fx * (p0.x() + fx * step_x.x()) * iz + k.cx + 0.5f;
-            sv[x] = k.fy * (p0.y() + fx * step_x.y()) * iz + k.cy + 0.5f;
-          }
-          for (int x = 0; x < 8; ++x) {
-            const int u = static_cast<int>(su[x]), w = static_cast<int>(sv[x]);
-            const bool in_box = (u >= bx0) & (u < bx1) & (w >= by0) & (w < by1) & (pz[x] > 0.0f);
-            idx[x] = in_box ? w * stride + u : -1;
-          }
-          float d[8];
-          for (int x = 0; x < 8; ++x) d[x] = idx[x] >= 0 ? dpix[idx[x]] : 0.0f;
-          for (int x = 0; x < 8; ++x) {
-            const float sdf = d[x] - pz[x];
-            const bool update = (d[x] > 0.0f) & (sdf >= -mu);
-            const float f = std::min(1.0f, sdf * inv_mu);
+          // One row of 8 voxels as two 4-lane vectors (GCC/Clang vector extensions: SSE2 here,
+          // NEON on the device); only the depth gather is scalar. Branch-free: voxels outside
+          // the band are rewritten unchanged.
+          for (int half = 0; half < 2; ++half) {
+            const V4f xs = kLane + static_cast<float>(4 * half);
+            const V4f px = p0.x() + xs * step_x.x();
+            const V4f py = p0.y() + xs * step_x.y();
+            const V4f pz = p0.z() + xs * step_x.z();
+            const V4f iz = 1.0f / (pz > 1e-3f ? pz : V4f{1e-3f, 1e-3f, 1e-3f, 1e-3f});
+            const V4i u = __builtin_convertvector(k.fx * px * iz + (k.cx + 0.5f), V4i);
+            const V4i w = __builtin_convertvector(k.fy * py * iz + (k.cy + 0.5f), V4i);
+            const V4i in_box = (u >= bx0) & (u < bx1) & (w >= by0) & (w < by1) & (pz > 0.0f);
+            const V4i idx = w * stride + u;
+            V4f d;
+            for (int i = 0; i < 4; ++i) d[i] = in_box[i] ? dpix[idx[i]] : 0.0f;
+            const V4f sdf = d - pz;
+            const V4i update = in_box & (d > 0.0f) & (sdf >= -mu);
+            V4f f = sdf * inv_mu;
+            f = f < 1.0f ? f : V4f{1.0f, 1.0f, 1.0f, 1.0f};
+            Voxel* cell = v + 4 * half;
+            V4i word;
+            for (int i = 0; i < 4; ++i) word[i] = cell[i].word;
+            const V4i wo = word & Voxel::kMaxWeight;
+            const V4i to = (word << 16) >> (16 + Voxel::kWeightBits);  // sign-extended TSDF
             // Running average in TSDF units: t' = t + (f * scale - t) / (w + 1).
-            const int wo = v[x].weight;
-            const float to = static_cast<float>(v[x].tsdf);
-            const float tn = to + (f * TsdfVolume::kTsdfScale - to) * inv_count[wo];
-            v[x].tsdf = static_cast<std::int16_t>(update ? tn : to);
-            v[x].weight = static_cast<std::uint16_t>(update ? std::min(wo + 1, max_w) : wo);
+            const V4f tof = __builtin_convertvector(to, V4f);
+            const V4f inv = 1.0f / (__builtin_convertvector(wo, V4f) + 1.0f);
+            const V4f tn = tof + (f * TsdfVolume::kTsdfScale - tof) * inv;
+            const V4i tq = __builtin_convertvector(tn + (tn >= 0.0f ? kHalf : -kHalf), V4i);
+            const V4i wn = wo + 1 < max_w ? wo + 1 : V4i{max_w, max_w, max_w, max_w};
+            const V4i out = ((update ? tq : to) << Voxel::kWeightBits) | (update ? wn : wo);
+            for (int i = 0; i < 4; ++i) cell[i].word = static_cast<std::uint16_t>(out[i]);
           }
         }
       }

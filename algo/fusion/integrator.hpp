@@ -25,7 +25,6 @@ class TsdfIntegrator {
  private:
   float truncation_ = 8.0f;
   int max_weight_ = 64;
-  std::vector<float> inv_count_;
   std::vector<std::uint8_t> marks_;
   std::vector<int> bricks_;
 };

@@ -8,7 +8,7 @@ namespace fb {
 namespace {
 
 float tsdf_at(const TsdfVolume& v, int x, int y, int z) {
-  return static_cast<float>(v.at(x, y, z).tsdf) * (1.0f / TsdfVolume::kTsdfScale);
+  return static_cast<float>(v.at(x, y, z).tsdf()) * (1.0f / TsdfVolume::kTsdfScale);
 }
 
 Eigen::Vector3f gradient(const TsdfVolume& v, int x, int y, int z) {
@@ -47,11 +47,11 @@ TriangleMesh extract_mesh(const TsdfVolume& volume, const MeshOptions& options) 
           for (int c = 0; c < 8; ++c) {
             const Voxel& v =
                 volume.at(x + mc::kCorner[c][0], y + mc::kCorner[c][1], z + mc::kCorner[c][2]);
-            if (v.weight < options.min_weight) {
+            if (v.weight() < options.min_weight) {
               seen = false;
               break;
             }
-            f[c] = static_cast<float>(v.tsdf) * (1.0f / TsdfVolume::kTsdfScale);
+            f[c] = static_cast<float>(v.tsdf()) * (1.0f / TsdfVolume::kTsdfScale);
             if (f[c] < 0.0f) cube |= 1 << c;
           }
           if (!seen || cube == 0 || cube == 255) continue;

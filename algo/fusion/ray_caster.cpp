@@ -38,7 +38,7 @@ inline Sample nearest(const TsdfVolume& vol, const Eigen::Vector3f& g) {
   const int n = vol.resolution();
   if (x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n) return {false, 1.0f};
   const Voxel& v = vol.at(x, y, z);
-  return {v.weight > 0, static_cast<float>(v.tsdf) * (1.0f / TsdfVolume::kTsdfScale)};
+  return {v.weight() > 0, static_cast<float>(v.tsdf()) * (1.0f / TsdfVolume::kTsdfScale)};
 }
 
 }  // namespace
@@ -104,15 +104,45 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
             }
             if (s.f < 0.0f) {
               if (prev_t >= 0.0f) {
-                // Zero crossing in [prev_t, t], located on trilinear values.
-                float fa, fb;
-                const float ta = prev_t, tb = t;
-                if (!volume.trilinear(go + ta * gd, fa)) fa = prev_f;
-                if (!volume.trilinear(go + tb * gd, fb)) fb = s.f;
-                // The bracket is at most one step (about half a voxel near the surface), where
-                // the trilinear TSDF is close to linear: one regula falsi step suffices.
-                found = (fa > 0.0f && fb < 0.0f) ? ta + (tb - ta) * fa / (fa - fb)
-                                                 : prev_t + (t - prev_t) * prev_f / (prev_f - s.f);
+                // The nearest voxel says "behind"; the trilinear TSDF decides. The nearest
+                // voxel's centre can lie up to half a voxel beyond t, so taking its sign as the
+                // crossing would pull every surface towards the camera.
+                float fb;
+                const bool fb_ok = volume.trilinear(go + t * gd, fb);
+                if (fb_ok && fb >= 0.0f) {
+                  prev_t = t;
+                  prev_f = fb;
+                  t += min_step;
+                  continue;
+                }
+                float fa;
+                float ta = prev_t, tb = t;
+                bool fa_ok = volume.trilinear(go + ta * gd, fa);
+                if (fa_ok && fa <= 0.0f) {
+                  // Crossed before prev_t (its nearest voxel was positive): one step back.
+                  tb = ta;
+                  fb = fa;
+                  ta = std::max(t_enter, ta - min_step);
+                  fa_ok = volume.trilinear(go + ta * gd, fa) && fa > 0.0f;
+                }
+                if (fa_ok && fb_ok && fa > 0.0f && fb < 0.0f) {
+                  // Regula falsi on the trilinear TSDF, refined once inside the bracket.
+                  float tm = ta + (tb - ta) * fa / (fa - fb);
+                  float fm;
+                  if (volume.trilinear(go + tm * gd, fm)) {
+                    if (fm > 0.0f) {
+                      ta = tm;
+                      fa = fm;
+                    } else {
+                      tb = tm;
+                      fb = fm;
+                    }
+                    if (fa > fb) tm = ta + (tb - ta) * fa / (fa - fb);
+                  }
+                  found = tm;
+                } else {
+                  found = prev_t + (t - prev_t) * prev_f / (prev_f - s.f);
+                }
                 break;
               }
               if (first && pass == 0) {  // the hint started behind the surface

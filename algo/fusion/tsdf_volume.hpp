@@ -1,6 +1,10 @@
 // The TSDF volume object: a dense cube of voxels stored brick by brick (8^3 voxels per brick,
-// so one brick is 2 KB of contiguous memory and the integrator and ray caster touch few cache
-// lines). Each voxel is an int16 TSDF in [-1, 1] * 32767 and a uint16 weight (0 = unseen).
+// so one brick is 1 KB of contiguous memory and the integrator and ray caster touch few cache
+// lines). Each voxel is one 16-bit word: an 11-bit signed TSDF (tsdf in [-1, 1] * 1023, steps
+// of truncation / 1023, ~0.008 mm at 8 mm) and a 5-bit weight (0 = unseen, capped at 31). Two
+// bytes instead of four halve the memory traffic, which is what the ray caster waits on; a
+// weight cap of 31 is a running average with alpha = 1/32, whose noise reduction equals a
+// 63-frame mean.
 #pragma once
 
 #include <cmath>
@@ -14,15 +18,23 @@
 namespace fb {
 
 struct Voxel {
-  std::int16_t tsdf = 0;
-  std::uint16_t weight = 0;
+  std::uint16_t word = 0;
+
+  static constexpr int kWeightBits = 5;
+  static constexpr int kMaxWeight = (1 << kWeightBits) - 1;
+  int tsdf() const { return static_cast<std::int16_t>(word) >> kWeightBits; }  // arithmetic
+  int weight() const { return word & kMaxWeight; }
+  void set(int tsdf_q, int w) {
+    word = static_cast<std::uint16_t>((static_cast<unsigned>(tsdf_q) << kWeightBits) |
+                                      static_cast<unsigned>(w));
+  }
 };
 
 class TsdfVolume {
  public:
   static constexpr int kBrickShift = 3;
   static constexpr int kBrick = 1 << kBrickShift;  // voxels per brick side
-  static constexpr float kTsdfScale = 32767.0f;
+  static constexpr float kTsdfScale = 1023.0f;
 
   // Allocates (once) and clears a resolution^3 volume with its corner at `origin_mm` (world).
   Result<void> reset(int resolution, float size_mm, const Eigen::Vector3f& origin_mm);
@@ -74,14 +86,14 @@ class TsdfVolume {
       constexpr int kOffsets[8] = {0, 1, 8, 9, 64, 65, 72, 73};
       for (int i = 0; i < 8; ++i) {
         const Voxel& v = base[kOffsets[i]];
-        if (v.weight == 0) return false;
-        c[i] = static_cast<float>(v.tsdf);
+        if (v.weight() == 0) return false;
+        c[i] = static_cast<float>(v.tsdf());
       }
     } else {
       for (int i = 0; i < 8; ++i) {
         const Voxel& v = at(x + (i & 1), y + ((i >> 1) & 1), z + (i >> 2));
-        if (v.weight == 0) return false;
-        c[i] = static_cast<float>(v.tsdf);
+        if (v.weight() == 0) return false;
+        c[i] = static_cast<float>(v.tsdf());
       }
     }
     const float c00 = c[0] + ax * (c[1] - c[0]), c10 = c[2] + ax * (c[3] - c[2]);

@@ -92,7 +92,7 @@ std::vector<OptionSpec> fusion_option_specs() {
       {"volume-mm", "MM", "TSDF cube side", "300"},
       {"resolution", "N", "voxels per side (multiple of 8)", "256"},
       {"truncation-mm", "MM", "TSDF truncation", "8"},
-      {"max-weight", "N", "running-average weight cap", "64"},
+      {"max-weight", "N", "running-average weight cap (1-31)", "31"},
   };
 }
 
@@ -136,12 +136,22 @@ struct Run {
 };
 
 Result<Run> run_fusion(FaceFusion& fusion, const Sequence& seq, const FaceBox& box,
-                       const FusionOptions& options, bool verbose = false) {
+                       const FusionOptions& options, bool verbose = false,
+                       bool truth_poses = false) {
   if (auto ok = fusion.reset(seq.intrinsics, box, options); !ok) return ok.failure();
   Run run;
   run.reports.reserve(seq.depth.size());
   for (std::size_t i = 0; i < seq.depth.size(); ++i) {
-    const FrameReport r = fusion.process(seq.depth[i]);
+    RigidPose known;
+    if (truth_poses && i < seq.camera_from_model.size()) {
+      // camera_0_from_camera_i = M_0 M_i^-1
+      const Eigen::Isometry3d g =
+          seq.camera_from_model[0].isometry() * seq.camera_from_model[i].isometry().inverse();
+      known.rotation = Eigen::Quaterniond(g.rotation());
+      known.translation = g.translation();
+    }
+    const FrameReport r = fusion.process(
+        seq.depth[i], truth_poses && i < seq.camera_from_model.size() ? &known : nullptr);
     run.fused += r.fused;
     if (r.state == TrackingState::kLost) {
       ++run.lost;
@@ -150,10 +160,11 @@ Result<Run> run_fusion(FaceFusion& fusion, const Sequence& seq, const FaceBox& b
     if (verbose)
       std::fprintf(stderr,
                    "  frame %zu: %s%s%s valid %d inliers %d rms %.2f mm it %d | cpu ms pre %.2f "
-                   "icp %.2f int %.2f ray %.2f\n",
+                   "icp %.2f int %.2f ray %.2f, %d bricks\n",
                    i, to_string(r.state), *r.loss_reason ? " - " : "", r.loss_reason,
                    r.valid_pixels, r.inliers, r.rms_mm, r.iterations, r.cpu_times.preprocess_ms,
-                   r.cpu_times.track_ms, r.cpu_times.integrate_ms, r.cpu_times.raycast_ms);
+                   r.cpu_times.track_ms, r.cpu_times.integrate_ms, r.cpu_times.raycast_ms,
+                   r.integrated_bricks);
     run.reports.push_back(r);
   }
   return run;
@@ -172,7 +183,7 @@ struct PoseErrors {
   int frames = 0;
 };
 
-PoseErrors pose_errors(const Sequence& seq, const Run& run) {
+PoseErrors pose_errors(const Sequence& seq, const Run& run, bool verbose = false) {
   PoseErrors e;
   int f0 = -1;
   for (std::size_t i = 0; i < run.reports.size(); ++i)
@@ -196,6 +207,15 @@ PoseErrors pose_errors(const Sequence& seq, const Run& run) {
     const double mm = err.translation().norm();
     const double deg = angle_deg(err.rotation());
     const double face_mm = (err * face - face).norm();
+    if (verbose) {
+      const Eigen::AngleAxisd aa(err.rotation());
+      const Eigen::AngleAxisd truth_aa(truth.rotation());
+      std::fprintf(stderr,
+                   "  frame %zu: error %.3f mm %.3f deg (axis %.2f %.2f %.2f), face %.3f mm; "
+                   "truth motion %.2f deg\n",
+                   k, mm, deg, aa.axis().x(), aa.axis().y(), aa.axis().z(), face_mm,
+                   truth_aa.angle() * 180.0 / M_PI);
+    }
     e.max_mm = std::max(e.max_mm, mm);
     e.max_deg = std::max(e.max_deg, deg);
     e.face_max_mm = std::max(e.face_max_mm, face_mm);
@@ -235,6 +255,7 @@ cv::Mat face_region(const Sequence& seq, const FaceBox& box) {
 struct DepthErrors {
   double fused_mae_mm = 0, raw_mae_mm = 0, fill = 0, fused_p95_mm = 0, raw_p95_mm = 0;
   double fused_max_mm = 0, raw_max_mm = 0;
+  double fused_bias_mm = 0, raw_bias_mm = 0;  // signed mean (measured - truth)
   int face_pixels = 0;
   cv::Mat fused_error, raw_error;  // CV_32F, NaN where no value
 };
@@ -260,16 +281,20 @@ DepthErrors depth_errors(const Sequence& seq, const SurfaceView& fused, const cv
       const double truth = seq.frontal_noiseless.at(x, y);
       if (const float d = fused.depth_mm.at(x, y); d > 0.0f) {
         fe.push_back(std::abs(d - truth));
+        e.fused_bias_mm += d - truth;
         e.fused_error.at<float>(y, x) = static_cast<float>(d - truth);
       }
       if (const std::uint16_t d = raw.at(x, y); d > 0) {
         re.push_back(std::abs(d - truth));
+        e.raw_bias_mm += d - truth;
         e.raw_error.at<float>(y, x) = static_cast<float>(d - truth);
       }
     }
   auto mean = [](const std::vector<double>& v) {
     return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / v.size();
   };
+  e.fused_bias_mm /= std::max<std::size_t>(fe.size(), 1);
+  e.raw_bias_mm /= std::max<std::size_t>(re.size(), 1);
   e.fused_mae_mm = mean(fe);
   e.raw_mae_mm = mean(re);
   e.fused_p95_mm = percentile(fe, 0.95);
@@ -443,9 +468,10 @@ int run_eval_fusion(const ParsedOptions& options) {
       return report_failure({"camera '" + uri + "' has no ground truth; use a synthetic URI"});
     auto box = parse_box(options.get("box"), seq->intrinsics);
     if (!box) return report_failure(box.error());
-    auto run = run_fusion(fusion, *seq, *box, *fusion_options, options.flag("verbose"));
+    auto run = run_fusion(fusion, *seq, *box, *fusion_options, options.flag("verbose"),
+                          options.flag("truth-poses"));
     if (!run) return report_failure(run.error());
-    const PoseErrors pe = pose_errors(*seq, *run);
+    const PoseErrors pe = pose_errors(*seq, *run, options.flag("verbose"));
     const RigidPose frontal_pose = run->reports[seq->frontal].world_from_camera;
     const SurfaceView view = fusion.render(frontal_pose);
     const cv::Mat region = face_region(*seq, *box);
@@ -466,6 +492,8 @@ int run_eval_fusion(const ParsedOptions& options) {
     j["fused_depth_p95_mm"] = de.fused_p95_mm;
     j["fused_depth_max_mm"] = de.fused_max_mm;
     j["raw_depth_mae_mm"] = de.raw_mae_mm;
+    j["fused_depth_bias_mm"] = de.fused_bias_mm;
+    j["raw_depth_bias_mm"] = de.raw_bias_mm;
     j["raw_depth_p95_mm"] = de.raw_p95_mm;
     j["raw_depth_max_mm"] = de.raw_max_mm;
     j["fill_fraction"] = de.fill;
@@ -859,6 +887,7 @@ std::vector<Command> fusion_commands() {
       {"real-box", "X,Y,W,H", "face box for the real dump (default: the kiosk rectangle)", ""},
       {"real-mesh", "PATH", "PLY mesh written from the real dump", "fusion_real_mesh.ply"},
       {"verbose", "", "per-frame tracking state and stage times on stderr", ""},
+      {"truth-poses", "", "diagnosis: fuse at the ground-truth poses instead of tracking", ""},
       {"json", "", "print JSON (the only output format; accepted for symmetry)", ""},
   };
   std::vector<OptionSpec> bench_options = {

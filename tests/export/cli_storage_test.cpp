@@ -1,0 +1,135 @@
+// The storage commands end to end through the real facebooth binary: export from the face
+// model and from a stored session, import, store info, and the eval storage output contract.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "storage/asset_files.hpp"
+#include "storage/export/export_folder.hpp"
+#include "storage/export/synthetic_subject.hpp"
+#include "storage/session_store.hpp"
+
+namespace fb {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  int exit_code = -1;
+  std::string out;  // stdout only; stderr goes to the test log
+};
+
+Run facebooth(const std::string& args) {
+  Run r;
+  const std::string command = std::string(FB_CLI_PATH) + " " + args;
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
+  if (!pipe) return r;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) r.out.append(buf, n);
+  const int status = ::pclose(pipe.release());
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class StorageCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("fb-cli-storage-" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "-" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(StorageCli, ExportFromFaceModelThenImport) {
+  const fs::path out = dir_ / "fw";
+  auto r = facebooth("export --from-face-model --seed 2 --format facewarehouse --tester 7 --out " +
+                     out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["format"], "facewarehouse");
+  EXPECT_EQ(j["poses"], 20);
+  EXPECT_TRUE(fs::exists(out / "Tester_7" / "Blendshape" / "shape.bs"));
+  EXPECT_TRUE(verify_export_folder(out));
+  // The same destination again is refused (usage stays intact), --force replaces it.
+  EXPECT_EQ(facebooth("export --from-face-model --format obj --out " + out.string()).exit_code, 1);
+  EXPECT_EQ(
+      facebooth("export --from-face-model --format obj --force --out " + out.string()).exit_code,
+      0);
+  EXPECT_TRUE(fs::exists(out / "neutral.obj"));
+  EXPECT_EQ(facebooth("export --format glb --out " + (dir_ / "x").string()).exit_code, 2);
+
+  ASSERT_EQ(
+      facebooth("export --from-face-model --seed 2 --format fw --out " + (dir_ / "fw2").string())
+          .exit_code,
+      0);
+  const fs::path store = dir_ / "store";
+  r = facebooth("import --in " + (dir_ / "fw2").string() + " --save --store " + store.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["testers"].size(), 1u);
+  EXPECT_EQ(j["testers"][0]["poses"], 20);
+  EXPECT_EQ(j["testers"][0]["vertices"], 11248);
+  // What was imported exports again from the store.
+  r = facebooth("export --session " + std::to_string(j["testers"][0]["session"].get<int>()) +
+                " --store " + store.string() + " --format ply --out " + (dir_ / "ply").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(dir_ / "ply" / "poses" / "pose_19.ply"));
+}
+
+TEST_F(StorageCli, ExportAStoredSessionWhileTheWriterIsOpen) {
+  const fs::path root = dir_ / "store";
+  auto model = load_face_model();
+  ASSERT_TRUE(model);
+  auto subject = make_synthetic_subject(*model, {});
+  ASSERT_TRUE(subject);
+  auto writer = SessionStore::open(root);  // stays open: exports read through their own connection
+  ASSERT_TRUE(writer);
+  auto session = store_synthetic_subject(*writer, *subject, "cli");
+  ASSERT_TRUE(session) << session.error().message;
+  auto r = facebooth("export --session " + std::to_string(*session) + " --store " + root.string() +
+                     " --format facewarehouse --out " + (dir_ / "fw").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(dir_ / "fw" / "Tester_1" / "TrainingPose" / "pose_19.png"));
+  r = facebooth("store info --verify --store " + root.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["verify"]["ok"], true);
+  EXPECT_EQ(j["sessions"][0]["done"], 20);
+  EXPECT_EQ(facebooth("export --session 99 --store " + root.string() + " --out " +
+                      (dir_ / "none").string())
+                .exit_code,
+            1);
+}
+
+TEST_F(StorageCli, EvalStorageFollowsTheOutputContract) {
+  auto r =
+      facebooth("eval storage --json --trials 4 --commits 2 --frames-per-capture 2 --scratch " +
+                dir_.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto j = nlohmann::json::parse(r.out);
+  for (const char* key :
+       {"crash_trials", "crash_trials_survived", "capture_commit_ms", "export_s"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_EQ(j["crash_trials"], 4);
+  EXPECT_EQ(j["crash_trials_survived"], 4);
+  EXPECT_GT(j["capture_commit_ms"].get<double>(), 0.0);
+  EXPECT_GT(j["export_s"].get<double>(), 0.0);
+  EXPECT_EQ(j["facewarehouse_import_exact"], true);
+  EXPECT_GT(j["exports"]["glb"]["bytes"].get<double>(), 1e6);
+  // The scratch store is removed afterwards.
+  EXPECT_TRUE(fs::is_empty(dir_));
+}
+
+}  // namespace
+}  // namespace fb

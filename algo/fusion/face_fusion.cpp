@@ -146,8 +146,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
   preprocessor_.run(depth_mm, pyramid_, *runner_);
   t.lap(report.times.preprocess_ms, report.cpu_times.preprocess_ms);
   report.valid_pixels = pyramid_.valid_pixels;
-  const Image<float>& fuse_depth =
-      options_.integrate_filtered_depth ? pyramid_.levels[0].depth : pyramid_.raw;
+  const Image<float>& fuse_depth = pyramid_.fused;
   const LevelIntrinsics k0 = pyramid_.levels[0].k;
 
   if (!started_) {

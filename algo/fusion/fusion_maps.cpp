@@ -54,6 +54,7 @@ void MapLevel::allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_b
 void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {
   raw.resize(intrinsics.width, intrinsics.height);
   std::fill(raw.pixels.begin(), raw.pixels.end(), 0.0f);
+  fused = raw;
   LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
   for (int l = 0; l < kPyramidLevels; ++l) {
     levels[l].allocate(k, face_box.at_level(l));

@@ -69,7 +69,8 @@ struct MapLevel {
 
 // The preprocessed input frame: raw depth (gated, float) plus 3 filtered levels.
 struct DepthPyramid {
-  Image<float> raw;  // level-0 raw depth in mm, inside the face box only
+  Image<float> raw;    // level-0 raw depth in mm, inside the face box only
+  Image<float> fused;  // what the integrator fuses: raw (or filtered) without grazing pixels
   std::array<MapLevel, kPyramidLevels> levels;
   int valid_pixels = 0;  // valid raw pixels inside the face box
 

@@ -60,6 +60,13 @@ struct FusionOptions {
   float bilateral_sigma_depth_mm = 6.0f;   // ~4 sigma of Kinect noise at face distance
   float normal_max_depth_jump_mm = 20.0f;  // neighbours further apart break the surface
   bool integrate_filtered_depth = false;   // KinectFusion integrates the raw depth
+  // Pixels seen at more than this angle between surface normal and ray are not integrated (nor
+  // are pixels without a normal: silhouettes, isolated points); 90 integrates everything. Their
+  // depth noise along the ray is several mm, and the truncation band's asymmetry (samples far
+  // behind the surface are dropped, those far in front clamped) turns it into a small bias.
+  // Measured on synthetic head turns (3 seeds): 70 deg lowers the fused error by ~5 % but
+  // raises the pose error by ~10 %, so it is off by default.
+  float integrate_max_angle_deg = 90.0f;
 
   // --- Tracking (projective point-to-plane ICP, coarse to fine) ---
   std::array<int, 3> icp_iterations = {4, 5, 8};  // per level, level 0 = full resolution

@@ -173,13 +173,34 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
       compute_vertex_map(m, y0, y1);
     }
   });
-  // Normals read neighbouring rows, so they run after every vertex row exists.
+  // Normals read neighbouring rows, so they run after every vertex row exists; then the depth
+  // to fuse: raw (or filtered) depth where the surface is seen at a usable angle.
+  const float cos_max = std::cos(options_.integrate_max_angle_deg * 3.14159265f / 180.0f);
+  const bool gate_angle = options_.integrate_max_angle_deg < 90.0f;
   runner.run([&](int part, int parts) {
     for (int level = 0; level < kPyramidLevels; ++level) {
       MapLevel& m = pyramid.levels[level];
       int y0, y1;
       ParallelRunner::split(m.box.y, m.box.y + m.box.height, part, parts, y0, y1);
       compute_normals_from_vertices(m, jump * static_cast<float>(1 << level), y0, y1);
+    }
+    int y0, y1;
+    ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
+    const MapLevel& m0 = pyramid.levels[0];
+    const Image<float>& source = options_.integrate_filtered_depth ? m0.depth : pyramid.raw;
+    for (int y = y0; y < y1; ++y) {
+      for (int x = box.x; x < box.x + box.width; ++x) {
+        const float d = source.at(x, y);
+        float out = d;
+        if (gate_angle && d > 0.0f) {
+          const Eigen::Vector3f& n = m0.normals.at(x, y);
+          const Eigen::Vector3f& v = m0.vertices.at(x, y);
+          // cos = -n . v / |v|, compared without the square root: (n . v)^2 >= cos^2 |v|^2.
+          const float nv = -n.dot(v);
+          if (!(nv > 0.0f && nv * nv >= cos_max * cos_max * v.squaredNorm())) out = 0.0f;
+        }
+        pyramid.fused.at(x, y) = out;
+      }
     }
   });
 }

@@ -107,7 +107,7 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
                 // The nearest voxel says "behind"; the trilinear TSDF decides. The nearest
                 // voxel's centre can lie up to half a voxel beyond t, so taking its sign as the
                 // crossing would pull every surface towards the camera.
-                float fb;
+                float fb = 0.0f;
                 const bool fb_ok = volume.trilinear(go + t * gd, fb);
                 if (fb_ok && fb >= 0.0f) {
                   prev_t = t;

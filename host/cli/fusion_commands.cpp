@@ -93,6 +93,8 @@ std::vector<OptionSpec> fusion_option_specs() {
       {"resolution", "N", "voxels per side (multiple of 8)", "256"},
       {"truncation-mm", "MM", "TSDF truncation", "8"},
       {"max-weight", "N", "running-average weight cap (1-31)", "31"},
+      {"max-angle-deg", "DEG", "integrate pixels seen at most this far from head-on (90: all)",
+       "90"},
   };
 }
 
@@ -118,6 +120,9 @@ Result<FusionOptions> parse_fusion_options(const ParsedOptions& options) {
   if (!truncation) return truncation.failure();
   auto weight = options.get_int("max-weight");
   if (!weight) return weight.failure();
+  auto angle = options.get_double("max-angle-deg");
+  if (!angle) return angle.failure();
+  o.integrate_max_angle_deg = static_cast<float>(*angle);
   o.volume_size_mm = static_cast<float>(*volume);
   o.volume_resolution = static_cast<int>(*resolution);
   o.truncation_mm = static_cast<float>(*truncation);

@@ -176,7 +176,9 @@ TEST(Fusion, FaceLeavingTheFrameReportsLossAndRecovers) {
     }
     lost += r.state == TrackingState::kLost;
     recovered += r.state == TrackingState::kRecovered;
-    if (f == 30) EXPECT_EQ(r.state, TrackingState::kRecovered);
+    if (f == 30) {
+      EXPECT_EQ(r.state, TrackingState::kRecovered);
+    }
     const Eigen::Isometry3d truth_rel = m0.isometry() * mk.isometry().inverse();
     const Eigen::Isometry3d err = truth_rel.inverse() * r.world_from_camera.isometry();
     final_error_mm = err.translation().norm();

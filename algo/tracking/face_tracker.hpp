@@ -58,7 +58,7 @@ struct TrackerOptions {
   float huber_mm = 2.5f;            // full weight below this
 
   // --- Blendshape weights ---
-  int weight_iterations = 3;      // IRLS rounds (re-association + robust weights)
+  int weight_iterations = 2;      // IRLS rounds (re-association + robust weights)
   float temporal_weight = 30.0f;  // mm^2 per unit weight change: lambda_t ||w - w_prev||^2
   // Priors, in mm^2 against a data term of ~2000 samples: small next to a visible shape's
   // signal (H_jj ~ 1e3-1e5), large next to the near-null combinations of opposing shapes

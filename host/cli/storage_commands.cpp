@@ -10,12 +10,15 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/crash_trials.hpp"
 #include "storage/durable_file.hpp"
+#include "storage/export/export_folder.hpp"
 #include "storage/export/export_session.hpp"
 #include "storage/export/facewarehouse.hpp"
+#include "storage/export/livelink_csv.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "storage/session_store.hpp"
 
@@ -82,7 +85,131 @@ nlohmann::json summary_json(const ExportSummary& s) {
 // ---------------------------------------------------------------------------------------------
 // facebooth export
 
+Result<SessionStore> open_reader(const ParsedOptions& options) {
+  StoreOptions ro;
+  ro.read_only = true;  // exports never write the store; the daemon may be running
+  return SessionStore::open(options.get("store"), ro);
+}
+
+// A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name).
+Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
+                                  bool overwrite) {
+  const auto start = Clock::now();
+  TakeInfo info;
+  auto values = store.read_take(id, &info);
+  if (!values) return values.failure();
+  std::array<int, kArkitShapeCount> column;
+  column.fill(-1);
+  int matched = 0;
+  for (int k = 0; k < kArkitShapeCount; ++k) {
+    for (std::size_t i = 0; i < info.shape_names.size(); ++i) {
+      if (info.shape_names[i] == kArkitNames[k] || info.shape_names[i] == kLiveLinkNames[k]) {
+        column[k] = static_cast<int>(i);
+        ++matched;
+        break;
+      }
+    }
+  }
+  if (matched == 0) {
+    return fail("take " + std::to_string(id) +
+                " has no ARKit curve names (e.g. jawOpen), so it cannot be written as Live Link "
+                "CSV; export it from the tracker's output instead");
+  }
+  std::string text = livelink_csv_header() + "\n";
+  const int stride = info.stride();
+  for (int f = 0; f < info.frame_count; ++f) {
+    const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+    ArkitFrame frame;
+    frame.index = static_cast<std::uint64_t>(f);
+    frame.time_s = f / info.fps;
+    frame.face_found = true;
+    for (int k = 0; k < kArkitShapeCount; ++k) {
+      if (column[k] >= 0) frame.weights[k] = v[7 + column[k]];
+    }
+    frame.camera_from_model.translation = Eigen::Vector3d(v[0], v[1], v[2]);
+    frame.camera_from_model.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();
+    text += format_livelink_row(to_livelink_row(frame), info.fps) + "\n";
+  }
+  auto folder = ExportFolder::create(out, overwrite);
+  if (!folder) return folder.failure();
+  if (auto r = folder->write_text("take_" + std::to_string(id) + ".csv", text); !r) {
+    return r.failure();
+  }
+  ExportManifest manifest;
+  manifest.what = "livelink_csv";
+  manifest.source = {{"kind", "take"},
+                     {"store", store.root().string()},
+                     {"take", std::to_string(id)},
+                     {"subject", std::to_string(info.subject)}};
+  manifest.details = {{"fps", std::to_string(info.fps)},
+                      {"frames", std::to_string(info.frame_count)},
+                      {"curves_matched", std::to_string(matched)},
+                      {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"}};
+  if (auto r = folder->finish(manifest); !r) return r.failure();
+  ExportSummary summary;
+  summary.path = folder->destination();
+  summary.files = 2;
+  summary.bytes = folder->total_bytes();
+  summary.seconds = seconds_since(start);
+  return summary;
+}
+
+// A stored model (e.g. the bilinear model) as its file plus a manifest.
+Result<ExportSummary> export_model(const SessionStore& store, ModelId id, const fs::path& out,
+                                   bool overwrite) {
+  const auto start = Clock::now();
+  auto models = store.models();
+  if (!models) return models.failure();
+  const ModelInfo* info = nullptr;
+  for (const auto& m : *models) {
+    if (m.id == id) info = &m;
+  }
+  if (info == nullptr) return fail("there is no model " + std::to_string(id) + " in this store");
+  auto bytes = store.read_model(id);
+  if (!bytes) return bytes.failure();
+  auto folder = ExportFolder::create(out, overwrite);
+  if (!folder) return folder.failure();
+  if (auto r = folder->write_file(info->kind + ".bin", *bytes); !r) return r.failure();
+  ExportManifest manifest;
+  manifest.what = "model";
+  manifest.source = {
+      {"kind", "model"}, {"store", store.root().string()}, {"model", std::to_string(id)}};
+  manifest.details = {
+      {"model_kind", info->kind}, {"params", info->params_json}, {"created_at", info->created_at}};
+  if (auto r = folder->finish(manifest); !r) return r.failure();
+  ExportSummary summary;
+  summary.path = folder->destination();
+  summary.files = 2;
+  summary.bytes = folder->total_bytes();
+  summary.seconds = seconds_since(start);
+  return summary;
+}
+
+int run_export_stored_item(const ParsedOptions& options) {
+  if (options.get("out").empty()) return usage_error("--out DIR is required");
+  auto store = open_reader(options);
+  if (!store) return report_failure(store.error());
+  const bool take = !options.get("take").empty();
+  auto id = options.get_int(take ? "take" : "model");
+  if (!id) return report_failure(id.error());
+  auto summary = take ? export_take(*store, *id, options.get("out"), options.flag("force"))
+                      : export_model(*store, *id, options.get("out"), options.flag("force"));
+  if (!summary) return report_failure(summary.error());
+  nlohmann::json out = summary_json(*summary);
+  out["format"] = take ? "livelink" : "model";
+  std::cout << out.dump(2) << std::endl;
+  return kExitOk;
+}
+
 int run_export(const ParsedOptions& options) {
+  const int items = !options.get("take").empty() + !options.get("model").empty() +
+                    !options.get("session").empty() + options.flag("from-face-model");
+  if (items > 1) {
+    return usage_error("give one of --session, --from-face-model, --take or --model");
+  }
+  if (!options.get("take").empty() || !options.get("model").empty()) {
+    return run_export_stored_item(options);
+  }
   auto format = parse_export_format(options.get("format"));
   if (!format) return report_failure(format.error());
   if (options.get("out").empty()) return usage_error("--out DIR is required");
@@ -119,9 +246,7 @@ int run_export(const ParsedOptions& options) {
   } else {
     auto session = options.get_int("session");
     if (!session) return report_failure(session.error());
-    StoreOptions ro;
-    ro.read_only = true;  // exports never write the store; the daemon may be running
-    auto store = SessionStore::open(options.get("store"), ro);
+    auto store = open_reader(options);
     if (!store) return report_failure(store.error());
     std::cerr << "export: reading session " << *session << " from " << options.get("store")
               << "...\n";
@@ -424,14 +549,19 @@ std::vector<Command> storage_commands() {
         "target per blendshape, names in mesh.extras.targetNames, metres); obj/ply -> "
         "neutral, blendshapes/NN_NAME, poses/pose_i.\n"
         "Without a session, --from-face-model --seed N exports a synthetic subject: the face "
-        "model with a random identity and 20 poses at known weights.",
+        "model with a random identity and 20 poses at known weights.\n"
+        "--take ID writes a tracking take as Live Link Face CSV (take_ID.csv); --model ID "
+        "writes a stored model's file.",
         {{"session", "ID", "export this stored session (its subject's rig and fitted meshes)", ""},
          store_option(),
          {"from-face-model", "", "export a synthetic subject built from the face model", ""},
          {"seed", "N", "identity seed for --from-face-model", "1"},
          {"face-model", "PATH", "face model for --from-face-model (default: the installed one)",
           ""},
-         {"format", "NAME", "facewarehouse, glb, obj or ply", "facewarehouse"},
+         {"take", "ID", "export this stored tracking take as Live Link Face CSV", ""},
+         {"model", "ID", "export this stored model (e.g. the bilinear model) file", ""},
+         {"format", "NAME", "facewarehouse, glb, obj or ply (for --session/--from-face-model)",
+          "facewarehouse"},
          {"out", "DIR", "folder to create", ""},
          {"tester", "N", "FaceWarehouse Tester_N number", "1"},
          {"force", "", "replace an existing --out folder", ""}}},

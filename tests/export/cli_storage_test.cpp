@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -109,6 +110,47 @@ TEST_F(StorageCli, ExportAStoredSessionWhileTheWriterIsOpen) {
                       (dir_ / "none").string())
                 .exit_code,
             1);
+}
+
+TEST_F(StorageCli, ExportTakeAsLiveLinkCsvAndModelFile) {
+  const fs::path root = dir_ / "store";
+  TakeId take = 0;
+  ModelId model = 0;
+  {
+    auto store = SessionStore::open(root);
+    ASSERT_TRUE(store);
+    TakeInfo info;
+    info.subject = *store->add_subject("t");
+    info.fps = 30.0;
+    info.shape_names = {"jawOpen", "eyeBlinkLeft", "notArkit"};
+    info.frame_count = 3;
+    std::vector<float> values;
+    for (int f = 0; f < 3; ++f) {
+      for (float v : {0.f, 0.f, 600.f, 1.f, 0.f, 0.f, 0.f}) values.push_back(v);  // pose
+      for (float v : {0.25f * f, 0.5f, 0.9f}) values.push_back(v);
+    }
+    take = *store->add_take(info, values);
+    const std::vector<std::uint8_t> bytes(1000, 7);
+    model = *store->add_model("bilinear", R"({"identities":2})", bytes);
+  }
+  auto r = facebooth("export --take " + std::to_string(take) + " --store " + root.string() +
+                     " --out " + (dir_ / "take").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream csv(dir_ / "take" / ("take_" + std::to_string(take) + ".csv"));
+  std::string header, row;
+  std::getline(csv, header);
+  EXPECT_EQ(header.rfind("Timecode,BlendShapeCount,", 0), 0u) << header;
+  int rows = 0;
+  std::string last;
+  while (std::getline(csv, row)) ++rows, last = row;
+  EXPECT_EQ(rows, 3);
+  EXPECT_NE(last.find("0.500000"), std::string::npos) << last;  // jawOpen of frame 2
+  EXPECT_TRUE(verify_export_folder(dir_ / "take"));
+  r = facebooth("export --model " + std::to_string(model) + " --store " + root.string() +
+                " --out " + (dir_ / "model").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(fs::file_size(dir_ / "model" / "bilinear.bin"), 1000u);
+  EXPECT_EQ(facebooth("export --take 1 --model 1 --out " + (dir_ / "x").string()).exit_code, 2);
 }
 
 TEST_F(StorageCli, EvalStorageFollowsTheOutputContract) {

@@ -3,11 +3,29 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <new>
 
 #include "algo/fusion/face_fusion.hpp"
 #include "tests/fusion/synthetic_head.hpp"
+
+// Counts heap allocations while `g_count_allocations` is set (test-only instrumentation).
+static std::atomic<bool> g_count_allocations{false};
+static std::atomic<long> g_allocations{0};
+void* operator new(std::size_t size) {
+  if (g_count_allocations.load(std::memory_order_relaxed)) ++g_allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
 
 namespace fb {
 namespace {
@@ -192,6 +210,34 @@ TEST(Fusion, FaceLeavingTheFrameReportsLossAndRecovers) {
   EXPECT_EQ(fused_while_away, 0);
   EXPECT_LE(final_error_mm, 5.0);
   EXPECT_LE(final_error_deg, 0.4);
+}
+
+// Steady state: tracking, integrating and ray-casting a frame allocates nothing (one and two
+// threads).
+TEST(Fusion, ProcessDoesNotAllocateInSteadyState) {
+  for (int threads : {1, 2}) {
+    const PinholeIntrinsics k = kinect_intrinsics();
+    FaceFusion fusion;
+    FusionOptions options;
+    options.threads = threads;
+    ASSERT_TRUE(fusion.reset(k, head_box(), options).ok());
+    std::mt19937 rng(11);
+    std::vector<DepthImage> frames(6);
+    Image<float> truth;
+    for (int f = 0; f < 6; ++f) {
+      test::render_head(k, head_turn_pose(f, 90), truth);
+      test::kinect_noise(truth, rng, frames[f]);
+    }
+    ASSERT_TRUE(fusion.process(frames[0]).fused);
+    ASSERT_TRUE(fusion.process(frames[1]).fused);
+    g_allocations = 0;
+    g_count_allocations = true;
+    int fused = 0;
+    for (int f = 2; f < 6; ++f) fused += fusion.process(frames[f]).fused;
+    g_count_allocations = false;
+    EXPECT_EQ(fused, 4);
+    EXPECT_EQ(g_allocations.load(), 0) << threads << " thread(s)";
+  }
 }
 
 TEST(Fusion, BadInputIsReportedNotFused) {

@@ -1,0 +1,847 @@
+#include "firmware/daemon/daemon.hpp"
+
+#include <poll.h>
+#include <pthread.h>
+#include <systemd/sd-daemon.h>
+
+#include <csignal>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+
+#include "firmware/daemon/daemon_impl.hpp"
+
+namespace fb {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+// The synthetic take URI: the configured source with the guide's expression and the take length
+// (keys the daemon sets are dropped from the configured URI, the rest is kept).
+std::string synthetic_take_uri(const std::string& base, const std::string& expr, int frames) {
+  std::string args = base.substr(base.find(':') + 1);
+  std::string kept;
+  std::stringstream ss(args);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty() || item.rfind("expr=", 0) == 0 || item.rfind("frames=", 0) == 0 ||
+        item.rfind("motion=", 0) == 0)
+      continue;
+    kept += (kept.empty() ? "" : ",") + item;
+  }
+  return "synthetic:" + kept + (kept.empty() ? "" : ",") + "motion=headturn,expr=" + expr +
+         ",frames=" + std::to_string(frames);
+}
+
+bool is_synthetic(const std::string& uri) {
+  return uri.rfind("synthetic:", 0) == 0;
+}
+
+// 2x downsample of the colour image with the face box outlined (the kiosk preview).
+void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out) {
+  const int w = frame.color.width / 2, h = frame.color.height / 2;
+  if (w <= 0 || h <= 0) return;
+  out.resize(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) out.at(x, y) = frame.color.at(2 * x, 2 * y);
+  const Rgb8 green{40, 220, 90};
+  const int x0 = box.x / 2, y0 = box.y / 2, x1 = (box.x + box.width) / 2 - 1,
+            y1 = (box.y + box.height) / 2 - 1;
+  for (int x = x0; x <= x1; ++x)
+    for (int y : {y0, y1})
+      if (out.contains(x, y)) out.at(x, y) = green;
+  for (int y = y0; y <= y1; ++y)
+    for (int x : {x0, x1})
+      if (out.contains(x, y)) out.at(x, y) = green;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Creation and lifetime
+
+Daemon::Daemon(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Daemon::~Daemon() {
+  stop();
+}
+
+Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
+                                               const DaemonOptions& options) {
+  auto impl = std::make_unique<Impl>();
+  impl->config = config;
+  impl->options = options;
+  if (auto ok = validate_daemon_config(config); !ok) return ok.failure();
+
+  impl->token = config.http.token;
+  if (!config.http.token_file.empty()) {
+    std::ifstream in(config.http.token_file);
+    if (!in) return fail("cannot read http.token_file '" + config.http.token_file.string() + "'");
+    std::getline(in, impl->token);
+  }
+
+  auto guide = load_guide_steps(config.session.guide_file);
+  if (!guide) return guide.failure();
+  impl->guide = std::move(*guide);
+
+  std::error_code ec;
+  std::filesystem::create_directories(config.storage.data_dir, ec);
+  if (ec)
+    return fail("cannot create the data directory '" + config.storage.data_dir.string() +
+                "': " + ec.message());
+  auto records = open_session_records(config.storage.data_dir);
+  if (!records) return fail("cannot open the session store: " + records.error().message);
+  impl->records = std::move(*records);
+
+  auto gpio = open_gpio(config.gpio);
+  if (!gpio) return gpio.failure();
+  impl->gpio = std::move(*gpio);
+
+  auto camera = open_camera(config.camera.uri);
+  if (!camera)
+    return fail("cannot open camera '" + config.camera.uri + "': " + camera.error().message);
+  impl->preview_camera = std::move(*camera);
+  if (auto ok = impl->preview_camera->start(); !ok)
+    return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
+
+  if (options.handle_signals) {
+    // Block the stop signals here so every thread started later inherits the mask; they are
+    // then only ever read from the daemon's signalfd (no async handler, no global state).
+    sigset_t mask;
+    sigemptyset(&mask);
+    sigaddset(&mask, SIGTERM);
+    sigaddset(&mask, SIGINT);
+    if (pthread_sigmask(SIG_BLOCK, &mask, nullptr) != 0) return fail("cannot block signals");
+    impl->signal_fd.reset(::signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK));
+    if (impl->signal_fd.get() < 0)
+      return fail(std::string("signalfd failed: ") + std::strerror(errno));
+  }
+  impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
+  if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
+
+  if (config.http.enabled)
+    if (auto ok = impl->setup_http(); !ok) return ok.failure();
+
+  std::uint64_t usec = 0;
+  if (sd_watchdog_enabled(0, &usec) > 0) impl->watchdog_usec = usec;
+
+  // Resume after a power loss (or a stop) in the middle of a session.
+  if (config.session.resume) {
+    std::lock_guard lock(impl->records_mutex);
+    if (auto all = impl->records->sessions(); all && !all->empty() && !all->back().complete) {
+      impl->queue.push_back({KioskInput::kResume, {}, all->back().id});
+      impl->status.resumed = true;
+    }
+  }
+  impl->status.capture_count = static_cast<int>(impl->guide.size());
+  impl->status.message = "Press the button to start";
+  return std::unique_ptr<Daemon>(new Daemon(std::move(impl)));
+}
+
+Result<void> Daemon::start() {
+  auto& d = *impl_;
+  if (d.started.exchange(true)) return success();
+  d.gpio->set_pattern(led_for(KioskState::kIdle));
+  d.worker_thread = std::thread([&d] { d.worker_loop(); });
+  d.gpio_thread = std::thread([&d] { d.gpio_loop(); });
+  if (d.http) {
+    d.http_thread = std::thread([&d] { d.http->listen_after_bind(); });
+    // The listener is bound already; wait until it accepts so READY=1 means reachable.
+    for (int i = 0; i < 200 && !d.http->is_running(); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  d.ready = true;
+  d.update_status([&](StatusData& s) { s.start_to_ready_ms = ms_since(d.created_at); });
+  sd_notifyf(0, "READY=1\nSTATUS=ready, http port %d\nMAINPID=%lu", d.http_port,
+             static_cast<unsigned long>(::getpid()));
+  return success();
+}
+
+Result<void> Daemon::run() {
+  if (auto ok = start(); !ok) return ok;
+  auto& d = *impl_;
+  std::fprintf(stderr, "faceboothd: ready (camera %s, gpio %s, store %s at %s, http %s)\n",
+               d.config.camera.uri.c_str(), d.gpio->info().backend.c_str(),
+               d.records->backend().c_str(), d.records->root().c_str(),
+               d.http ? (d.config.http.bind + ":" + std::to_string(d.http_port)).c_str() : "off");
+  pollfd fds[2] = {{d.wake_fd.get(), POLLIN, 0}, {d.signal_fd.get(), POLLIN, 0}};
+  const nfds_t n = d.signal_fd.get() >= 0 ? 2 : 1;
+  while (!d.stopping) {
+    const int r = ::poll(fds, n, 1000);
+    if (r < 0 && errno != EINTR) break;
+    if (n == 2 && (fds[1].revents & POLLIN)) {
+      signalfd_siginfo info{};
+      if (::read(d.signal_fd.get(), &info, sizeof info) == sizeof info)
+        std::fprintf(stderr, "faceboothd: %s, stopping\n",
+                     strsignal(static_cast<int>(info.ssi_signo)));
+      break;
+    }
+    if (fds[0].revents & POLLIN) break;
+  }
+  stop();
+  return success();
+}
+
+void Daemon::request_stop() {
+  impl_->stopping = true;
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto n = ::write(impl_->wake_fd.get(), &one, sizeof one);
+  impl_->queue_cv.notify_all();
+  impl_->status_cv.notify_all();
+}
+
+void Daemon::stop() {
+  auto& d = *impl_;
+  d.stopping = true;
+  if (d.started) sd_notify(0, "STOPPING=1");
+  d.queue_cv.notify_all();
+  d.status_cv.notify_all();
+  const auto t0 = Clock::now();
+  if (d.http) d.http->stop();
+  for (auto* t : {&d.worker_thread, &d.gpio_thread, &d.http_thread})
+    if (t->joinable()) t->join();
+  if (d.preview_camera) d.preview_camera->stop();
+  if (d.started.exchange(false))
+    std::fprintf(stderr, "faceboothd: stopped in %.0f ms\n", ms_since(t0));
+  if (d.gpio) d.gpio->set_pattern(LedPattern::kOff);
+  d.ready = false;
+}
+
+bool Daemon::ready() const {
+  return impl_->ready;
+}
+int Daemon::http_port() const {
+  return impl_->http_port;
+}
+
+void Daemon::post(KioskInput input, const std::string& subject, std::int64_t session) {
+  {
+    std::lock_guard lock(impl_->queue_mutex);
+    impl_->queue.push_back({input, subject, session});
+  }
+  impl_->queue_cv.notify_all();
+}
+
+Result<void> Daemon::press(const ButtonEvent& event) {
+  return impl_->gpio->simulate_press(event);
+}
+
+std::uint64_t Daemon::wait_status(std::uint64_t seen, std::chrono::milliseconds timeout) const {
+  std::unique_lock lock(impl_->status_mutex);
+  impl_->status_cv.wait_for(lock, timeout,
+                            [&] { return impl_->status_version != seen || impl_->stopping; });
+  return impl_->status_version;
+}
+
+nlohmann::json Daemon::status() const {
+  return impl_->status_json();
+}
+
+nlohmann::json Daemon::Impl::status_json() const {
+  const auto& d = *this;
+  std::lock_guard lock(d.status_mutex);
+  const StatusData& s = d.status;
+  nlohmann::json j = {
+      {"version", d.status_version},
+      {"ready", d.ready.load()},
+      {"state", to_string(s.state)},
+      {"message", s.message},
+      {"last_input", s.last_input},
+      {"session", s.session == 0 ? nlohmann::json(nullptr) : nlohmann::json(s.session)},
+      {"subject", s.subject},
+      {"resumed", s.resumed},
+      {"capture_index", s.capture_index},
+      {"capture_count", s.capture_count},
+      {"done_count", s.done_count},
+      {"attempts", s.attempts},
+      {"take_frames", s.take_frames},
+      {"take_length", d.config.camera.capture_frames},
+      {"frames_total", s.frames_total},
+      {"frames_dropped", s.frames_dropped},
+      {"tracking_frames", s.tracking_frames},
+      {"led", to_string(d.gpio->pattern())},
+      {"gpio", d.gpio->info().backend},
+      {"camera", d.config.camera.uri},
+      {"store", d.records->backend()},
+      {"uptime_s", ms_since(d.created_at) / 1000.0},
+      {"start_to_ready_ms", s.start_to_ready_ms},
+      // The device pipeline after fusion: these stages report 'pending' until their modules
+      // (algo/landmarks, algo/fitting, algo/tracking) are wired in.
+      {"stages", {{"fusion", "on"}, {"landmarks", "pending"}, {"quick_fit", "pending"}}},
+      {"tracking", {{"pipeline", "pending"}, {"osc_target", d.config.streaming.osc_target}}},
+  };
+  if (s.capture_index >= 0 && s.capture_index < static_cast<int>(d.guide.size())) {
+    j["expression"] = {{"name", d.guide[s.capture_index].name},
+                       {"label", d.guide[s.capture_index].label}};
+  }
+  if (s.last_qa) {
+    j["qa"] = {{"coverage", s.last_qa->coverage},
+               {"residual_mm", s.last_qa->residual_mm},
+               {"fused_fraction", s.last_qa->fused_fraction},
+               {"passed", s.last_qa->passed},
+               {"reason", s.last_qa->reason},
+               {"landmarks", "pending"},
+               {"fit", "pending"}};
+  }
+  if (!s.error.empty()) j["error"] = s.error;
+  if (!s.last_export.empty()) j["last_export"] = s.last_export.string();
+  return j;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Worker: the frame loop and the state machine
+
+void Daemon::Impl::set_state(KioskState s, const std::string& input_name) {
+  gpio->set_pattern(led_for(s));
+  update_status([&](StatusData& st) {
+    st.state = s;
+    st.last_input = input_name;
+  });
+}
+
+void Daemon::Impl::watchdog_ping() {
+  if (watchdog_usec == 0) return;
+  const auto period = std::chrono::microseconds(watchdog_usec / config.watchdog_divisor);
+  if (Clock::now() - last_watchdog >= period) {
+    sd_notify(0, "WATCHDOG=1");
+    last_watchdog = Clock::now();
+  }
+}
+
+void Daemon::Impl::gpio_loop() {
+  while (!stopping) {
+    auto events = gpio->wait_events(std::chrono::milliseconds(100));
+    if (!events) {
+      update_status([&](StatusData& s) { s.error = events.error().message; });
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      continue;
+    }
+    for (const auto& e : *events) {
+      KioskState state;
+      {
+        std::lock_guard lock(status_mutex);
+        state = status.state;
+      }
+      {
+        std::lock_guard lock(queue_mutex);
+        queue.push_back({input_for(e, state), {}, 0});
+      }
+      queue_cv.notify_all();
+    }
+  }
+}
+
+void Daemon::Impl::worker_loop() {
+  last_watchdog = Clock::now() - std::chrono::hours(1);
+  auto last_preview = Clock::now() - std::chrono::hours(1);
+  while (!stopping) {
+    watchdog_ping();
+    std::optional<QueuedInput> input;
+    KioskState state;
+    {
+      std::lock_guard lock(status_mutex);
+      state = status.state;
+    }
+    const bool tracking = state == KioskState::kTracking;
+    auto wait = std::chrono::milliseconds(100);
+    if (tracking) wait = std::chrono::milliseconds(1);
+    {
+      std::unique_lock lock(queue_mutex);
+      queue_cv.wait_for(lock, wait, [&] { return !queue.empty() || stopping.load(); });
+      if (!queue.empty()) {
+        input = queue.front();
+        queue.pop_front();
+      }
+    }
+    if (stopping) break;
+    if (input) {
+      handle(*input);
+      continue;
+    }
+    if (tracking) {
+      tracking_tick();
+    } else if (config.camera.preview_fps > 0 &&
+               ms_since(last_preview) >= 1000.0 / config.camera.preview_fps) {
+      last_preview = Clock::now();
+      preview_tick();
+    }
+  }
+}
+
+void Daemon::Impl::preview_tick() {
+  static_assert(true);
+  RgbdFrame frame;
+  auto got = preview_camera->next_frame(frame, std::chrono::milliseconds(50));
+  if (!got) {
+    update_status([&](StatusData& s) { s.error = "camera: " + got.error().message; });
+    return;
+  }
+  if (*got == FrameStatus::kEndOfStream) {
+    // Recordings and synthetic takes end; the preview loops them.
+    preview_camera->stop();
+    if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start()) {
+      preview_camera = std::move(*reopened);
+    }
+    return;
+  }
+  if (*got != FrameStatus::kFrame) return;
+  {
+    std::lock_guard lock(preview_mutex);
+    make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
+  }
+  update_status([](StatusData& s) { ++s.frames_total; });
+}
+
+void Daemon::Impl::tracking_tick() {
+  // The tracking pipeline (algo/tracking) plugs in here; until it lands the loop still runs the
+  // camera at its rate so the preview, the watchdog and the frame counters are live.
+  const auto t0 = Clock::now();
+  RgbdFrame frame;
+  auto got = preview_camera->next_frame(frame, std::chrono::milliseconds(100));
+  if (got && *got == FrameStatus::kEndOfStream) {
+    preview_camera->stop();
+    if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start())
+      preview_camera = std::move(*reopened);
+    return;
+  }
+  if (!got || *got != FrameStatus::kFrame) return;
+  {
+    std::lock_guard lock(preview_mutex);
+    make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
+  }
+  update_status([](StatusData& s) {
+    ++s.frames_total;
+    ++s.tracking_frames;
+  });
+  if (config.camera.realtime) {
+    const auto period = std::chrono::duration<double>(1.0 / preview_camera->info().fps);
+    std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(period));
+  }
+}
+
+bool Daemon::Impl::cancel_pending() {
+  std::lock_guard lock(queue_mutex);
+  for (auto it = queue.begin(); it != queue.end(); ++it) {
+    if (it->input == KioskInput::kCancel) {
+      queue.erase(it);
+      return true;
+    }
+  }
+  return false;
+}
+
+void Daemon::Impl::handle(const QueuedInput& first) {
+  QueuedInput in = first;
+  while (!stopping) {
+    KioskState state;
+    {
+      std::lock_guard lock(status_mutex);
+      state = status.state;
+    }
+    auto t = kiosk_transition(state, in.input);
+    if (!t) {
+      update_status([&](StatusData& s) {
+        s.last_input = std::string(to_string(in.input)) + " (ignored in " + to_string(state) + ")";
+      });
+      return;
+    }
+    // One line per transition: the journal then tells the story of every session.
+    std::fprintf(stderr, "faceboothd: %s --%s--> %s\n", to_string(state), to_string(in.input),
+                 to_string(t->next));
+    set_state(t->next, to_string(in.input));
+    bool followup = false;
+    const KioskInput next = do_action(t->action, in, &followup);
+    if (!followup) return;
+    in = {next, {}, 0};
+  }
+}
+
+// Performs an action; when it has an outcome the machine must see, returns it with *followup.
+KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bool* followup) {
+  auto failed = [&](const Error& e) {
+    update_status([&](StatusData& s) {
+      s.error = e.message;
+      s.message = "Something went wrong: " + e.message + ". Press the button.";
+    });
+    std::fprintf(stderr, "faceboothd: %s\n", e.message.c_str());
+    *followup = true;
+    return KioskInput::kFailed;
+  };
+  switch (action) {
+    case KioskAction::kNone:
+      if (in.input == KioskInput::kQaFailed)
+        update_status([](StatusData& s) {
+          s.message = "Quality check failed (" + (s.last_qa ? s.last_qa->reason : "") +
+                      "). Press the button to record again.";
+        });
+      else
+        update_status([](StatusData& s) {
+          s.error.clear();
+          s.message = "Press the button to start";
+        });
+      return in.input;
+    case KioskAction::kEnroll: {
+      if (auto ok = enroll(in.subject); !ok) return failed(ok.error());
+      *followup = true;
+      return KioskInput::kEnrolled;
+    }
+    case KioskAction::kResumeSession: {
+      std::int64_t id = in.session;
+      {
+        std::lock_guard lock(records_mutex);
+        auto s = records->session(id);
+        if (!s) return failed(s.error());
+        if (s->complete) return failed(Error{"session " + std::to_string(id) + " is complete"});
+        update_status([&](StatusData& st) {
+          st.session = id;
+          st.subject = s->subject_name;
+          st.done_count = s->done_count;
+          st.capture_count = s->capture_count;
+          st.resumed = true;
+        });
+      }
+      if (auto ok = show_next_guide(); !ok) return failed(ok.error());
+      return in.input;
+    }
+    case KioskAction::kShowGuide:
+      if (auto ok = show_next_guide(); !ok) return failed(ok.error());
+      return in.input;
+    case KioskAction::kRecord: {
+      pending_qa = {};
+      pending_commit = {};
+      auto took = record_take(pending_qa, pending_commit);
+      if (!took) return failed(took.error());
+      *followup = true;
+      return *took ? KioskInput::kTakeDone : KioskInput::kCancel;  // false = cancelled/stopping
+    }
+    case KioskAction::kProcess: {
+      // Fused depth and QA come from the take; landmarks and the quick fit are 'pending' until
+      // algo/landmarks and algo/fitting are wired in here (status "stages").
+      std::int64_t session;
+      int index;
+      {
+        std::lock_guard lock(status_mutex);
+        session = status.session;
+        index = status.capture_index;
+      }
+      const QaReport qa = pending_qa;
+      CaptureCommit commit = std::move(pending_commit);
+      pending_commit = {};
+      std::lock_guard lock(records_mutex);
+      *followup = true;
+      if (!qa.passed) {
+        if (auto ok = records->reject_capture(session, index, commit.qa_scores); !ok)
+          return failed(ok.error());
+        update_status([&](StatusData& s) { s.last_qa = qa; });
+        return KioskInput::kQaFailed;
+      }
+      if (auto ok = records->commit_capture(session, index, std::move(commit)); !ok)
+        return failed(ok.error());
+      auto s = records->session(session);
+      if (!s) return failed(s.error());
+      update_status([&](StatusData& st) {
+        st.last_qa = qa;
+        st.done_count = s->done_count;
+      });
+      return s->complete ? KioskInput::kLastDone : KioskInput::kQaPassed;
+    }
+    case KioskAction::kAbandon:
+      update_status([&](StatusData& s) {
+        s.take_frames = 0;
+        if (in.input == KioskInput::kCancel)
+          s.message = "Session paused. Press the button for a new subject; it can be resumed.";
+      });
+      return in.input;
+    case KioskAction::kFinish: {
+      std::int64_t session;
+      {
+        std::lock_guard lock(status_mutex);
+        session = status.session;
+      }
+      std::lock_guard lock(records_mutex);
+      auto out = records->export_session(session, config.storage.data_dir / "exports");
+      if (!out) return failed(out.error());
+      update_status([&](StatusData& s) {
+        s.last_export = *out;
+        s.capture_index = -1;
+        s.message = "Done! Session " + std::to_string(session) + " is stored and ready.";
+      });
+      return in.input;
+    }
+    case KioskAction::kStartTracking:
+      update_status([](StatusData& s) {
+        s.message = "Tracking mode (tracking pipeline pending). Press mode to go back.";
+      });
+      return in.input;
+    case KioskAction::kStopTracking:
+      update_status([](StatusData& s) { s.message = "Press the button to start"; });
+      return in.input;
+  }
+  return in.input;
+}
+
+Result<void> Daemon::Impl::enroll(const std::string& subject_in) {
+  std::string subject = subject_in;
+  if (subject.empty()) {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[40];
+    std::strftime(buf, sizeof buf, "subject-%Y%m%d-%H%M%S", &tm);
+    subject = buf;
+  }
+  std::vector<std::string> names;
+  for (const auto& g : guide) names.push_back(g.name);
+  std::lock_guard lock(records_mutex);
+  auto sid = records->add_subject(subject);
+  if (!sid) return sid.failure();
+  auto session = records->create_session(*sid, names);
+  if (!session) return session.failure();
+  update_status([&](StatusData& s) {
+    s.session = *session;
+    s.subject = subject;
+    s.done_count = 0;
+    s.capture_count = static_cast<int>(names.size());
+    s.resumed = false;
+    s.last_qa.reset();
+    s.last_export.clear();
+    s.error.clear();
+  });
+  return success();
+}
+
+Result<void> Daemon::Impl::show_next_guide() {
+  std::int64_t session;
+  {
+    std::lock_guard lock(status_mutex);
+    session = status.session;
+  }
+  std::lock_guard lock(records_mutex);
+  auto caps = records->captures(session);
+  if (!caps) return caps.failure();
+  for (const auto& c : *caps) {
+    if (c.state == RecordState::kDone) continue;
+    const std::string label =
+        c.index < static_cast<int>(guide.size()) ? guide[c.index].label : c.expression;
+    update_status([&](StatusData& s) {
+      s.capture_index = c.index;
+      s.attempts = c.attempts;
+      s.take_frames = 0;
+      s.message = "Expression " + std::to_string(c.index + 1) + " of " +
+                  std::to_string(caps->size()) + ": " + label +
+                  ". Make the face, then press the button and turn your head slowly.";
+    });
+    return success();
+  }
+  return fail("session " + std::to_string(session) + " has no capture left to record");
+}
+
+// Records one take and fuses it frame by frame. Returns false when cancelled or stopping (the
+// capture stays not done: begin_capture counted the attempt, nothing else is written).
+Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
+  std::int64_t session;
+  int index;
+  {
+    std::lock_guard lock(status_mutex);
+    session = status.session;
+    index = status.capture_index;
+  }
+  if (index < 0 || index >= static_cast<int>(guide.size()))
+    return fail("no capture selected for recording");
+  {
+    std::lock_guard lock(records_mutex);
+    if (auto ok = records->begin_capture(session, index); !ok) return ok.failure();
+  }
+  const int n = config.camera.capture_frames;
+  update_status([&](StatusData& s) {
+    ++s.attempts;
+    s.take_frames = 0;
+    s.message = "Recording: turn your head slowly left and right...";
+  });
+
+  // The camera for this take: a synthetic subject making the guide expression, or the live one.
+  std::unique_ptr<DepthCamera> take_camera;
+  DepthCamera* camera = preview_camera.get();
+  if (is_synthetic(config.camera.uri) && config.camera.synthetic_imitates_guide) {
+    auto opened =
+        open_camera(synthetic_take_uri(config.camera.uri, guide[index].synthetic_expr, n));
+    if (!opened) return opened.failure();
+    take_camera = std::move(*opened);
+    if (auto ok = take_camera->start(); !ok) return ok.failure();
+    camera = take_camera.get();
+  }
+  const CameraInfo& info = camera->info();
+  const FaceBox box = default_face_box(info.width, info.height);
+  if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
+
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / (info.fps > 0 ? info.fps : 30.0)));
+  const bool pace = config.camera.realtime && take_camera != nullptr;
+  auto due = Clock::now();
+  double rms_sum = 0;
+  int fused = 0, recorded = 0;
+  long long dropped = 0;
+  RgbdFrame frame;
+  while (recorded < n) {
+    watchdog_ping();
+    if (stopping || cancel_pending()) {
+      std::lock_guard lock(status_mutex);
+      status.frames_dropped += dropped;
+      return false;
+    }
+    if (pace) {
+      // A real sensor delivers at its own rate: if the loop falls a whole period behind, the
+      // frames it missed are dropped (counted) and the schedule moves on, as a camera would.
+      const auto now = Clock::now();
+      if (now > due + period) {
+        const long long missed = (now - due) / period;
+        dropped += missed;
+        due += missed * period;
+      }
+      std::this_thread::sleep_until(due);
+      due += period;
+    }
+    auto got = camera->next_frame(frame, std::chrono::milliseconds(500));
+    if (!got) return got.failure();
+    if (*got == FrameStatus::kEndOfStream) break;
+    if (*got == FrameStatus::kTimeout) continue;
+    const FrameReport report = fusion.process(frame.depth_mm);
+    if (report.fused) {
+      ++fused;
+      rms_sum += report.rms_mm;
+    }
+    if (recorded % config.camera.stored_frame_stride == 0) {
+      commit.frames.push_back(frame);
+      commit.frames.back().raw_disparity = {};  // derivable from depth; halves the memory
+    }
+    ++recorded;
+    if (recorded % 5 == 0 || recorded == n) {
+      std::lock_guard lock(preview_mutex);
+      make_preview(frame, box, preview);
+    }
+    update_status([&](StatusData& s) {
+      s.take_frames = recorded;
+      ++s.frames_total;
+    });
+  }
+  update_status([&](StatusData& s) { s.frames_dropped += dropped; });
+  if (recorded == 0) return fail("the camera delivered no frames for the take");
+
+  // Quality: how much of the face box the fused surface covers, how well frames aligned, and how
+  // many frames could be fused at all.
+  SurfaceView view = fusion.render(RigidPose{});
+  long long covered = 0;
+  const FaceBox clipped = box.clipped(view.depth_mm.width, view.depth_mm.height);
+  commit.fused_depth.resize(view.depth_mm.width, view.depth_mm.height);
+  for (int y = 0; y < view.depth_mm.height; ++y)
+    for (int x = 0; x < view.depth_mm.width; ++x) {
+      const float z = view.depth_mm.at(x, y);
+      commit.fused_depth.at(x, y) = z > 0 && z < 65535 ? static_cast<std::uint16_t>(z + 0.5f) : 0;
+      if (z > 0 && clipped.contains(x, y)) ++covered;
+    }
+  qa.coverage = clipped.empty() ? 0.0
+                                : static_cast<double>(covered) /
+                                      (static_cast<double>(clipped.width) * clipped.height);
+  qa.residual_mm = fused > 0 ? rms_sum / fused : 0.0;
+  qa.fused_fraction = static_cast<double>(fused) / recorded;
+  const auto& th = config.session;
+  if (qa.coverage < th.min_coverage)
+    qa.reason = "face coverage " + std::to_string(qa.coverage).substr(0, 4) + " below " +
+                std::to_string(th.min_coverage).substr(0, 4);
+  else if (qa.fused_fraction < th.min_fused_fraction)
+    qa.reason = "only " + std::to_string(fused) + " of " + std::to_string(recorded) +
+                " frames could be aligned";
+  else if (fused == 0 || qa.residual_mm > th.max_residual_mm)
+    qa.reason = "alignment residual " + std::to_string(qa.residual_mm).substr(0, 4) + " mm";
+  qa.passed = qa.reason.empty();
+  commit.qa_scores = {{"coverage", qa.coverage},
+                      {"residual_mm", qa.residual_mm},
+                      {"fused_fraction", qa.fused_fraction},
+                      {"frames_recorded", recorded},
+                      {"frames_dropped", static_cast<double>(dropped)}};
+  return true;
+}
+
+}  // namespace fb
+
+namespace fb {
+
+Result<HeadlessResult> Daemon::run_headless_session(const std::string& subject, int max_attempts) {
+  if (auto ok = start(); !ok) return ok.failure();
+  auto& d = *impl_;
+  if (d.gpio->info().backend != "sim")
+    return fail("a headless session needs the simulated GPIO ([gpio] backend = \"sim\")");
+  HeadlessResult result;
+  // Acts once per distinct (state, capture, attempts): a press is never sent twice for the same
+  // screen, however often the status changes while the daemon works.
+  std::string acted;
+  bool started_session = false;
+  std::uint64_t version = 0;
+  std::int64_t session = 0;
+  const auto deadline_per_step = std::chrono::seconds(120);
+  auto last_progress = Clock::now();
+  int last_done = -1;
+  while (true) {
+    if (d.signal_fd.get() >= 0) {
+      signalfd_siginfo info{};
+      if (::read(d.signal_fd.get(), &info, sizeof info) == sizeof info) request_stop();
+    }
+    if (d.stopping) return fail("stopped before the session was complete");
+    const nlohmann::json s = status();
+    const std::string state = s["state"];
+    const std::string key = state + "/" + std::to_string(s["capture_index"].get<int>()) + "/" +
+                            std::to_string(s["attempts"].get<int>());
+    if (s["done_count"].get<int>() != last_done) {
+      last_done = s["done_count"];
+      last_progress = Clock::now();
+      if (started_session)
+        std::fprintf(stderr, "faceboothd: session %lld: %d/%d captures done\n",
+                     static_cast<long long>(session), last_done, s["capture_count"].get<int>());
+    }
+    if (Clock::now() - last_progress > deadline_per_step)
+      return fail("no progress for 120 s in state '" + state + "'");
+    if (state == "error")
+      return fail(s.value("error", std::string("the daemon reported an error")));
+    if (!started_session) {
+      if (state == "guide" && s["resumed"].get<bool>()) {
+        started_session = true;  // a resumed session after a power loss: finish that one
+        session = s["session"].get<std::int64_t>();
+      } else if (state == "idle" || state == "complete") {
+        started_session = true;
+        post(KioskInput::kStart, subject);
+        acted = key;
+      }
+    } else if (state == "guide" && key != acted) {
+      if (session == 0) session = s["session"].get<std::int64_t>();
+      if (auto ok = press({ButtonId::kMain, PressKind::kShort}); !ok) return ok.failure();
+      acted = key;
+    } else if (state == "retry" && key != acted) {
+      if (s["attempts"].get<int>() >= max_attempts)
+        return fail("capture " + std::to_string(s["capture_index"].get<int>()) + " failed QA " +
+                    std::to_string(max_attempts) +
+                    " times: " + s["qa"].value("reason", std::string("?")));
+      ++result.retries;
+      if (auto ok = press({ButtonId::kMain, PressKind::kShort}); !ok) return ok.failure();
+      acted = key;
+    } else if (state == "complete" && s.contains("last_export") && session != 0 &&
+               s["session"].get<std::int64_t>() == session) {
+      result.session_id = session;
+      result.export_folder = s["last_export"].get<std::string>();
+      result.captures_done = s["done_count"];
+      result.frames_total = s["frames_total"];
+      result.frames_dropped = s["frames_dropped"];
+      break;
+    }
+    version = wait_status(version, std::chrono::milliseconds(500));
+  }
+  std::lock_guard lock(d.records_mutex);
+  result.store = d.records->root();
+  if (auto info = d.records->session(result.session_id)) result.session_folder = info->folder;
+  return result;
+}
+
+}  // namespace fb

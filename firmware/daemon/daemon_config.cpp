@@ -1,0 +1,239 @@
+#include "firmware/daemon/daemon_config.hpp"
+
+#include <toml++/toml.h>
+#include <cstdlib>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace fb {
+namespace {
+
+std::filesystem::path default_guide_file() {
+  for (const char* dir : {FB_INSTALLED_DATA_DIR, FB_DATA_DIR}) {
+    auto p = std::filesystem::path(dir) / "guide_expressions.json";
+    std::error_code ec;
+    if (std::filesystem::exists(p, ec)) return p;
+  }
+  return std::filesystem::path(FB_DATA_DIR) / "guide_expressions.json";
+}
+
+// Collects the first error while reading typed keys, so each read is one line.
+class Reader {
+ public:
+  Reader(const toml::table& root, std::string origin) : root_(root), origin_(std::move(origin)) {}
+
+  const toml::table* section(std::string_view name) {
+    known_sections_.insert(std::string(name));
+    const auto* node = root_.get(name);
+    if (node == nullptr) return nullptr;
+    if (!node->is_table()) {
+      error("[" + std::string(name) + "] must be a table");
+      return nullptr;
+    }
+    current_ = std::string(name);
+    known_keys_[current_];
+    return node->as_table();
+  }
+
+  template <class T>
+  void read(const toml::table* t, std::string_view key, T& out) {
+    if (t == nullptr) return;
+    known_keys_[current_].insert(std::string(key));
+    const auto* node = t->get(key);
+    if (node == nullptr) return;
+    if constexpr (std::is_same_v<T, bool>) {
+      if (auto v = node->value<bool>()) return void(out = *v);
+    } else if constexpr (std::is_integral_v<T>) {
+      if (node->is_integer()) return void(out = static_cast<T>(*node->value<std::int64_t>()));
+    } else if constexpr (std::is_floating_point_v<T>) {
+      if (auto v = node->value<double>()) return void(out = *v);
+    } else if constexpr (std::is_same_v<T, std::filesystem::path>) {
+      if (auto v = node->value<std::string>()) return void(out = *v);
+    } else {
+      if (auto v = node->value<std::string>()) return void(out = *v);
+    }
+    error(current_ + "." + std::string(key) + " has the wrong type");
+  }
+
+  void check_unknown() {
+    for (const auto& [name, node] : root_) {
+      const std::string section(name.str());
+      if (!known_sections_.count(section)) {
+        error("unknown section [" + section + "]");
+        continue;
+      }
+      if (!node.is_table()) continue;
+      for (const auto& [key, value] : *node.as_table()) {
+        if (!known_keys_[section].count(std::string(key.str())))
+          error("unknown key " + section + "." + std::string(key.str()));
+      }
+    }
+  }
+
+  void error(const std::string& what) {
+    if (first_error_.empty()) first_error_ = origin_ + ": " + what;
+  }
+  const std::string& first_error() const { return first_error_; }
+
+ private:
+  const toml::table& root_;
+  std::string origin_;
+  std::string current_;
+  std::set<std::string> known_sections_;
+  std::map<std::string, std::set<std::string>> known_keys_;
+  std::string first_error_;
+};
+
+std::filesystem::path resolve(const std::filesystem::path& p, const std::filesystem::path& base) {
+  if (p.empty() || p.is_absolute() || base.empty()) return p;
+  return base / p;
+}
+
+}  // namespace
+
+DaemonConfig default_daemon_config() {
+  DaemonConfig config;
+  if (const char* state = std::getenv("STATE_DIRECTORY"); state != nullptr && *state != '\0') {
+    // systemd may pass several colon-separated directories; the first is ours.
+    std::string first(state);
+    config.storage.data_dir = first.substr(0, first.find(':'));
+  } else {
+    config.storage.data_dir = std::filesystem::current_path() / "facebooth-data";
+  }
+  config.session.guide_file = default_guide_file();
+  return config;
+}
+
+Result<DaemonConfig> parse_daemon_config(std::string_view toml_text, std::string_view origin,
+                                         const std::filesystem::path& base_dir) {
+  toml::table root;
+  try {
+    root = toml::parse(toml_text, std::string(origin));
+  } catch (const toml::parse_error& e) {
+    std::ostringstream msg;
+    msg << origin << ":" << e.source().begin.line << ":" << e.source().begin.column << ": "
+        << e.description();
+    return fail(msg.str());
+  }
+  DaemonConfig c = default_daemon_config();
+  Reader r(root, std::string(origin));
+  if (auto* t = r.section("camera")) {
+    r.read(t, "uri", c.camera.uri);
+    r.read(t, "capture_frames", c.camera.capture_frames);
+    r.read(t, "preview_fps", c.camera.preview_fps);
+    r.read(t, "realtime", c.camera.realtime);
+    r.read(t, "synthetic_imitates_guide", c.camera.synthetic_imitates_guide);
+    r.read(t, "stored_frame_stride", c.camera.stored_frame_stride);
+  }
+  if (auto* t = r.section("gpio")) {
+    r.read(t, "backend", c.gpio.backend);
+    r.read(t, "chip", c.gpio.chip);
+    r.read(t, "main_line", c.gpio.main_line);
+    r.read(t, "mode_line", c.gpio.mode_line);
+    r.read(t, "led_line", c.gpio.led_line);
+    r.read(t, "buttons_active_low", c.gpio.buttons_active_low);
+    r.read(t, "debounce_ms", c.gpio.debounce_ms);
+    r.read(t, "long_press_ms", c.gpio.long_press_ms);
+  }
+  if (auto* t = r.section("storage")) {
+    std::filesystem::path dir;
+    r.read(t, "data_dir", dir);
+    if (!dir.empty()) c.storage.data_dir = resolve(dir, base_dir);
+  }
+  if (auto* t = r.section("http")) {
+    r.read(t, "enabled", c.http.enabled);
+    r.read(t, "bind", c.http.bind);
+    r.read(t, "port", c.http.port);
+    r.read(t, "token", c.http.token);
+    r.read(t, "token_file", c.http.token_file);
+    r.read(t, "threads", c.http.threads);
+    c.http.token_file = resolve(c.http.token_file, base_dir);
+  }
+  if (auto* t = r.section("session")) {
+    std::filesystem::path guide;
+    r.read(t, "guide_file", guide);
+    if (!guide.empty()) c.session.guide_file = resolve(guide, base_dir);
+    r.read(t, "min_coverage", c.session.min_coverage);
+    r.read(t, "max_residual_mm", c.session.max_residual_mm);
+    r.read(t, "min_fused_fraction", c.session.min_fused_fraction);
+    r.read(t, "resume", c.session.resume);
+  }
+  if (auto* t = r.section("streaming")) {
+    r.read(t, "osc_target", c.streaming.osc_target);
+    r.read(t, "vmc_target", c.streaming.vmc_target);
+  }
+  if (auto* t = r.section("systemd")) r.read(t, "watchdog_divisor", c.watchdog_divisor);
+  r.check_unknown();
+  if (!r.first_error().empty()) return fail(r.first_error());
+  if (auto ok = validate_daemon_config(c); !ok)
+    return fail(std::string(origin) + ": " + ok.error().message);
+  return c;
+}
+
+Result<DaemonConfig> load_daemon_config(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail("cannot read config file '" + path.string() + "'");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_daemon_config(text.str(), path.string(), path.parent_path());
+}
+
+Result<void> validate_daemon_config(const DaemonConfig& c) {
+  if (c.camera.uri.empty()) return fail("camera.uri is empty");
+  if (c.camera.capture_frames < 5 || c.camera.capture_frames > 900)
+    return fail("camera.capture_frames must be in 5..900 (90 = 3 s at 30 fps)");
+  if (!(c.camera.preview_fps >= 0 && c.camera.preview_fps <= 30))
+    return fail("camera.preview_fps must be in 0..30");
+  if (c.camera.stored_frame_stride < 1) return fail("camera.stored_frame_stride must be >= 1");
+  if (c.http.port < 0 || c.http.port > 65535) return fail("http.port must be in 0..65535");
+  if (c.http.threads < 2 || c.http.threads > 64)
+    return fail("http.threads must be in 2..64 (one is taken by each live-event client)");
+  if (c.gpio.debounce_ms < 0 || c.gpio.long_press_ms <= c.gpio.debounce_ms)
+    return fail("gpio.long_press_ms must be longer than gpio.debounce_ms");
+  if (c.session.min_coverage < 0 || c.session.max_residual_mm <= 0 ||
+      c.session.min_fused_fraction < 0 || c.session.min_fused_fraction > 1)
+    return fail("session thresholds out of range");
+  if (c.storage.data_dir.empty()) return fail("storage.data_dir is empty");
+  if (c.watchdog_divisor < 2) return fail("systemd.watchdog_divisor must be at least 2");
+  return success();
+}
+
+std::string to_toml(const DaemonConfig& c) {
+  toml::table root{
+      {"camera", toml::table{{"uri", c.camera.uri},
+                             {"capture_frames", c.camera.capture_frames},
+                             {"preview_fps", c.camera.preview_fps},
+                             {"realtime", c.camera.realtime},
+                             {"synthetic_imitates_guide", c.camera.synthetic_imitates_guide},
+                             {"stored_frame_stride", c.camera.stored_frame_stride}}},
+      {"gpio", toml::table{{"backend", c.gpio.backend},
+                           {"chip", c.gpio.chip},
+                           {"main_line", c.gpio.main_line},
+                           {"mode_line", c.gpio.mode_line},
+                           {"led_line", c.gpio.led_line},
+                           {"buttons_active_low", c.gpio.buttons_active_low},
+                           {"debounce_ms", c.gpio.debounce_ms},
+                           {"long_press_ms", c.gpio.long_press_ms}}},
+      {"storage", toml::table{{"data_dir", c.storage.data_dir.string()}}},
+      {"http", toml::table{{"enabled", c.http.enabled},
+                           {"bind", c.http.bind},
+                           {"port", c.http.port},
+                           {"token", c.http.token},
+                           {"token_file", c.http.token_file.string()},
+                           {"threads", c.http.threads}}},
+      {"session", toml::table{{"guide_file", c.session.guide_file.string()},
+                              {"min_coverage", c.session.min_coverage},
+                              {"max_residual_mm", c.session.max_residual_mm},
+                              {"min_fused_fraction", c.session.min_fused_fraction},
+                              {"resume", c.session.resume}}},
+      {"streaming",
+       toml::table{{"osc_target", c.streaming.osc_target}, {"vmc_target", c.streaming.vmc_target}}},
+      {"systemd", toml::table{{"watchdog_divisor", c.watchdog_divisor}}},
+  };
+  std::ostringstream out;
+  out << root << "\n";
+  return out.str();
+}
+
+}  // namespace fb

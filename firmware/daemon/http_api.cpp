@@ -1,0 +1,353 @@
+// The HTTP API and the kiosk page (cpp-httplib). JSON everywhere. Only numeric ids reach the
+// store; files are only ever served from folders the daemon wrote, by names it chose (no
+// request string becomes a path). Clients that are not on loopback need the token.
+#include <nlohmann/json.hpp>
+
+#include "firmware/daemon/daemon_impl.hpp"
+#include "firmware/kiosk/kiosk_assets.hpp"
+
+namespace fb {
+namespace {
+
+using nlohmann::json;
+
+bool is_loopback(const std::string& addr) {
+  return addr.rfind("127.", 0) == 0 || addr == "::1" || addr.rfind("::ffff:127.", 0) == 0;
+}
+
+// Constant-time comparison: the token check must not leak how many leading bytes matched.
+bool same_secret(const std::string& a, const std::string& b) {
+  if (a.size() != b.size() || a.empty()) return false;
+  unsigned char diff = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+void send_json(httplib::Response& res, const json& body, int status = 200) {
+  res.status = status;
+  res.set_content(body.dump(), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message) {
+  send_json(res, {{"error", message}}, status);
+}
+
+Result<std::int64_t> id_param(const httplib::Request& req, std::size_t i) {
+  // Routes match (\d{1,12}) so this only guards against overflow.
+  try {
+    return static_cast<std::int64_t>(std::stoll(req.matches[i].str()));
+  } catch (const std::exception&) {
+    return fail("bad id");
+  }
+}
+
+json session_json(const RecordSession& s) {
+  return {{"id", s.id},
+          {"subject", s.subject},
+          {"subject_name", s.subject_name},
+          {"created_at", s.created_at},
+          {"complete", s.complete},
+          {"capture_count", s.capture_count},
+          {"done_count", s.done_count},
+          {"folder", s.folder.string()}};
+}
+
+json capture_json(const RecordCapture& c) {
+  return {{"index", c.index},
+          {"expression", c.expression},
+          {"state", to_string(c.state)},
+          {"attempts", c.attempts},
+          {"qa", c.qa_scores},
+          {"frame_count", c.frame_count},
+          {"completed_at", c.completed_at}};
+}
+
+json parse_body(const httplib::Request& req) {
+  if (req.body.empty()) return json::object();
+  json j = json::parse(req.body, nullptr, false);
+  return j.is_object() ? j : json(nullptr);
+}
+
+}  // namespace
+
+Result<void> Daemon::Impl::setup_http() {
+  http = std::make_unique<httplib::Server>();
+  auto& srv = *http;
+  const int threads = config.http.threads;
+  // httplib's API takes ownership of a raw TaskQueue pointer it deletes itself.
+  srv.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  // Short keep-alive and read timeouts so stop() finishes well within systemd's 2 s budget.
+  srv.set_keep_alive_timeout(1);
+  srv.set_read_timeout(1, 0);
+  srv.set_write_timeout(2, 0);
+  srv.set_payload_max_length(64 * 1024);
+
+  srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (is_loopback(req.remote_addr)) return httplib::Server::HandlerResponse::Unhandled;
+    std::string presented;
+    const std::string auth = req.get_header_value("Authorization");
+    if (auth.rfind("Bearer ", 0) == 0) presented = auth.substr(7);
+    if (presented.empty() && req.has_param("token")) presented = req.get_param_value("token");
+    if (token.empty()) {
+      send_error(res, 403, "remote access is disabled: set [http] token in the config");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (!same_secret(presented, token)) {
+      res.set_header("WWW-Authenticate", "Bearer");
+      send_error(res, 401, "missing or wrong token (Authorization: Bearer TOKEN)");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  srv.set_exception_handler(
+      [](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+        std::string what = "internal error";
+        try {
+          if (ep) std::rethrow_exception(ep);
+        } catch (const std::exception& e) {
+          what = std::string("internal error: ") + e.what();
+        } catch (...) {
+        }
+        send_error(res, 500, what);
+      });
+  srv.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    if (res.body.empty())
+      send_error(res, res.status,
+                 "HTTP " + std::to_string(res.status) + (res.status == 404 ? " not found" : ""));
+  });
+
+  // --- kiosk page (embedded; see firmware/kiosk/)
+  srv.Get("/", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(std::string(kiosk_html()), "text/html; charset=utf-8");
+  });
+  srv.Get("/kiosk.js", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(std::string(kiosk_js()), "application/javascript");
+  });
+  srv.Get("/kiosk.css", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(std::string(kiosk_css()), "text/css");
+  });
+
+  // --- status, guide, preview
+  srv.Get("/api/status", [this](const httplib::Request&, httplib::Response& res) {
+    send_json(res, status_json());
+  });
+  srv.Get("/api/guide", [this](const httplib::Request&, httplib::Response& res) {
+    json list = json::array();
+    for (std::size_t i = 0; i < guide.size(); ++i)
+      list.push_back({{"index", i}, {"name", guide[i].name}, {"label", guide[i].label}});
+    send_json(res, {{"expressions", list}});
+  });
+  srv.Get(R"(/api/guide/(\d{1,3})\.bmp)",
+          [this](const httplib::Request& req, httplib::Response& res) {
+            auto i = id_param(req, 1);
+            if (!i || *i < 0 || *i >= static_cast<std::int64_t>(guide.size()))
+              return send_error(res, 404, "no such guide expression");
+            auto bmp = guide_picture(static_cast<int>(*i));
+            if (!bmp) return send_error(res, 500, bmp.error().message);
+            res.set_header("Cache-Control", "max-age=3600");
+            res.set_content(*bmp, "image/bmp");
+          });
+  srv.Get("/api/preview.bmp", [this](const httplib::Request&, httplib::Response& res) {
+    std::string bmp;
+    {
+      std::lock_guard lock(preview_mutex);
+      if (preview.empty()) return send_error(res, 503, "no preview frame yet");
+      bmp = encode_bmp(preview);
+    }
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(bmp, "image/bmp");
+  });
+  srv.Get("/api/config", [this](const httplib::Request&, httplib::Response& res) {
+    DaemonConfig shown = config;
+    shown.http.token = shown.http.token.empty() ? "" : "(set)";
+    res.set_content(to_toml(shown), "application/toml");
+  });
+
+  // --- live events (Server-Sent Events): the status whenever it changes, at most ~20/s.
+  srv.Get("/api/events", [this](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-store");
+    auto seen = std::make_shared<std::uint64_t>(~0ull);
+    res.set_chunked_content_provider(
+        "text/event-stream", [this, seen](size_t, httplib::DataSink& sink) {
+          if (stopping) return false;
+          std::uint64_t version;
+          {
+            std::unique_lock lock(status_mutex);
+            status_cv.wait_for(lock, std::chrono::milliseconds(250),
+                               [&] { return status_version != *seen || stopping.load(); });
+            version = status_version;
+          }
+          if (stopping) return false;
+          if (version == *seen) {
+            static const char kPing[] = ": keep-alive\n\n";
+            return sink.write(kPing, sizeof kPing - 1);
+          }
+          *seen = version;
+          const std::string msg = "event: status\ndata: " + status_json().dump() + "\n\n";
+          std::this_thread::sleep_for(std::chrono::milliseconds(50));  // coalesce bursts
+          return sink.write(msg.data(), msg.size());
+        });
+  });
+
+  // --- sessions and captures
+  srv.Get("/api/sessions", [this](const httplib::Request&, httplib::Response& res) {
+    std::lock_guard lock(records_mutex);
+    auto all = records->sessions();
+    if (!all) return send_error(res, 500, all.error().message);
+    json list = json::array();
+    for (const auto& s : *all) list.push_back(session_json(s));
+    send_json(
+        res,
+        {{"store", records->backend()}, {"root", records->root().string()}, {"sessions", list}});
+  });
+  srv.Get(R"(/api/sessions/(\d{1,12}))",
+          [this](const httplib::Request& req, httplib::Response& res) {
+            auto id = id_param(req, 1);
+            if (!id) return send_error(res, 400, id.error().message);
+            std::lock_guard lock(records_mutex);
+            auto s = records->session(*id);
+            if (!s) return send_error(res, 404, s.error().message);
+            auto caps = records->captures(*id);
+            if (!caps) return send_error(res, 500, caps.error().message);
+            json j = session_json(*s);
+            j["captures"] = json::array();
+            for (const auto& c : *caps) j["captures"].push_back(capture_json(c));
+            send_json(res, j);
+          });
+  srv.Get(R"(/api/sessions/(\d{1,12})/captures)",
+          [this](const httplib::Request& req, httplib::Response& res) {
+            auto id = id_param(req, 1);
+            if (!id) return send_error(res, 400, id.error().message);
+            std::lock_guard lock(records_mutex);
+            auto caps = records->captures(*id);
+            if (!caps) return send_error(res, 404, caps.error().message);
+            json list = json::array();
+            for (const auto& c : *caps) list.push_back(capture_json(c));
+            send_json(res, {{"session", *id}, {"captures", list}});
+          });
+  // The host tool's offload endpoints: which sessions are ready for rigging, and their bundle.
+  srv.Get("/api/offload/ready", [this](const httplib::Request&, httplib::Response& res) {
+    std::lock_guard lock(records_mutex);
+    auto all = records->sessions();
+    if (!all) return send_error(res, 500, all.error().message);
+    json list = json::array();
+    for (const auto& s : *all)
+      if (s.complete) {
+        json j = session_json(s);
+        j["bundle"] = "/api/sessions/" + std::to_string(s.id) + "/export.tar";
+        list.push_back(j);
+      }
+    send_json(res, {{"sessions", list}});
+  });
+  srv.Post(R"(/api/sessions/(\d{1,12})/export)",
+           [this](const httplib::Request& req, httplib::Response& res) {
+             auto id = id_param(req, 1);
+             if (!id) return send_error(res, 400, id.error().message);
+             std::lock_guard lock(records_mutex);
+             auto out = records->export_session(*id, config.storage.data_dir / "exports");
+             if (!out) return send_error(res, 404, out.error().message);
+             send_json(res, {{"session", *id},
+                             {"folder", out->string()},
+                             {"download", "/api/sessions/" + std::to_string(*id) + "/export.tar"}});
+           });
+  srv.Get(R"(/api/sessions/(\d{1,12})/export\.tar)",
+          [this](const httplib::Request& req, httplib::Response& res) {
+            auto id = id_param(req, 1);
+            if (!id) return send_error(res, 400, id.error().message);
+            Result<std::filesystem::path> out = fail("");
+            {
+              std::lock_guard lock(records_mutex);
+              out = records->export_session(*id, config.storage.data_dir / "exports");
+            }
+            if (!out) return send_error(res, 404, out.error().message);
+            const std::string prefix = "session-" + std::to_string(*id);
+            auto tar = tar_folder(*out, prefix);
+            if (!tar) return send_error(res, 500, tar.error().message);
+            res.set_header("Content-Disposition", "attachment; filename=\"" + prefix + ".tar\"");
+            res.set_content(std::move(*tar), "application/x-tar");
+          });
+
+  // --- controls: the page's buttons and the simulated GPIO
+  auto control = [this](const char* path, KioskInput input) {
+    http->Post(path, [this, input](const httplib::Request& req, httplib::Response& res) {
+      json body = parse_body(req);
+      if (body.is_null()) return send_error(res, 400, "body must be a JSON object");
+      std::string subject = body.value("subject", "");
+      if (subject.size() > 120) return send_error(res, 400, "subject name too long");
+      {
+        std::lock_guard lock(queue_mutex);
+        queue.push_back({input, subject, 0});
+      }
+      queue_cv.notify_all();
+      send_json(res, {{"accepted", to_string(input)}}, 202);
+    });
+  };
+  control("/api/session/start", KioskInput::kStart);
+  control("/api/session/next", KioskInput::kPress);
+  control("/api/session/retry", KioskInput::kPress);
+  control("/api/session/cancel", KioskInput::kCancel);
+  srv.Post(R"(/api/sessions/(\d{1,12})/resume)",
+           [this](const httplib::Request& req, httplib::Response& res) {
+             auto id = id_param(req, 1);
+             if (!id) return send_error(res, 400, id.error().message);
+             {
+               std::lock_guard lock(queue_mutex);
+               queue.push_back({KioskInput::kResume, {}, *id});
+             }
+             queue_cv.notify_all();
+             send_json(res, {{"accepted", "resume"}, {"session", *id}}, 202);
+           });
+  srv.Post("/api/mode", [this](const httplib::Request& req, httplib::Response& res) {
+    json body = parse_body(req);
+    if (body.is_null() || !body.contains("mode") || !body["mode"].is_string())
+      return send_error(res, 400, "body must be {\"mode\": \"tracking\"|\"capture\"}");
+    const std::string mode = body["mode"];
+    if (mode != "tracking" && mode != "capture")
+      return send_error(res, 400, "mode must be \"tracking\" or \"capture\"");
+    bool tracking;
+    {
+      std::lock_guard lock(status_mutex);
+      tracking = status.state == KioskState::kTracking;
+    }
+    if ((mode == "tracking") != tracking) {
+      std::lock_guard lock(queue_mutex);
+      queue.push_back({KioskInput::kMode, {}, 0});
+    }
+    queue_cv.notify_all();
+    send_json(res, {{"accepted", mode}}, 202);
+  });
+  srv.Post("/api/sim/button", [this](const httplib::Request& req, httplib::Response& res) {
+    json body = parse_body(req);
+    if (body.is_null()) return send_error(res, 400, "body must be a JSON object");
+    auto button = parse_button(body.value("button", "main"));
+    if (!button) return send_error(res, 400, "button must be \"main\" or \"mode\"");
+    const std::string kind = body.value("kind", "short");
+    if (kind != "short" && kind != "long")
+      return send_error(res, 400, "kind must be \"short\" or \"long\"");
+    auto ok =
+        gpio->simulate_press({*button, kind == "long" ? PressKind::kLong : PressKind::kShort});
+    if (!ok) return send_error(res, 409, ok.error().message);
+    send_json(res, {{"pressed", to_string(*button)}, {"kind", kind}}, 202);
+  });
+
+  // Bind now, so a busy port is a start-up error and not a silent background failure.
+  bool bound = false;
+  try {
+    if (config.http.port == 0) {
+      http_port = srv.bind_to_any_port(config.http.bind);
+      bound = http_port > 0;
+    } else {
+      bound = srv.bind_to_port(config.http.bind, config.http.port);
+      http_port = config.http.port;
+    }
+  } catch (const std::exception& e) {
+    return fail("HTTP bind to " + config.http.bind + ":" + std::to_string(config.http.port) +
+                " failed: " + e.what());
+  }
+  if (!bound)
+    return fail("cannot listen on " + config.http.bind + ":" + std::to_string(config.http.port) +
+                " (in use, or a bad address); change [http] port or bind");
+  return success();
+}
+
+}  // namespace fb

@@ -1,0 +1,129 @@
+// faceboothd: the facebooth device daemon (kiosk capture sessions, tracking mode, HTTP API).
+//
+//   faceboothd [--config FILE]                run as a service (systemd Type=notify)
+//   faceboothd --check-config [--config FILE] validate and print the effective configuration
+//   faceboothd --print-default-config         the defaults as TOML
+//   faceboothd --run-session-headless [--config FILE] [--data-dir DIR] [--subject NAME]
+//              [--frames N]                   one complete session with simulated button
+//                                             presses; prints JSON with where it is stored
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "firmware/daemon/daemon.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: faceboothd [--config FILE] [--check-config] [--print-default-config]\n"
+    "                  [--run-session-headless [--subject NAME] [--frames N]] [--data-dir DIR]\n"
+    "                  [--port N]\n";
+
+int usage_error(const std::string& message) {
+  std::cerr << "faceboothd: " << message << "\n" << kUsage;
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  std::string config_path, data_dir, subject, frames, port;
+  bool check = false, print_default = false, headless = false;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    auto value = [&](std::string& out) {
+      if (i + 1 >= args.size()) return false;
+      out = args[++i];
+      return true;
+    };
+    if (a == "--config") {
+      if (!value(config_path)) return usage_error("--config needs a file");
+    } else if (a == "--data-dir") {
+      if (!value(data_dir)) return usage_error("--data-dir needs a directory");
+    } else if (a == "--subject") {
+      if (!value(subject)) return usage_error("--subject needs a name");
+    } else if (a == "--frames") {
+      if (!value(frames)) return usage_error("--frames needs a number");
+    } else if (a == "--port") {
+      if (!value(port)) return usage_error("--port needs a number");
+    } else if (a == "--check-config") {
+      check = true;
+    } else if (a == "--print-default-config") {
+      print_default = true;
+    } else if (a == "--run-session-headless") {
+      headless = true;
+    } else if (a == "-h" || a == "--help") {
+      std::cout << kUsage;
+      return 0;
+    } else {
+      return usage_error("unknown argument '" + a + "'");
+    }
+  }
+  if (print_default) {
+    std::cout << fb::to_toml(fb::default_daemon_config());
+    return 0;
+  }
+  auto config = config_path.empty() ? fb::Result<fb::DaemonConfig>(fb::default_daemon_config())
+                                    : fb::load_daemon_config(config_path);
+  if (!config) {
+    std::cerr << "faceboothd: " << config.error().message << "\n";
+    return 1;
+  }
+  if (!data_dir.empty()) config->storage.data_dir = std::filesystem::absolute(data_dir);
+  try {
+    if (!frames.empty()) config->camera.capture_frames = std::stoi(frames);
+    if (!port.empty()) config->http.port = std::stoi(port);
+  } catch (const std::exception&) {
+    return usage_error("--frames and --port take numbers");
+  }
+  if (headless) {
+    // Headless: simulated buttons, takes as fast as the CPU allows, no HTTP unless configured
+    // explicitly with a port on the command line.
+    config->gpio.backend = "sim";
+    config->camera.realtime = false;
+    config->camera.preview_fps = 0;
+    if (port.empty()) config->http.enabled = false;
+  }
+  if (auto ok = fb::validate_daemon_config(*config); !ok) {
+    std::cerr << "faceboothd: " << ok.error().message << "\n";
+    return 1;
+  }
+  if (check) {
+    std::cout << fb::to_toml(*config);
+    std::cerr << "faceboothd: configuration OK\n";
+    return 0;
+  }
+
+  fb::DaemonOptions options;
+  options.handle_signals = true;
+  auto daemon = fb::Daemon::create(*config, options);
+  if (!daemon) {
+    std::cerr << "faceboothd: " << daemon.error().message << "\n";
+    return 1;
+  }
+  if (headless) {
+    auto result = (*daemon)->run_headless_session(subject);
+    if (!result) {
+      std::cerr << "faceboothd: headless session failed: " << result.error().message << "\n";
+      return 1;
+    }
+    nlohmann::json j = {{"session", result->session_id},
+                        {"store", result->store.string()},
+                        {"session_folder", result->session_folder.string()},
+                        {"export", result->export_folder.string()},
+                        {"captures_done", result->captures_done},
+                        {"retries", result->retries},
+                        {"frames_total", result->frames_total},
+                        {"frames_dropped", result->frames_dropped}};
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  if (auto ok = (*daemon)->run(); !ok) {
+    std::cerr << "faceboothd: " << ok.error().message << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,76 @@
+// What the kiosk session needs from storage, as one narrow interface. The production
+// implementation is the SQLite SessionStore (storage/session_store.hpp, crash-safe commits);
+// a plain-file fallback keeps the daemon usable in builds without it. Either way a capture is
+// committed in one durable step, which is what makes resume after power loss possible.
+// Not thread-safe: the daemon serialises calls.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "algo/core/frame.hpp"
+#include "algo/core/result.hpp"
+
+namespace fb {
+
+enum class RecordState { kPending, kCapturing, kRejected, kDone };
+const char* to_string(RecordState state);
+
+struct RecordSession {
+  std::int64_t id = 0;
+  std::int64_t subject = 0;
+  std::string subject_name;
+  std::string created_at;
+  bool complete = false;
+  int capture_count = 0;
+  int done_count = 0;
+  std::filesystem::path folder;
+};
+
+struct RecordCapture {
+  int index = 0;
+  std::string expression;
+  RecordState state = RecordState::kPending;
+  int attempts = 0;
+  std::map<std::string, double> qa_scores;
+  int frame_count = 0;
+  std::string completed_at;
+};
+
+struct CaptureCommit {
+  std::vector<RgbdFrame> frames;
+  DepthImage fused_depth;
+  std::map<std::string, double> qa_scores;
+};
+
+class SessionRecords {
+ public:
+  virtual ~SessionRecords() = default;
+  virtual std::string backend() const = 0;  // "sqlite" or "files"
+  virtual std::filesystem::path root() const = 0;
+
+  virtual Result<std::int64_t> add_subject(const std::string& name) = 0;
+  virtual Result<std::int64_t> create_session(std::int64_t subject,
+                                              const std::vector<std::string>& guide) = 0;
+  virtual Result<std::vector<RecordSession>> sessions() = 0;  // oldest first
+  virtual Result<RecordSession> session(std::int64_t id) = 0;
+  virtual Result<std::vector<RecordCapture>> captures(std::int64_t session) = 0;
+  virtual Result<void> begin_capture(std::int64_t session, int index) = 0;
+  virtual Result<void> reject_capture(std::int64_t session, int index,
+                                      const std::map<std::string, double>& qa) = 0;
+  virtual Result<void> commit_capture(std::int64_t session, int index, CaptureCommit commit) = 0;
+  // Writes (or rewrites) the session's export folder under `exports_dir` and returns it.
+  virtual Result<std::filesystem::path> export_session(
+      std::int64_t id, const std::filesystem::path& exports_dir) = 0;
+};
+
+// The SQLite store when this build has it, else the file store; both under `data_dir`.
+Result<std::unique_ptr<SessionRecords>> open_session_records(const std::filesystem::path& data_dir);
+// The plain-file store (always built; tests use it to check the interface contract).
+Result<std::unique_ptr<SessionRecords>> open_file_records(const std::filesystem::path& data_dir);
+
+}  // namespace fb

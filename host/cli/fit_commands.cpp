@@ -104,6 +104,8 @@ struct Capture {
   ColorImage color;                // frame 0
   std::vector<ColorImage> colors;  // every frame (for landmark timing), when kept
   std::vector<Eigen::Vector2d> truth_color_px;
+  std::vector<Eigen::Vector2d> truth_depth_px;
+  Image<float> noiseless;         // rendered depth of frame 0 (diagnostics: --depth noiseless)
   RigidPose truth_pose;           // camera_from_model of frame 0
   std::vector<float> truth_mesh;  // model frame
   int fused_frames = 0;
@@ -144,6 +146,8 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
       if (!t) return fail("the synthetic camera gave no ground truth");
       c.color = frame.color;
       c.truth_color_px = t->landmarks_color_px;
+      c.truth_depth_px = t->landmarks_depth_px;
+      c.noiseless = t->noiseless_depth_mm;
       c.truth_pose = t->camera_from_model;
       c.truth_mesh.resize(static_cast<std::size_t>(model.vertex_count) * 3);
       model.evaluate(t->identity_coeffs, t->expression_weights, c.truth_mesh);
@@ -160,14 +164,17 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   return c;
 }
 
+bool g_noiseless_depth = false;  // set by --depth noiseless (diagnostics only)
+
 Result<FitTarget> make_target(const Capture& c, std::span<const Eigen::Vector2d> color_px) {
   const KinectRegistration registration(c.calibration);
-  auto lifted = lift_landmarks(color_px, c.fused.depth_mm, registration);
+  const Image<float>& depth = g_noiseless_depth ? c.noiseless : c.fused.depth_mm;
+  auto lifted = lift_landmarks(color_px, depth, registration);
   if (!lifted) return lifted.failure();
   FitTarget t;
   t.intrinsics = c.intrinsics;
-  t.depth_mm = c.fused.depth_mm;
-  t.normals = c.fused.normals;
+  t.depth_mm = depth;
+  if (!g_noiseless_depth) t.normals = c.fused.normals;
   t.landmarks = *lifted;
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;
@@ -302,6 +309,7 @@ int run_eval_fit(const ParsedOptions& options) {
   if (!model) return report_failure(model.error());
   auto guide = load_guide(*model, options.get("guide"));
   if (!guide) return report_failure(guide.error());
+  g_noiseless_depth = options.get("depth") == "noiseless";
   auto expressions = parse_expression_list(options.get("expressions"), *guide);
   if (!expressions) return report_failure(expressions.error());
   std::optional<LandmarkDetector> detector;
@@ -313,7 +321,7 @@ int run_eval_fit(const ParsedOptions& options) {
   }
 
   Stats rms_init, rms_ref, ne_init, ne_ref, ne_noise, ee_init, ee_ref, erms_ref, lm_err,
-      lm_err_interior, lm_detect_fail, neutral_ms, expr_ms, lm_ms_track, lm_ms_full;
+      lm_err_interior, lm_detect_fail, neutral_ms, expr_ms, lm_ms_track, lm_ms_full, lift_err;
   int detections = 0, detection_attempts = 0;
   nlohmann::json per_subject = nlohmann::json::array();
   nlohmann::json per_expression = nlohmann::json::object();
@@ -343,6 +351,19 @@ int run_eval_fit(const ParsedOptions& options) {
       nlohmann::json j;
       j["expression"] = ge.name;
       j["fused_frames"] = cap->fused_frames;
+      {  // how well the colour -> depth lifting puts the points (vs the true depth-image points)
+        double sum = 0;
+        int n = 0;
+        for (int l = 0; l < 68; ++l)
+          if (target->landmarks[static_cast<std::size_t>(l)].valid) {
+            sum += (target->landmarks[static_cast<std::size_t>(l)].pixel -
+                    cap->truth_depth_px[static_cast<std::size_t>(l)])
+                       .norm();
+            ++n;
+          }
+        j["lifted_landmark_error_px"] = n ? sum / n : NAN;
+        lift_err.add(n ? sum / n : NAN);
+      }
       if (e == 0) {
         auto fit = fit_neutral(*model, *target);
         if (!fit) return report_failure(fit.error());
@@ -471,6 +492,9 @@ int run_eval_fit(const ParsedOptions& options) {
       "landmark_noise_px per axis, lifted into the depth camera through the registration and the "
       "fused depth; dlib is scored separately (landmark_error_px)";
   out["landmark_noise_px"] = *noise;
+  out["lifted_landmark_error_px"] = lift_err.mean();
+  out["depth_used"] =
+      g_noiseless_depth ? "noiseless rendering (diagnostic, not the figure)" : "fused";
   out["depth_source"] =
       "KinectFusion (algo/fusion) over the synthetic head-turn take, ray-cast at frame 0";
   out["vertex_error_region"] =
@@ -706,6 +730,10 @@ std::vector<Command> fit_commands() {
           "5"},
          {"png", "FILE", "error map of the first neutral fit (initial | refined)", ""},
          {"dlib", "on|off", "score dlib's landmarks on the renders", "on"},
+         {"depth", "fused|noiseless",
+          "fit the fused depth (the figure) or, to isolate fusion "
+          "error, the noiseless rendering",
+          "fused"},
          predictor_opt,
          guide_opt}},
        run_eval_fit},

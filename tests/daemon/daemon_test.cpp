@@ -392,9 +392,19 @@ TEST_F(DaemonTest, NonLoopbackClientsNeedTheToken) {
 }
 
 // A port that was free a moment ago (the child daemon binds it).
+// (A plain socket, closed at once: an httplib::Server probe would keep its SO_REUSEPORT listener
+// open and steal half of the child's connections.)
 int free_port() {
-  httplib::Server probe;
-  const int port = probe.bind_to_any_port("127.0.0.1");
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  int port = -1;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+    port = ntohs(a.sin_port);
+  ::close(fd);
   return port;
 }
 
@@ -431,9 +441,16 @@ TEST_F(DaemonTest, SigtermMidTakeStopsCleanlyAndLosesNothing) {
             202);
   ASSERT_TRUE(wait_until([](auto& s) { return s["state"] == "guide"; }));
   // Capture 0 fully, then interrupt capture 1 in the middle of its take.
-  http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+  auto press = [&] {
+    httplib::Client fresh("127.0.0.1", c.http.port);
+    fresh.set_read_timeout(30, 0);
+    auto r = fresh.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+    ASSERT_TRUE(r) << httplib::to_string(r.error());
+    ASSERT_EQ(r->status, 202) << r->body;
+  };
+  press();
   ASSERT_TRUE(wait_until([](auto& s) { return s["state"] == "guide" && s["capture_index"] == 1; }));
-  http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+  press();
   ASSERT_TRUE(wait_until([](auto& s) {
     return s["state"] == "recording" && s["take_frames"].template get<int>() > 3;
   }));

@@ -25,6 +25,7 @@ std::vector<Command> fusion_commands();
 std::vector<Command> fit_commands();
 std::vector<Command> tracking_commands();
 std::vector<Command> storage_commands();
+std::vector<Command> daemon_commands();
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

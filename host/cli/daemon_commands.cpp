@@ -1,0 +1,253 @@
+// facebooth bench daemon: starts a real faceboothd (synthetic camera, simulated buttons), measures
+// start-to-ready and resident memory, then runs a session while a second process hammers the
+// HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on stdout,
+// progress on stderr.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "host/cli/commands.hpp"
+
+// httplib last: its <resolv.h> defines `_res`, which breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace fb::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+fs::path find_daemon(const std::string& given) {
+  if (!given.empty()) return given;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  // Build tree: build/host/cli/facebooth -> build/firmware/daemon/faceboothd; installed: bin/.
+  for (const fs::path& p : {self.parent_path() / "../../firmware/daemon/faceboothd",
+                            self.parent_path() / "faceboothd", fs::path("/usr/bin/faceboothd")})
+    if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
+  return {};
+}
+
+int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  int port = -1;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+    port = ntohs(a.sin_port);
+  ::close(fd);
+  return port;
+}
+
+double rss_mb(pid_t pid, const char* field) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(field, 0) == 0) return std::stod(line.substr(std::strlen(field))) / 1024.0;
+  return 0;
+}
+
+// A child process that is killed and reaped when this goes out of scope.
+class Child {
+ public:
+  explicit Child(pid_t pid = -1) : pid_(pid) {}
+  ~Child() { kill(SIGKILL); }
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+  pid_t pid() const { return pid_; }
+  // Sends `sig` and waits for the exit; returns the exit status (-1 if none).
+  int kill(int sig) {
+    if (pid_ <= 0) return -1;
+    ::kill(pid_, sig);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return status;
+  }
+
+ private:
+  pid_t pid_;
+};
+
+// The load generator: a second process with `threads` keep-alive clients requesting status,
+// sessions and the preview picture until killed. Writes its request count to `count_file`.
+[[noreturn]] void run_load(int port, int threads, const fs::path& count_file) {
+  std::atomic<long long> requests{0};
+  std::vector<std::thread> workers;
+  for (int t = 0; t < threads; ++t)
+    workers.emplace_back([&, t] {
+      httplib::Client c("127.0.0.1", port);
+      c.set_keep_alive(true);
+      const char* paths[] = {"/api/status", "/api/sessions", "/api/preview.bmp", "/"};
+      for (long long i = t;; ++i) {
+        if (c.Get(paths[i % 4])) ++requests;
+        if (i % 200 == 0) std::ofstream(count_file) << requests.load();
+      }
+    });
+  for (auto& w : workers) w.join();
+  std::_Exit(0);
+}
+
+int bench_daemon(const ParsedOptions& o) {
+  const fs::path daemon = find_daemon(o.get("daemon"));
+  if (daemon.empty())
+    return report_failure({"faceboothd not found next to facebooth or in /usr/bin; pass --daemon"});
+  auto captures = o.get_int("captures");
+  auto frames = o.get_int("frames");
+  auto threads = o.get_int("load-threads");
+  if (!captures || !frames || !threads) return report_failure({"bad numeric option"});
+  if (*captures < 1 || *captures > 20) return report_failure({"--captures must be 1..20"});
+
+  const fs::path dir =
+      fs::temp_directory_path() / ("facebooth-bench-daemon-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  struct Cleanup {
+    fs::path dir;
+    ~Cleanup() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  } cleanup{dir};
+
+  // The first N guide expressions keep the bench short; takes are real time (paced at 30 fps).
+  {
+    std::ifstream in(fs::path(FB_DATA_DIR) / "guide_expressions.json");
+    json guide = json::parse(in, nullptr, false);
+    if (guide.is_discarded()) return report_failure({"cannot read data/guide_expressions.json"});
+    guide["expressions"] = json(
+        std::vector<json>(guide["expressions"].begin(), guide["expressions"].begin() + *captures));
+    std::ofstream(dir / "guide.json") << guide.dump();
+  }
+  const int port = free_port();
+  std::ofstream(dir / "faceboothd.toml")
+      << "[camera]\nuri = \"synthetic:seed=7\"\ncapture_frames = " << *frames
+      << "\nrealtime = true\npreview_fps = 5.0\n[storage]\ndata_dir = \"" << (dir / "data").string()
+      << "\"\n[http]\nport = " << port << "\n[session]\nguide_file = \""
+      << (dir / "guide.json").string() << "\"\n";
+
+  std::cerr << "bench daemon: starting " << daemon << " on port " << port << "\n";
+  const auto t0 = Clock::now();
+  const pid_t pid = ::fork();
+  if (pid < 0) return report_failure({"fork failed"});
+  if (pid == 0) {
+    const std::string log = (dir / "faceboothd.log").string();
+    std::freopen(log.c_str(), "w", stderr);
+    ::execl(daemon.c_str(), daemon.c_str(), "--config", (dir / "faceboothd.toml").c_str(), nullptr);
+    std::_Exit(127);
+  }
+  Child daemon_proc(pid);
+  httplib::Client http("127.0.0.1", port);
+  http.set_read_timeout(10, 0);
+  auto status = [&]() -> json {
+    auto r = http.Get("/api/status");
+    return r && r->status == 200 ? json::parse(r->body, nullptr, false) : json();
+  };
+  double start_to_ready_ms = -1;
+  for (int i = 0; i < 3000; ++i) {
+    auto s = status();
+    if (!s.is_null() && s.value("ready", false)) {
+      start_to_ready_ms = ms_since(t0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  if (start_to_ready_ms < 0) return report_failure({"faceboothd never became ready; see its log"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const double rss_idle = rss_mb(pid, "VmRSS:");
+
+  std::cerr << "bench daemon: ready in " << start_to_ready_ms << " ms; loading the API with "
+            << *threads << " clients and running " << *captures << " captures\n";
+  const pid_t load_pid = ::fork();
+  if (load_pid == 0) run_load(port, static_cast<int>(*threads), dir / "load-count");
+  Child load(load_pid);
+  const auto session_t0 = Clock::now();
+  http.Post("/api/session/start", R"({"subject": "bench"})", "application/json");
+  std::string acted;
+  json last;
+  while (true) {
+    last = status();
+    if (last.is_null()) return report_failure({"faceboothd stopped answering"});
+    const std::string state = last["state"];
+    const std::string key = state + std::to_string(last["capture_index"].get<int>()) +
+                            std::to_string(last["attempts"].get<int>());
+    if (state == "error") return report_failure({"faceboothd: " + last.value("error", "?")});
+    if (state == "complete") break;
+    if ((state == "guide" || state == "retry") && key != acted) {
+      if (state == "retry" && last["attempts"].get<int>() >= 3)
+        return report_failure({"a capture failed QA three times"});
+      http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+      acted = key;
+    }
+    if (ms_since(session_t0) > 600000) return report_failure({"session took over 10 minutes"});
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const double session_s = ms_since(session_t0) / 1000.0;
+  const double rss_peak = rss_mb(pid, "VmHWM:");
+  const double rss_now = rss_mb(pid, "VmRSS:");
+  load.kill(SIGKILL);
+  long long load_requests = 0;
+  std::ifstream(dir / "load-count") >> load_requests;
+
+  const auto stop_t0 = Clock::now();
+  const int exit_status = daemon_proc.kill(SIGTERM);
+  const double stop_ms = ms_since(stop_t0);
+
+  json out = {{"start_to_ready_ms", start_to_ready_ms},
+              {"daemon_reported_ready_ms", last.value("start_to_ready_ms", 0.0)},
+              {"rss_mb", rss_now},
+              {"rss_idle_mb", rss_idle},
+              {"rss_peak_mb", rss_peak},
+              {"landmark_model_loaded", false},
+              {"frames_dropped_under_load", last["frames_dropped"]},
+              {"frames_total", last["frames_total"]},
+              {"captures", last["done_count"]},
+              {"frames_per_capture", *frames},
+              {"session_s", session_s},
+              {"load_clients", *threads},
+              {"load_requests", load_requests},
+              {"load_requests_per_s", load_requests / session_s},
+              {"stop_ms", stop_ms},
+              {"clean_exit", WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0}};
+  std::cout << out.dump(2) << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+std::vector<Command> daemon_commands() {
+  return {{{"bench daemon",
+            "faceboothd start-to-ready, memory, frames dropped under HTTP load",
+            "Starts faceboothd (synthetic camera, simulated buttons, real-time takes) in a scratch "
+            "directory, runs a session through its HTTP API while a second process loads the API "
+            "from several keep-alive clients, then stops it with SIGTERM. The landmark model is "
+            "not loaded yet (algo/landmarks is not wired into the daemon), so rss_mb is without "
+            "it.",
+            {{"json", "", "print the JSON result (always on; for symmetry with other benches)", ""},
+             {"daemon", "PATH", "the faceboothd binary", ""},
+             {"captures", "N", "guide expressions to capture (1-20)", "5"},
+             {"frames", "N", "frames per take (90 = 3 s at 30 fps)", "90"},
+             {"load-threads", "N", "concurrent HTTP clients of the load process", "4"}}},
+           &bench_daemon}};
+}
+
+}  // namespace fb::cli

@@ -1,0 +1,112 @@
+// Drives the kiosk page through a complete 20-expression session: faceboothd on the synthetic
+// camera with simulated buttons, Debian's chromium through playwright-core. Checks the session
+// is stored and complete and saves screenshots into the build directory.
+//   node kiosk_session.mjs FACEBOOTHD OUT_DIR GUIDE_JSON
+import {spawn, execFileSync} from "node:child_process";
+import fs from "node:fs";
+import net from "node:net";
+import path from "node:path";
+import {createRequire} from "node:module";
+
+const [daemonBin, outDir, guideFile] = process.argv.slice(2);
+const CHROMIUM = "/usr/bin/chromium";
+if (!fs.existsSync(CHROMIUM)) {
+  console.log("SKIP: /usr/bin/chromium is not installed (apt-get install chromium)");
+  process.exit(77);
+}
+fs.mkdirSync(outDir, {recursive: true});
+const nodeDir = path.join(outDir, "npm");
+if (!fs.existsSync(path.join(nodeDir, "node_modules", "playwright-core"))) {
+  fs.mkdirSync(nodeDir, {recursive: true});
+  console.log("installing playwright-core into", nodeDir);
+  execFileSync("npm", ["install", "--no-audit", "--no-fund", "--prefix", nodeDir,
+                       "playwright-core@1"], {stdio: "inherit"});
+}
+const require = createRequire(path.join(nodeDir, "package.json"));
+const {chromium} = require("playwright-core");
+
+const freePort = () => new Promise((resolve) => {
+  const s = net.createServer();
+  s.listen(0, "127.0.0.1", () => { const p = s.address().port; s.close(() => resolve(p)); });
+});
+
+const port = await freePort();
+const work = path.join(outDir, "session");
+fs.rmSync(work, {recursive: true, force: true});
+fs.mkdirSync(work, {recursive: true});
+// Short takes (8 frames, not paced) keep the 20 expressions within a couple of minutes.
+fs.writeFileSync(path.join(work, "faceboothd.toml"), `
+[camera]
+uri = "synthetic:seed=11"
+capture_frames = 8
+realtime = false
+preview_fps = 2.0
+[storage]
+data_dir = "${path.join(work, "data")}"
+[http]
+port = ${port}
+[session]
+guide_file = "${guideFile}"
+`);
+const daemon = spawn(daemonBin, ["--config", path.join(work, "faceboothd.toml")],
+                     {stdio: ["ignore", "inherit", "inherit"]});
+const base = `http://127.0.0.1:${port}`;
+let failed = null;
+const browser = await chromium.launch({
+  executablePath: CHROMIUM,
+  args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         `--user-data-dir=${path.join(work, "chromium-profile")}`],
+});
+try {
+  for (let i = 0; ; i++) {  // wait for the daemon
+    try { if ((await (await fetch(base + "/api/status")).json()).ready) break; } catch {}
+    if (i > 200) throw new Error("faceboothd did not become ready");
+    await new Promise((r) => setTimeout(r, 50));
+  }
+  const page = await browser.newPage({viewport: {width: 1280, height: 720}});
+  await page.goto(base + "/");
+  await page.waitForSelector("body[data-state=idle]");
+  await page.screenshot({path: path.join(outDir, "kiosk-idle.png")});
+  await page.fill("#subject", "Browser Test");
+  await page.click("#start");
+  const deadline = Date.now() + 5 * 60 * 1000;
+  let pressed = "";
+  let shots = 0;
+  while (true) {
+    if (Date.now() > deadline) throw new Error("session did not complete in 5 minutes");
+    const state = await page.getAttribute("body", "data-state");
+    const done = await page.getAttribute("#progress", "data-done");
+    const key = `${state}/${done}/${await page.textContent("#qa")}`;
+    if (state === "complete") break;
+    if (state === "error") throw new Error("daemon error: " + await page.textContent("#message"));
+    if ((state === "guide" || state === "retry") && key !== pressed) {
+      if (shots < 2 || done === "10") {
+        await page.waitForTimeout(300);  // let the guide picture load
+        await page.screenshot({path: path.join(outDir, `kiosk-guide-${done}.png`)});
+        shots++;
+      }
+      // The simulated main button, exactly what a person pressing it would send.
+      await page.click("#sim-main");
+      pressed = key;
+    }
+    await page.waitForTimeout(50);
+  }
+  await page.screenshot({path: path.join(outDir, "kiosk-complete.png")});
+  const sessions = await (await fetch(base + "/api/sessions")).json();
+  const s = sessions.sessions.at(-1);
+  if (!s || !s.complete || s.done_count !== 20 || s.capture_count !== 20)
+    throw new Error("session not complete: " + JSON.stringify(s));
+  const detail = await (await fetch(`${base}/api/sessions/${s.id}`)).json();
+  if (detail.captures.some((c) => c.state !== "done")) throw new Error("a capture is not done");
+  if ((await page.textContent("#progress")) === null) throw new Error("no progress bar");
+  console.log(`session ${s.id} complete: ${s.done_count}/20 captures, stored in ${s.folder};` +
+              ` screenshots in ${outDir}`);
+} catch (e) {
+  failed = e;
+} finally {
+  await browser.close();
+  daemon.kill("SIGTERM");
+  await new Promise((r) => daemon.on("exit", r));
+}
+if (failed) { console.error("FAIL:", failed.message); process.exit(1); }

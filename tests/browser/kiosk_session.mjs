@@ -8,7 +8,7 @@ import net from "node:net";
 import path from "node:path";
 import {createRequire} from "node:module";
 
-const [daemonBin, outDir, guideFile] = process.argv.slice(2);
+const [daemonBin, outDir, guideFile] = process.argv.slice(2).map((p) => path.resolve(p));
 const CHROMIUM = "/usr/bin/chromium";
 if (!fs.existsSync(CHROMIUM)) {
   console.log("SKIP: /usr/bin/chromium is not installed (apt-get install chromium)");
@@ -52,11 +52,13 @@ const daemon = spawn(daemonBin, ["--config", path.join(work, "faceboothd.toml")]
                      {stdio: ["ignore", "inherit", "inherit"]});
 const base = `http://127.0.0.1:${port}`;
 let failed = null;
-const browser = await chromium.launch({
+// A fresh profile every run (playwright passes it to chromium as --user-data-dir).
+const browser = await chromium.launchPersistentContext(path.join(work, "chromium-profile"), {
   executablePath: CHROMIUM,
+  headless: true,
+  viewport: {width: 1280, height: 720},
   args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         `--user-data-dir=${path.join(work, "chromium-profile")}`],
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"],
 });
 try {
   for (let i = 0; ; i++) {  // wait for the daemon
@@ -64,7 +66,7 @@ try {
     if (i > 200) throw new Error("faceboothd did not become ready");
     await new Promise((r) => setTimeout(r, 50));
   }
-  const page = await browser.newPage({viewport: {width: 1280, height: 720}});
+  const page = await browser.newPage();
   await page.goto(base + "/");
   await page.waitForSelector("body[data-state=idle]");
   await page.screenshot({path: path.join(outDir, "kiosk-idle.png")});

@@ -452,9 +452,14 @@ void Daemon::Impl::handle(const QueuedInput& first) {
     // One line per transition: the journal then tells the story of every session.
     std::fprintf(stderr, "faceboothd: %s --%s--> %s\n", to_string(state), to_string(in.input),
                  to_string(t->next));
-    set_state(t->next, to_string(in.input));
+    // A guide screen is published together with its capture (index, attempts): a client that
+    // keys its presses on (state, capture) must never see "guide" with the previous capture.
+    const bool prepare_first =
+        t->action == KioskAction::kShowGuide || t->action == KioskAction::kResumeSession;
+    if (!prepare_first) set_state(t->next, to_string(in.input));
     bool followup = false;
     const KioskInput next = do_action(t->action, in, &followup);
+    if (prepare_first) set_state(t->next, to_string(in.input));
     if (!followup) return;
     in = {next, {}, 0};
   }

@@ -330,8 +330,14 @@ class Openni2Camera final : public DepthCamera {
       // Waiting on every stream (not only the one still missing) matters for recordings: the
       // player delivers records in file order, and a frame for a stream we are not waiting on
       // would not wake us, costing the whole timeout.
+      // Except when a recording's depth frame is already pending: then only its colour is
+      // wanted, and a depth frame the player has run ahead with (at the end of the file, the
+      // first frame of the next loop) must stay unread rather than replace the pending one.
+      const bool color_only = playback_ && pending_depth_.isValid();
       const openni::Status rc =
-          openni::OpenNI::waitForAnyStream(streams, stream_count, &ready, wait_ms);
+          color_only ? openni::OpenNI::waitForAnyStream(streams + 1, 1, &ready, wait_ms)
+                     : openni::OpenNI::waitForAnyStream(streams, stream_count, &ready, wait_ms);
+      if (rc == openni::STATUS_OK && color_only) ready = ready == 0 ? 1 : -1;
       if (rc == openni::STATUS_TIME_OUT) {
         if (Clock::now() >= deadline) return FrameStatus::kTimeout;
         continue;  // the colour lag ran out (or the wait woke early): re-evaluate

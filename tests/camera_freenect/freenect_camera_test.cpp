@@ -17,6 +17,7 @@
 #include <map>
 #include <new>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -421,6 +422,31 @@ TEST_F(FakenectPlayback, StalledStreamIsAFailureNotAHang) {
   EXPECT_GE(timeouts, 2);
   EXPECT_LT(seconds_since(started), 1.0);
   // Destroying the camera waits for fakenect's sleep towards the second frame (<= 2 s).
+}
+
+// A recording loses no frame to a slow consumer (a live Kinect would: newest frame wins). The
+// consumer here is late for every frame, by several recorded frame periods.
+TEST_F(FakenectPlayback, SlowConsumerLosesNoFrameOfADump) {
+  CLAIM_FAKENECT_INDEX();
+  use_dump(make_dump({1.0, 1.033, 1.067, 1.1, 1.133}));
+  auto opened = open_freenect("0");
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  DepthCamera& camera = **opened;
+  ASSERT_TRUE(camera.start().ok());
+  RgbdFrame frame;
+  int played = 0;
+  for (;;) {
+    std::this_thread::sleep_for(150ms);
+    const auto status = camera.next_frame(frame, 2000ms);
+    ASSERT_TRUE(status.ok()) << status.error().message;
+    ASSERT_NE(*status, FrameStatus::kTimeout);
+    if (*status == FrameStatus::kEndOfStream) break;
+    EXPECT_EQ(frame.index, static_cast<std::uint64_t>(played));
+    // pattern_frame(500 + 10 k) at x = 16, y = 0: 500 + 10 k + 112.
+    EXPECT_EQ(frame.raw_disparity.at(16, 0), 612 + 10 * played) << "frame " << played;
+    ++played;
+  }
+  EXPECT_EQ(played, 5);
 }
 
 TEST_F(FakenectPlayback, SecondPlaybackInOneProcessIsAClearError) {

@@ -361,13 +361,16 @@ class FreenectCamera final : public DepthCamera {
 
   // Double buffers: the callbacks (event thread) copy into the pending images under mu_;
   // next_frame() swaps a pending image with its own (no allocation, no copy under the lock) and
-  // converts outside the lock. A pending depth frame that is overwritten before it was taken
-  // is dropped; the stream index in RgbdFrame::index shows the gap.
+  // converts outside the lock. On a live device, a pending depth frame that is overwritten
+  // before it was taken is dropped; the stream index in RgbdFrame::index shows the gap. A dump
+  // played through fakenect loses nothing: its callback waits until the consumer took the
+  // previous frame (a late first next_frame() on a loaded machine shifted every frame by one).
   // Colour has a third buffer: each depth frame latches the latest colour image that arrived
   // before it, so a slow consumer does not pair depth with a later colour image (the same
   // pairing as the replay backend: the last colour entry before the depth entry).
   std::mutex mu_;
   std::condition_variable arrived_;
+  std::condition_variable taken_;  // dump playback: the consumer took the pending depth frame
   DisparityImage pending_depth_;
   ColorImage pending_color_;  // newest colour image from the device
   ColorImage latched_color_;  // the colour image belonging to pending_depth_
@@ -502,11 +505,17 @@ void FreenectCamera::on_depth(freenect_device* device, void* data, std::uint32_t
   auto* self = static_cast<FreenectCamera*>(freenect_get_user(device));
   const double now = wall_seconds();
   {
-    std::lock_guard lock(self->mu_);
+    std::unique_lock lock(self->mu_);
     // A looping fakenect (upstream >= 0.5.7 restarts INDEX.txt by default) would replay the
     // dump forever; the dump ends after the depth frames its INDEX.txt lists.
     if (self->dump_ && static_cast<long long>(self->depth_sequence_) >= self->dump_->depth_frames) {
       return;
+    }
+    if (self->dump_) {
+      // Polls the stop flag: stop() joins this (event) thread.
+      while (self->depth_ready_ && !self->stop_events_.load(std::memory_order_relaxed)) {
+        self->taken_.wait_for(lock, std::chrono::milliseconds(20));
+      }
     }
     std::memcpy(self->pending_depth_.pixels.data(), data, kDepthBytes);
     self->pending_index_ = self->depth_sequence_++;
@@ -628,6 +637,7 @@ Result<FrameStatus> FreenectCamera::next_frame(RgbdFrame& frame,
 
   std::swap(depth_.pixels, pending_depth_.pixels);
   depth_ready_ = false;
+  taken_.notify_one();
   frame.index = pending_index_;
   frame.depth_device_timestamp = pending_depth_timestamp_;
   frame.depth_host_time_s = pending_depth_time_;

@@ -424,7 +424,15 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       }
     }
     if (count < 8) return;
-    h.noalias() = rows.topRows(count).transpose() * rows.topRows(count);
+    // H = J^T J in chunks of rows: Eigen's GEMM packs its operands into a workspace that it
+    // heap-allocates above 128 KB (EIGEN_STACK_ALLOCATION_LIMIT); 256 x 53 floats stay on the
+    // stack, so the steady state does not allocate (and it is no slower).
+    constexpr int kChunkRows = 256;
+    h.setZero();
+    for (int first = 0; first < count; first += kChunkRows) {
+      const int n = std::min(kChunkRows, count - first);
+      h.noalias() += rows.middleRows(first, n).transpose() * rows.middleRows(first, n);
+    }
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
     const float lt = options.temporal_weight;
     h.diagonal().array() += lt + shape_ridge.array();

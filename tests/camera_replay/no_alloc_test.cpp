@@ -9,36 +9,12 @@
 #include "drivers/camera/recorder/recorder.hpp"
 #include "drivers/camera/replay/replay_camera.hpp"
 #include "tests/camera_replay/test_dumps.hpp"
-
-// Counts every heap allocation while g_counting is set. Interposing malloc catches operator new
-// (libstdc++ calls malloc) and C library allocations (a FILE*, say) alike. glibc exports
-// __libc_malloc for this kind of forwarding; sanitizer builds bring their own malloc.
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-#define FB_COUNT_MALLOC 1
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-extern "C" void* __libc_malloc(std::size_t size);
-extern "C" void* malloc(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  return __libc_malloc(size);
-}
-#endif
+#include "tests/common/allocation_counter.hpp"
 
 namespace fb {
 namespace {
 
-#ifdef FB_COUNT_MALLOC
-struct CountAllocations {
-  CountAllocations() {
-    g_allocations = 0;
-    g_counting = true;
-  }
-  ~CountAllocations() { g_counting = false; }
-  long count() const { return g_allocations.load(); }
-};
-#endif
+using test::CountAllocations;
 
 // Plays `camera` once to size every buffer, then counts allocations over a second full pass.
 long replay_allocations(DepthCamera& camera, int& frames) {
@@ -50,25 +26,21 @@ long replay_allocations(DepthCamera& camera, int& frames) {
   frames = 0;
   long allocations = 0;
   {
-#ifdef FB_COUNT_MALLOC
     CountAllocations counter;
-#endif
     for (;;) {
       auto status = camera.next_frame(frame, std::chrono::milliseconds(0));
       if (!status.ok() || *status != FrameStatus::kFrame) break;
       ++frames;
     }
-#ifdef FB_COUNT_MALLOC
     allocations = counter.count();
-#endif
   }
   return allocations;
 }
 
 TEST(NoAllocation, ReplayAndRecordSteadyState) {
-#ifndef FB_COUNT_MALLOC
-  GTEST_SKIP() << "allocation counting needs glibc without sanitizers";
-#endif
+  if (!test::allocation_counting_available()) {
+    GTEST_SKIP() << "allocation counting needs glibc without sanitizers";
+  }
   test::TempDir dir("noalloc");
   {
     auto w = FakenectDumpWriter::create(dir.path() / "src", KinectCalibration::defaults());
@@ -109,9 +81,9 @@ TEST(NoAllocation, ReplayAndRecordSteadyState) {
 }
 
 TEST(NoAllocation, RealDumpReplay) {
-#ifndef FB_COUNT_MALLOC
-  GTEST_SKIP() << "allocation counting needs glibc without sanitizers";
-#endif
+  if (!test::allocation_counting_available()) {
+    GTEST_SKIP() << "allocation counting needs glibc without sanitizers";
+  }
   std::string why;
   const auto source = test::real_dump_dir(why);
   if (source.empty()) GTEST_SKIP() << why;

@@ -12,24 +12,8 @@
 #include <vector>
 
 #include "algo/facemodel/face_model.hpp"
+#include "tests/common/allocation_counter.hpp"
 #include "tests/facemodel/test_util.hpp"
-
-// Count every heap allocation of this process while `g_counting` is set. Interposing malloc
-// catches both operator new (libstdc++ calls malloc) and Eigen's own aligned_malloc, which a
-// replaced operator new alone would miss. glibc exports __libc_malloc for exactly this kind of
-// forwarding. Sanitizer builds bring their own malloc, so the hook is left out there.
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-#define FB_COUNT_MALLOC 1
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-extern "C" void* __libc_malloc(std::size_t size);
-extern "C" void* malloc(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  return __libc_malloc(size);
-}
-#endif
 
 namespace fb {
 namespace {
@@ -110,22 +94,16 @@ TEST(facemodel_evaluate, AssetEvaluationMatchesReferenceAndDoesNotAllocate) {
   const float* data_before = out.data();
   const std::size_t capacity_before = out.capacity();
 
-#ifdef FB_COUNT_MALLOC
-  g_allocations = 0;
-  g_counting = true;
-#endif
-  m.evaluate(c, w, out);
-  m.evaluate_expressions(out, w, out2);
-#ifdef FB_COUNT_MALLOC
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0) << "evaluate() allocated";
-  // Make sure the hook is live at all, so a zero above means something.
-  g_counting = true;
-  void* probe = std::malloc(16);
-  g_counting = false;
-  std::free(probe);
-  EXPECT_EQ(g_allocations.load(), 1) << "the malloc counter is not active in this build";
-#endif
+  long allocations = 0;
+  {
+    test::CountAllocations counter;
+    m.evaluate(c, w, out);
+    m.evaluate_expressions(out, w, out2);
+    allocations = counter.count();
+  }
+  if (test::allocation_counting_available()) {
+    EXPECT_EQ(allocations, 0) << "evaluate() allocated";
+  }
   EXPECT_EQ(out.data(), data_before);
   EXPECT_EQ(out.capacity(), capacity_before);
 

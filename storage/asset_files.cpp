@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -46,6 +47,27 @@ std::filesystem::path data_directory() {
 
 std::filesystem::path default_face_model_path() {
   return data_directory() / kFaceModelFile;
+}
+
+std::filesystem::path default_guide_path() {
+  return data_directory() / "guide_expressions.json";
+}
+
+Result<GuideSet> load_guide_expressions(const FaceModel& model, const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return fail("cannot read the guide expressions " + path.string() + " (the data directory is " +
+                data_directory().string() +
+                "; set $FACEBOOTH_DATA_DIR to the directory holding guide_expressions.json)");
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  auto guide = parse_guide_expressions(text.str());
+  if (!guide) return fail(path.string() + ": " + guide.error().message);
+  if (auto valid = validate_guide(*guide, model); !valid) {
+    return fail(path.string() + ": " + valid.error().message);
+  }
+  return std::move(*guide);
 }
 
 Result<FaceModel> load_face_model(const std::filesystem::path& path) {

@@ -6,6 +6,7 @@
 
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/guide/guide_expressions.hpp"
 
 namespace fb {
 
@@ -18,6 +19,16 @@ std::filesystem::path default_face_model_path();
 Result<FaceModel> load_face_model(const std::filesystem::path& path);
 inline Result<FaceModel> load_face_model() {
   return load_face_model(default_face_model_path());
+}
+
+// data_directory() / "guide_expressions.json".
+std::filesystem::path default_guide_path();
+
+// The guide expressions G0..G19, parsed and checked against `model` (every recipe's shapes
+// exist in it).
+Result<GuideSet> load_guide_expressions(const FaceModel& model, const std::filesystem::path& path);
+inline Result<GuideSet> load_guide_expressions(const FaceModel& model) {
+  return load_guide_expressions(model, default_guide_path());
 }
 
 }  // namespace fb

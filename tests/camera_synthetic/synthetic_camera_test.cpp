@@ -153,6 +153,44 @@ TEST(SyntheticCamera, ExpressionSpecParsesNamesAndWeights) {
   for (float w : *neutral) EXPECT_EQ(w, 0.0f);
 }
 
+// Guide expressions (data/guide_expressions.json) are accepted by name: `expr=smile` is the
+// recipe the kiosk shows, scaled by an optional weight and combinable with shapes.
+TEST(SyntheticCamera, ExpressionSpecAcceptsGuideExpressions) {
+  auto guide = load_guide_expressions(model());
+  ASSERT_TRUE(guide.ok()) << guide.error().message;
+  const int smile = guide->find("smile");
+  ASSERT_GE(smile, 0);
+  auto recipe = guide_weights(guide->expressions[static_cast<std::size_t>(smile)], model());
+  ASSERT_TRUE(recipe.ok());
+  auto weights = parse_expression_spec("smile:0.5+jawOpen:0.25", model(), &*guide);
+  ASSERT_TRUE(weights.ok()) << weights.error().message;
+  int recipe_shapes = 0;
+  const int jaw = model().expression_index("jawOpen");
+  for (std::size_t j = 0; j < weights->size(); ++j) {
+    const float expected = 0.5f * (*recipe)[j] + (static_cast<int>(j) == jaw ? 0.25f : 0.0f);
+    EXPECT_FLOAT_EQ((*weights)[j], expected) << model().expression_names[j];
+    recipe_shapes += (*recipe)[j] > 0.0f;
+  }
+  EXPECT_GE(recipe_shapes, 2);  // a smile is more than one shape
+
+  auto unknown = parse_expression_spec("smiel", model(), &*guide);
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.error().message.find("guide expressions: neutral"), std::string::npos)
+      << unknown.error().message;
+
+  // Through the URI, as a user types it; the truth carries the recipe.
+  auto camera = open_camera("synthetic:seed=3,expr=smile,frames=1");
+  ASSERT_TRUE(camera.ok()) << camera.error().message;
+  ASSERT_TRUE((*camera)->start().ok());
+  RgbdFrame frame;
+  ASSERT_EQ(*(*camera)->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
+  const FrameTruth* truth = (*camera)->truth();
+  ASSERT_NE(truth, nullptr);
+  for (std::size_t j = 0; j < recipe->size(); ++j) {
+    EXPECT_FLOAT_EQ(truth->expression_weights[j], (*recipe)[j]);
+  }
+}
+
 TEST(SyntheticCamera, SameSeedIsBitIdenticalOtherSeedDiffers) {
   auto render = [](std::uint64_t seed, RgbdFrame& frame) {
     SyntheticOptions options;

@@ -131,12 +131,14 @@ Result<double> parse_number(const std::string& key, const std::string& text, dou
 }
 
 constexpr std::string_view kAccepted =
-    "accepted: seed=N, expr=neutral|NAME[:WEIGHT]+NAME..., motion=headturn|static, frames=N, "
+    "accepted: seed=N, expr=neutral|NAME[:WEIGHT]+NAME... (model shapes or guide expressions), "
+    "motion=headturn|static, frames=N, "
     "distance=MM, noise=on|off, background=MM|off, identity=random|neutral";
 
 }  // namespace
 
-Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model) {
+Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model,
+                                                 const GuideSet* guide) {
   std::vector<float> weights(static_cast<std::size_t>(model.expression_count), 0.0f);
   if (spec.empty() || spec == "neutral") return weights;
   std::size_t start = 0;
@@ -156,13 +158,27 @@ Result<std::vector<float>> parse_expression_spec(std::string_view spec, const Fa
       }
     }
     const int index = model.expression_index(name);
-    if (index < 0) {
+    const int recipe = guide != nullptr ? guide->find(name) : -1;
+    if (index >= 0) {
+      weights[static_cast<std::size_t>(index)] += weight;
+    } else if (recipe >= 0) {
+      auto recipe_weights =
+          guide_weights(guide->expressions[static_cast<std::size_t>(recipe)], model);
+      if (!recipe_weights) return fail("synthetic: " + recipe_weights.error().message);
+      for (std::size_t j = 0; j < weights.size() && j < recipe_weights->size(); ++j) {
+        weights[j] += weight * (*recipe_weights)[j];
+      }
+    } else {
       std::string names;
-      for (const auto& n : model.expression_names) names += (names.empty() ? "" : ", ") + n;
+      if (guide != nullptr) {
+        for (const auto& g : guide->expressions) names += (names.empty() ? "" : ", ") + g.name;
+        names = "guide expressions: " + names + "; shapes: ";
+      }
+      std::string shapes;
+      for (const auto& n : model.expression_names) shapes += (shapes.empty() ? "" : ", ") + n;
       return fail("synthetic: unknown expression '" + name + "' in expr=" + std::string(spec) +
-                  "; use 'neutral' or NAME[:WEIGHT] terms joined by '+', names: " + names);
+                  "; use 'neutral' or NAME[:WEIGHT] terms joined by '+', " + names + shapes);
     }
-    weights[static_cast<std::size_t>(index)] += weight;
     if (plus == std::string_view::npos) break;
     start = plus + 1;
   }
@@ -186,7 +202,9 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
       }
       options.seed = seed;
     } else if (key == "expr") {
-      auto weights = parse_expression_spec(value, model);
+      // Guide recipe names (expr=smile) need the guide file; shape names alone do not.
+      auto guide = load_guide_expressions(model);
+      auto weights = parse_expression_spec(value, model, guide ? &*guide : nullptr);
       if (!weights) return weights.failure();
       options.expression_weights = std::move(*weights);
     } else if (key == "motion") {

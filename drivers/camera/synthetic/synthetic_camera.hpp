@@ -47,6 +47,7 @@
 #include <vector>
 
 #include "algo/facemodel/face_model.hpp"
+#include "algo/guide/guide_expressions.hpp"
 #include "algo/render/kinect_sensor.hpp"
 #include "drivers/camera/camera_backend.hpp"
 
@@ -93,10 +94,11 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
                                                  const FaceModel& model);
 
 // Parses `expr=` values: `neutral`, or `name[:weight]` terms joined by '+', e.g.
-// `jawOpen:0.6+mouthSmile_L` (weight defaults to 1). Names are FaceModel expression names.
-// Returns one weight per model expression. The single place expression specs are read, so
-// named recipes can be added here.
-Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model);
+// `jawOpen:0.6+mouthSmile_L` or `smile+eyes_closed:0.5` (weight defaults to 1). A name is a
+// FaceModel expression name or, when `guide` is given, a guide expression (its recipe scaled
+// by the weight). Returns one weight per model expression.
+Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model,
+                                                 const GuideSet* guide = nullptr);
 
 class SyntheticCamera : public DepthCamera {
  public:

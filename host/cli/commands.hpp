@@ -26,6 +26,7 @@ std::vector<Command> fit_commands();
 std::vector<Command> tracking_commands();
 std::vector<Command> storage_commands();
 std::vector<Command> daemon_commands();
+std::vector<Command> rig_commands();
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

@@ -30,6 +30,7 @@
 #include "algo/render/rasterizer.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -42,26 +43,6 @@ double ms_since(Clock::time_point t0) {
 
 constexpr const char* kShapePredictorDefault =
     "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
-
-Result<std::string> read_text(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return fail("cannot read " + path.string());
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
-  const std::filesystem::path path =
-      option.empty() ? data_directory() / "guide_expressions.json" : std::filesystem::path(option);
-  auto text = read_text(path);
-  if (!text) return text.failure();
-  auto guide = parse_guide_expressions(*text);
-  if (!guide) return fail(path.string() + ": " + guide.error().message);
-  if (auto ok = validate_guide(*guide, model); !ok)
-    return fail(path.string() + ": " + ok.error().message);
-  return guide;
-}
 
 // The shape predictor: the plain .dat, or a .dat.bz2 decompressed once into a cache directory.
 Result<LandmarkDetector> load_detector(const std::string& option) {
@@ -94,100 +75,12 @@ Result<LandmarkDetector> load_detector(const std::string& option) {
   return LandmarkDetector::create(in);
 }
 
-// ---------------------------------------------------------------------------------------------
-// One synthetic capture: a fused frontal depth map, its colour frame and the truth.
-
-struct Capture {
-  PinholeIntrinsics intrinsics;
-  KinectCalibration calibration;
-  SurfaceView fused;
-  ColorImage color;                // frame 0
-  std::vector<ColorImage> colors;  // every frame (for landmark timing), when kept
-  std::vector<Eigen::Vector2d> truth_color_px;
-  std::vector<Eigen::Vector2d> truth_depth_px;
-  Image<float> noiseless;         // rendered depth of frame 0 (diagnostics: --depth noiseless)
-  RigidPose truth_pose;           // camera_from_model of frame 0
-  std::vector<float> truth_mesh;  // model frame
-  int fused_frames = 0;
-  double fusion_ms = 0;
-};
-
-Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
-                        const std::vector<float>& weights, std::uint64_t seed, int frames,
-                        bool keep_colors) {
-  SyntheticOptions so;
-  so.seed = seed;
-  so.identity_coeffs = identity;
-  so.expression_weights = weights;
-  so.frame_count = frames;
-  auto camera = make_synthetic_camera(model, so);
-  if (!camera) return camera.failure();
-  if (auto ok = (*camera)->start(); !ok) return ok.failure();
-  Capture c;
-  c.intrinsics = (*camera)->info().depth_intrinsics;
-  c.calibration = (*camera)->info().calibration;
-  FaceFusion fusion;
-  if (auto ok =
-          fusion.reset(c.intrinsics, default_face_box(c.intrinsics.width, c.intrinsics.height));
-      !ok)
-    return ok.failure();
-  RgbdFrame frame;
-  RigidPose first;
-  bool started = false;
-  const auto t0 = Clock::now();
-  for (int i = 0; i < frames; ++i) {
-    auto st = (*camera)->next_frame(frame, std::chrono::milliseconds(1000));
-    if (!st) return st.failure();
-    if (*st != FrameStatus::kFrame) break;
-    const FrameReport r = fusion.process(frame.depth_mm);
-    c.fused_frames += r.fused;
-    if (i == 0) {
-      const FrameTruth* t = (*camera)->truth();
-      if (!t) return fail("the synthetic camera gave no ground truth");
-      c.color = frame.color;
-      c.truth_color_px = t->landmarks_color_px;
-      c.truth_depth_px = t->landmarks_depth_px;
-      c.noiseless = t->noiseless_depth_mm;
-      c.truth_pose = t->camera_from_model;
-      c.truth_mesh.resize(static_cast<std::size_t>(model.vertex_count) * 3);
-      model.evaluate(t->identity_coeffs, t->expression_weights, c.truth_mesh);
-      if (r.state != TrackingState::kStarted)
-        return fail("fusion did not start on the frontal frame");
-      first = r.world_from_camera;
-      started = true;
-    }
-    if (keep_colors) c.colors.push_back(frame.color);
-  }
-  if (!started) return fail("no frames");
-  c.fusion_ms = ms_since(t0);
-  c.fused = fusion.render(first);
-  return c;
-}
-
 bool g_noiseless_depth = false;  // set by --depth noiseless (diagnostics only)
 
 Result<FitTarget> make_target(const Capture& c, std::span<const Eigen::Vector2d> color_px) {
-  const KinectRegistration registration(c.calibration);
-  const Image<float>& depth = g_noiseless_depth ? c.noiseless : c.fused.depth_mm;
-  auto lifted = lift_landmarks(color_px, depth, registration);
-  if (!lifted) return lifted.failure();
-  FitTarget t;
-  t.intrinsics = c.intrinsics;
-  t.depth_mm = depth;
-  if (!g_noiseless_depth) t.normals = c.fused.normals;
-  t.landmarks = *lifted;
-  if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
-  return t;
+  return make_fit_target(c, color_px, g_noiseless_depth);
 }
 
-std::vector<Eigen::Vector2d> noisy(const std::vector<Eigen::Vector2d>& px, double sigma,
-                                   std::mt19937_64& rng) {
-  std::normal_distribution<double> n(0.0, sigma);
-  std::vector<Eigen::Vector2d> out = px;
-  if (sigma > 0)
-    for (auto& p : out) p += Eigen::Vector2d(n(rng), n(rng));
-  return out;
-}
 
 // ---------------------------------------------------------------------------------------------
 // Error maps (paper Fig. 2 style): |mesh depth - fused depth| per pixel over the face.
@@ -258,14 +151,6 @@ struct Stats {
   }
   double max() const { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
 };
-
-std::vector<float> identity_draw(std::uint64_t seed, int count) {
-  std::mt19937_64 rng(0x9e3779b97f4a7c15ull ^ seed);
-  std::normal_distribution<float> n(0.0f, 1.0f);
-  std::vector<float> c(static_cast<std::size_t>(count));
-  for (auto& x : c) x = n(rng);
-  return c;
-}
 
 Result<std::vector<int>> parse_expression_list(const std::string& text, const GuideSet& guide) {
   std::vector<int> out;

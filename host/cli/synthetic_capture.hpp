@@ -1,0 +1,63 @@
+// Synthetic captures for the eval commands (eval fit, eval rig): a synthetic head-turn take of a
+// known subject -> KinectFusion -> fused frontal depth, with the ground truth of frame 0, and the
+// fit target built from it. Shared by fit_commands.cpp and rig_commands.cpp.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+#include "algo/fitting/face_fit.hpp"
+#include "algo/fusion/face_fusion.hpp"
+#include "algo/guide/guide_expressions.hpp"
+#include "algo/sensor/kinect_calibration.hpp"
+
+namespace fb::cli {
+
+Result<std::string> read_text(const std::filesystem::path& path);
+
+// The guide recipes: `option` or DATA_DIR/guide_expressions.json, validated against the model.
+Result<GuideSet> load_guide(const FaceModel& model, const std::string& option);
+
+// One synthetic capture: a fused frontal depth map, its colour frame and the truth.
+struct Capture {
+  PinholeIntrinsics intrinsics;
+  KinectCalibration calibration;
+  SurfaceView fused;
+  ColorImage color;                // frame 0
+  std::vector<ColorImage> colors;  // every frame (for landmark timing), when kept
+  std::vector<Eigen::Vector2d> truth_color_px;
+  std::vector<Eigen::Vector2d> truth_depth_px;
+  Image<float> noiseless;         // rendered depth of frame 0 (diagnostics: --depth noiseless)
+  RigidPose truth_pose;           // camera_from_model of frame 0
+  std::vector<float> truth_mesh;  // model frame
+  int fused_frames = 0;
+  double fusion_ms = 0;
+};
+
+Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
+                        const std::vector<float>& weights, std::uint64_t seed, int frames,
+                        bool keep_colors);
+
+// The fit target of a capture: colour-image landmarks lifted with the registration and the
+// fused depth (or, for diagnostics, the noiseless rendering).
+Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,
+                                  bool noiseless_depth);
+
+// Gaussian pixel noise (sigma per axis) on landmark positions.
+std::vector<Eigen::Vector2d> noisy(const std::vector<Eigen::Vector2d>& px, double sigma,
+                                   std::mt19937_64& rng);
+
+// The identity of synthetic subject `seed` (N(0, 1) per mode), as eval fit draws it.
+std::vector<float> identity_draw(std::uint64_t seed, int count);
+
+}  // namespace fb::cli

@@ -97,7 +97,7 @@ std::vector<OptionSpec> rig_option_specs() {
   const RigOptions d;
   return {{"rounds", "N", "alternations of blendshape solve and example-weight update",
            std::to_string(d.rounds)},
-          {"prior-weight", "BETA", "weight of the generic-rig prior (Li et al.'s beta)", "0.1"},
+          {"prior-weight", "BETA", "weight of the generic-rig prior (Li et al.'s beta)", "0.05"},
           {"weight-regularization", "GAMMA",
            "pull of the re-estimated example weights towards the guide recipes (mm^2)", "0.05"}};
 }
@@ -473,6 +473,9 @@ int run_eval_rig(const ParsedOptions& options) {
   if (which != "fitted" && which != "truth" && which != "both")
     return report_failure({"--examples must be fitted, truth or both"});
   const bool use_fitted = which != "truth", use_truth = which != "fitted";
+  const std::string truth_kind = options.get("truth");
+  if (truth_kind != "linear" && truth_kind != "amplitude")
+    return report_failure({"--truth must be linear or amplitude"});
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
   auto guide = load_guide(*model, options.get("guide"));
@@ -490,13 +493,25 @@ int run_eval_rig(const ParsedOptions& options) {
     const std::uint64_t seed = static_cast<std::uint64_t>(*first_seed + s);
     const auto identity = identity_draw(seed, model->identity_count);
     std::mt19937_64 rng(seed * 7919 + 17);
+    // --truth amplitude: this subject's shape j is k_j times the generic one, k_j ~ U(0.6, 1.4)
+    // (face(c, k o w) is still the face model, so the synthetic camera renders it).
+    std::vector<float> amplitude(static_cast<std::size_t>(model->expression_count), 1.0f);
+    if (truth_kind == "amplitude") {
+      std::mt19937_64 krng(seed * 104729 + 3);
+      std::uniform_real_distribution<float> k(0.6f, 1.4f);
+      for (int j = 0; j < n; ++j) amplitude[static_cast<std::size_t>(j)] = k(krng);
+    }
+    auto personal = [&](std::vector<float> w) {
+      for (std::size_t j = 0; j < w.size() && j < amplitude.size(); ++j) w[j] *= amplitude[j];
+      return w;
+    };
     std::vector<std::vector<float>> weights, truth_meshes, fitted_meshes;
     for (const auto& ge : guide->expressions) {
       auto w = guide_weights(ge, *model);
       if (!w) return report_failure(w.error());
       w->resize(static_cast<std::size_t>(n));
       weights.push_back(*w);
-      truth_meshes.push_back(face(*model, identity, *w));
+      truth_meshes.push_back(face(*model, identity, personal(*w)));
     }
     nlohmann::json subject{{"seed", seed}};
     RigidPose fitted_to_truth;  // fitted neutral's model frame -> the true model frame
@@ -510,7 +525,8 @@ int run_eval_rig(const ParsedOptions& options) {
       for (const auto& ge : guide->expressions) {
         auto full = guide_weights(ge, *model);
         if (!full) return report_failure(full.error());
-        auto cap = capture(*model, identity, *full, seed * 1000 + static_cast<std::uint64_t>(ge.id),
+        auto cap = capture(*model, identity, personal(*full),
+                           seed * 1000 + static_cast<std::uint64_t>(ge.id),
                            static_cast<int>(*frames), false);
         if (!cap) return report_failure(cap.error());
         auto target = make_fit_target(*cap, noisy(cap->truth_color_px, *noise, rng), false);
@@ -560,7 +576,7 @@ int run_eval_rig(const ParsedOptions& options) {
       for (std::size_t i = 0; i < examples.size(); ++i)
         input_err.add(mean_distance(examples[i], truth_meshes[i], subset, to_truth));
       for (const auto& w : random_mixes(static_cast<int>(*mixes), n, seed * 31 + 7)) {
-        const auto truth = face(*model, identity, w);
+        const auto truth = face(*model, identity, personal(w));
         heldout.add(
             mean_distance(evaluate_rig(rig->neutral, rig->shapes, w), truth, subset, to_truth));
         // Naive baseline: the generic rig's deltas added to the subject's neutral example.
@@ -609,6 +625,7 @@ int run_eval_rig(const ParsedOptions& options) {
   out["frames_per_capture"] = *frames;
   out["landmark_noise_px"] = *noise;
   out["heldout_mixes_per_subject"] = *mixes;
+  out["truth"] = truth_kind;
   out["definitions"] = {
       {"truth",
        "personal rig B_j = face(identity, e_j): the model's expression shapes on the "
@@ -1036,6 +1053,11 @@ std::vector<Command> rig_commands() {
       {"frames", "N", "frames per head-turn take fused", "45"},
       {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
       {"mixes", "N", "held-out random expression mixes per subject", "20"},
+      {"truth", "linear|amplitude",
+       "true personal rig: linear = the model's expression shapes on the subject's identity (the "
+       "naive baseline is then exact up to the neutral's error); amplitude = each shape also "
+       "scaled by a per-subject factor in [0.6, 1.4], so personal deltas differ from the generic",
+       "linear"},
       {"examples", "fitted|truth|both",
        "train on fitted meshes from the fitting stage, on the exact meshes, or both (the "
        "headline keys are from the fitted run unless truth alone is asked)",

@@ -326,12 +326,15 @@ Result<BuiltModel> build_from_sessions(const FaceModel& face_model, const std::s
     if (!info) return info.failure();
     auto list = store->rigs(info->subject);
     if (!list) return list.failure();
+    // The newest rig made from this session, else the subject's newest rig (imports store
+    // rigs without a session).
     std::optional<RigId> pick;
     for (const auto& r : *list)
       if (r.session && *r.session == sid) {
         pick = r.id;
         break;
       }
+    if (!pick && !list->empty() && !list->front().session) pick = list->front().id;
     if (!pick) {
       skipped.push_back(sid);
       continue;
@@ -867,10 +870,24 @@ int run_eval_model(const ParsedOptions& options) {
   }
 
   // 2. Landmark fit on held-out synthetic images (the synthetic camera's perspective renders).
-  auto built = truncate(tensor, *factors, def_id, def_exp);
-  if (!built) return report_failure(built.error());
-  const BilinearModel model =
-      make_bilinear_model(*built, *face_model, bootstrap_expression_names(*face_model), "{}");
+  BilinearModel model;
+  if (const std::string file = options.get("model"); !file.empty()) {
+    auto bytes = read_file_bytes(file);
+    if (!bytes) return report_failure(bytes.error());
+    auto parsed = parse_bilinear_model(std::as_bytes(std::span(*bytes)));
+    if (!parsed) return report_failure({file + ": " + parsed.error().message});
+    if (parsed->vertex_count != face_model->vertex_count)
+      return report_failure({file + ": the model has " + std::to_string(parsed->vertex_count) +
+                             " vertices, the face model " +
+                             std::to_string(face_model->vertex_count)});
+    model = std::move(*parsed);
+    out["landmark_fit_model"] = std::filesystem::absolute(file).string();
+  } else {
+    auto built = truncate(tensor, *factors, def_id, def_exp);
+    if (!built) return report_failure(built.error());
+    model = make_bilinear_model(*built, *face_model, bootstrap_expression_names(*face_model), "{}");
+    out["landmark_fit_model"] = "bootstrap built in memory at the default knobs";
+  }
   Stats fit_px, fit_truth_px, joint_px, mesh_mm, joint_mesh_mm, fit_ms;
   std::mt19937_64 rng(static_cast<std::uint64_t>(*seed) * 13 + 5);
   const int per_subject = static_cast<int>(*images);
@@ -1077,8 +1094,9 @@ std::vector<Command> rig_commands() {
         "build the bilinear face model (core tensor + factors) into a file",
         "--from-face-model: bootstrap tensor from the face model (--identities random "
         "identities x 54 expressions, kept factored). --from-sessions: the rigs stored for "
-        "sessions of --store (the newest rig made from each session; sessions without one are "
-        "skipped and listed). N-mode SVD without factoring the vertex mode, truncated to "
+        "sessions of --store (the newest rig made from each session, or the subject's newest rig "
+        "without a session, as imports store them; sessions without a rig are skipped and listed). "
+        "N-mode SVD without factoring the vertex mode, truncated to "
         "--id-knobs x --exp-knobs. File layout: algo/bilinear/README.md.",
         {{"from-face-model", "", "bootstrap from the face model", ""},
          {"from-sessions", "", "stack the rigs of stored sessions", ""},
@@ -1111,6 +1129,10 @@ std::vector<Command> rig_commands() {
           "3"},
          {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
          {"plot", "FILE.png", "write the error-vs-knobs plot (OpenCV)", ""},
+         {"model", "FILE",
+          "fit the landmarks with this model file (from `model build`) instead of the in-memory "
+          "bootstrap at 50 x 25",
+          ""},
          guide_opt,
          json_opt}},
        run_eval_model},

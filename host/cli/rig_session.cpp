@@ -30,7 +30,7 @@ Result<SessionExamples> load_session_examples(const SessionStore& store, Session
     }
     present.emplace_back(c.index, c.expression);
   }
-  if (present.empty() || present.front().first != 0 || present.front().second != "neutral") {
+  if (present.empty() || present.front().first != 0) {
     return fail("session " + std::to_string(session) +
                 " has no fitted neutral (capture 0); rigging starts from it: fit the session's "
                 "neutral capture first");

@@ -89,6 +89,10 @@ struct FaceTracker::State {
   RowMatrix identity_at_samples;
   RowMatrix expression_at_landmarks;  // 3*68 x k
   RowMatrix identity_at_landmarks;    // 3*68 x m
+  // The model's own expression deltas; a stored rig (set_rig) replaces the two above.
+  RowMatrix model_expression_at_samples;
+  RowMatrix model_expression_at_landmarks;
+  bool custom_rig = false;
 
   // The subject's rig (rebuilt by build_rig()).
   std::vector<float> identity;                         // m coefficients
@@ -127,6 +131,10 @@ struct FaceTracker::State {
   // Weight solve buffers.
   RowMatrix rows;  // (n + 2*68) x k
   Eigen::VectorXf targets;
+  std::vector<int> found_sample;      // n: samples with a depth correspondence this round
+  std::vector<float> found_residual;  // their point-to-plane residuals (model frame)
+  std::vector<float> found_target;    // n_i . (q - base_i)
+  std::vector<float> abs_scratch;     // |residual| for the median
   ShapeMatrix h;
   ShapeVector g;
 
@@ -148,6 +156,14 @@ struct FaceTracker::State {
   Eigen::Vector3f rigid_pivot = Eigen::Vector3f::Zero();
   using Twist = Eigen::Matrix<float, 6, 1>;
   void build_rig(std::span<const float> coefficients, const Twist& rigid_offset = Twist::Zero());
+  // The rest of build_rig() once mesh_scratch holds the subject's neutral (full mesh).
+  void finish_rig();
+  void use_model_expressions() {
+    if (!custom_rig) return;
+    expression_at_samples = model_expression_at_samples;
+    expression_at_landmarks = model_expression_at_landmarks;
+    custom_rig = false;
+  }
   void update_current() {
     current = base;
     current.noalias() += expression_at_samples * weights;
@@ -191,6 +207,11 @@ void FaceTracker::State::build_rig(std::span<const float> coefficients, const Tw
       for (int a = 0; a < 3; ++a) mesh_scratch[3 * v + a] -= d[a];
     }
   }
+  finish_rig();
+}
+
+void FaceTracker::State::finish_rig() {
+  const FaceModel& m = *model;
   mesh_normals.assign(static_cast<std::size_t>(m.vertex_count), Eigen::Vector3f::Zero());
   auto vertex = [&](std::uint32_t v) {
     return Eigen::Vector3f(mesh_scratch[3 * v], mesh_scratch[3 * v + 1], mesh_scratch[3 * v + 2]);
@@ -376,7 +397,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
                                        const TrackLandmarks* landmarks, int& landmarks_used) {
   const Eigen::Matrix3f rt = p.r.transpose();
   for (int it = 0; it < options.weight_iterations; ++it) {
-    int count = 0;
+    int found = 0;
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector3f xm = sample(i);
       const Eigen::Vector3f x = p.r * xm + p.t;
@@ -387,12 +408,34 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       if (!depth_at(image, b, u, v, z)) continue;
       // Data point in the model frame; the row says n_i . (B_i w) = n_i . (q - base_i).
       const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
-      const float residual = nm.dot(xm - q);
-      const float w = tukey(residual, options.icp_gate_mm);
+      const auto f = static_cast<std::size_t>(found++);
+      found_sample[f] = i;
+      found_residual[f] = nm.dot(xm - q);
+      found_target[f] = nm.dot(q - base.segment<3>(3 * i));
+    }
+    // Robust scale: Tukey cut-off c = k * 1.4826 * median|r| (the MAD estimate of the noise
+    // sigma, with the median of the current residuals centred at ~0), clamped to
+    // [weight_min_gate_mm, icp_gate_mm]. An occluder's samples (residuals of centimetres) and
+    // the ragged edges around it (a few mm) then get zero weight, while the clean face, whose
+    // residual spread is the sensor noise, keeps its full weight.
+    float cutoff = options.icp_gate_mm;
+    if (options.weight_tukey_k > 0.0f && found > 16) {
+      for (int f = 0; f < found; ++f)
+        abs_scratch[static_cast<std::size_t>(f)] =
+            std::abs(found_residual[static_cast<std::size_t>(f)]);
+      auto mid = abs_scratch.begin() + found / 2;
+      std::nth_element(abs_scratch.begin(), mid, abs_scratch.begin() + found);
+      cutoff = std::clamp(options.weight_tukey_k * 1.4826f * *mid, options.weight_min_gate_mm,
+                          options.icp_gate_mm);
+    }
+    int count = 0;
+    for (int f = 0; f < found; ++f) {
+      const auto fi = static_cast<std::size_t>(f);
+      const float w = tukey(found_residual[fi], cutoff);
       if (w <= 0.0f) continue;
       const float s = std::sqrt(w);
-      rows.row(count) = s * normal_rows.row(i);
-      targets[count] = s * nm.dot(q - base.segment<3>(3 * i));
+      rows.row(count) = s * normal_rows.row(found_sample[fi]);
+      targets[count] = s * found_target[fi];
       ++count;
     }
     landmarks_used = 0;
@@ -453,13 +496,13 @@ bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring) const {
 }
 
 bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stats) {
-  // Candidate starting poses, best first: the last good pose (a short occlusion), a pose from
-  // the landmarks (detection), and a frontal face on the nearest surface (depth detection) at
-  // three yaws.
+  // Candidate starting poses, best evidence first: a pose from the landmarks (detection on the
+  // colour image), the last good pose (a short occlusion), and a frontal face on the nearest
+  // surface (depth detection) at three yaws.
   std::array<Pose, 5> candidates;
   int count = 0;
   const Box full{0, 0, width, height};
-  if (have_last_good) candidates[count++] = last_good_pose;
+  bool from_landmarks = false;
   if (landmarks != nullptr && landmarks->points.size() >= 68) {
     // Kabsch between the model landmarks and the landmarks lifted with the depth.
     Eigen::Matrix<float, 3, 68> src, dst;
@@ -484,8 +527,11 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
       const Eigen::Vector3f dc = dst.leftCols(m).rowwise().mean();
       p.t = dc - p.r * sc;
       candidates[count++] = p;
+      from_landmarks = true;
     }
   }
+  // A detection says where the face is now; the last good pose where it was.
+  if (have_last_good) candidates[count++] = last_good_pose;
   {
     // Nearest surface: a 1 cm depth histogram of every 4th pixel; the first bin with a few
     // dozen samples is the front of the nearest object (the face, for a seated subject).
@@ -533,6 +579,33 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
       }
     }
   }
+  // Acquisition accepts only a fit as good as tracking gives: most of the face's samples on the
+  // surface (a face rotated far from the truth shows too few) with a residual near the sensor
+  // noise (ICP can converge to a wrong rotation at the right place with a few mm RMS). Before
+  // calibration the mean face fits a real one only to a few mm, so the RMS bound is the
+  // tracking one then.
+  auto good = [&](const IcpStats& s) {
+    return acceptable(s, true) &&
+           static_cast<float>(s.inliers) >= options.acquire_min_sample_fraction * n &&
+           s.rms <= (calibrated ? options.acquire_max_rms_mm : options.max_rms_mm);
+  };
+  // With landmarks, a candidate must also put the model's landmarks on them: median
+  // reprojection error over the interior points.
+  auto landmark_error_px = [&](const Pose& p) {
+    std::array<float, 68> errors{};
+    int m = 0;
+    for (int l = 17; l < 68; ++l) {
+      if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
+      const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+      if (x.z() <= 1.0f) continue;
+      const Eigen::Vector2f proj(fx * x.x() / x.z() + cx, fy * x.y() / x.z() + cy);
+      errors[static_cast<std::size_t>(m++)] =
+          (proj - landmarks->points[static_cast<std::size_t>(l)]).norm();
+    }
+    if (m < 10) return 1e9f;
+    std::nth_element(errors.begin(), errors.begin() + m / 2, errors.begin() + m);
+    return errors[static_cast<std::size_t>(m / 2)];
+  };
   bool found = false;
   IcpStats best;
   Pose best_pose;
@@ -540,13 +613,12 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
     Pose p = candidates[c];
     const IcpStats s =
         icp(smoothed, full, p, options.acquire_iterations, 40.0f, options.icp_gate_mm);
-    if (!acceptable(s, true)) continue;
-    if (!found || s.inliers > best.inliers) {
-      found = true;
-      best = s;
-      best_pose = p;
-    }
-    if (c == 0 && have_last_good) break;  // the last pose fits: no need to search
+    if (!good(s)) continue;
+    if (from_landmarks && landmark_error_px(p) > options.acquire_landmark_px) continue;
+    found = true;
+    best = s;
+    best_pose = p;
+    break;  // candidates are in order of evidence: the first good fit is the face
   }
   stats = best;
   if (found) pose = best_pose;
@@ -764,6 +836,8 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   fill(s->identity_at_samples, s->sample_vertices, false);
   fill(s->expression_at_landmarks, model.landmark_vertices, true);
   fill(s->identity_at_landmarks, model.landmark_vertices, false);
+  s->model_expression_at_samples = s->expression_at_samples;
+  s->model_expression_at_landmarks = s->expression_at_landmarks;
   {
     // Rigid part of every identity mode at the samples: least squares against the 6 rigid
     // motions of the mean face about its sample centroid, then removed from the basis.
@@ -794,6 +868,10 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->g.resize(s->k);
   s->rows.resize(n + 2 * 68, s->k);
   s->targets.resize(n + 2 * 68);
+  s->found_sample.resize(static_cast<std::size_t>(n));
+  s->found_residual.resize(static_cast<std::size_t>(n));
+  s->found_target.resize(static_cast<std::size_t>(n));
+  s->abs_scratch.resize(static_cast<std::size_t>(n));
   s->current.resize(3 * n);
   s->landmark_current.resize(3 * 68);
   s->ring.resize(static_cast<std::size_t>(options.temporal_frames));
@@ -816,7 +894,51 @@ Result<void> FaceTracker::set_identity(std::span<const float> coefficients) {
                 " identity coefficients given, the model has " +
                 std::to_string(s.model->identity_count));
   }
+  s.use_model_expressions();
   s.build_rig(coefficients);
+  s.calibrated = true;
+  s.calib_count = 0;
+  return success();
+}
+
+Result<void> FaceTracker::set_rig(const TrackerRig& rig) {
+  State& s = *state_;
+  const FaceModel& m = *s.model;
+  const std::size_t size = static_cast<std::size_t>(3 * m.vertex_count);
+  if (rig.neutral.size() != size) {
+    return fail("tracking: the rig's neutral has " + std::to_string(rig.neutral.size() / 3) +
+                " vertices, the face model " + std::to_string(m.vertex_count) +
+                "; only rigs in the face model's topology can be tracked");
+  }
+  for (const auto& [index, shape] : rig.shapes) {
+    if (index < 0 || index >= s.k) {
+      return fail("tracking: rig shape index " + std::to_string(index) +
+                  " is not one of the model's " + std::to_string(s.k) + " fitting shapes");
+    }
+    if (shape.size() != size) {
+      return fail("tracking: rig shape '" + m.expression_names[static_cast<std::size_t>(index)] +
+                  "' does not have the neutral's vertex count");
+    }
+  }
+  s.expression_at_samples = s.model_expression_at_samples;
+  s.expression_at_landmarks = s.model_expression_at_landmarks;
+  auto replace = [&](RowMatrix& out, std::span<const std::uint32_t> vertices, int j,
+                     std::span<const float> shape) {
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      for (int a = 0; a < 3; ++a) {
+        const std::size_t c = 3 * vertices[i] + static_cast<std::size_t>(a);
+        out(3 * static_cast<int>(i) + a, j) = shape[c] - rig.neutral[c];
+      }
+    }
+  };
+  for (const auto& [index, shape] : rig.shapes) {
+    replace(s.expression_at_samples, s.sample_vertices, index, shape);
+    replace(s.expression_at_landmarks, m.landmark_vertices, index, shape);
+  }
+  s.custom_rig = true;
+  s.identity.assign(static_cast<std::size_t>(s.modes), 0.0f);
+  s.mesh_scratch.assign(rig.neutral.begin(), rig.neutral.end());
+  s.finish_rig();
   s.calibrated = true;
   s.calib_count = 0;
   return success();
@@ -831,6 +953,7 @@ void FaceTracker::reset() {
   s.weights.setZero();
   s.previous_weights.setZero();
   s.filter.reset();
+  s.use_model_expressions();
   s.build_rig({});
 }
 

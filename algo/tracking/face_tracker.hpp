@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -58,7 +59,12 @@ struct TrackerOptions {
   float huber_mm = 2.5f;            // full weight below this
 
   // --- Blendshape weights ---
-  int weight_iterations = 2;      // IRLS rounds (re-association + robust weights)
+  int weight_iterations = 2;  // IRLS rounds (re-association + robust weights)
+  // Robust weights of the depth rows: Tukey biweight with cut-off weight_tukey_k * sigma, sigma
+  // from the median absolute residual of the frame (MAD), clamped to [weight_min_gate_mm,
+  // icp_gate_mm]; weight_tukey_k = 0 uses the fixed icp_gate_mm.
+  float weight_tukey_k = 4.685f;
+  float weight_min_gate_mm = 3.0f;
   float temporal_weight = 30.0f;  // mm^2 per unit weight change: lambda_t ||w - w_prev||^2
   // Priors, in mm^2 against a data term of ~2000 samples: small next to a visible shape's
   // signal (H_jj ~ 1e3-1e5), large next to the near-null combinations of opposing shapes
@@ -86,6 +92,12 @@ struct TrackerOptions {
   // --- Acquisition (first frame and after loss) ---
   int acquire_iterations = 20;
   float acquire_band_mm = 120.0f;  // the face: pixels within this of the nearest surface
+  // A start pose is accepted only with inliers >= this fraction of all samples and RMS below
+  // acquire_max_rms_mm once calibrated (max_rms_mm before) (and, with landmarks, the model's
+  // landmarks within acquire_landmark_px of them, median).
+  float acquire_min_sample_fraction = 0.35f;
+  float acquire_max_rms_mm = 2.0f;
+  float acquire_landmark_px = 12.0f;
 
   PoseFilterOptions pose_filter;
 };
@@ -106,6 +118,14 @@ const char* to_string(TrackState state);
 struct TrackLandmarks {
   std::span<const Eigen::Vector2f> points;
   std::span<const std::uint8_t> valid;  // empty = all valid
+};
+
+// A subject's personal blendshape rig in the face model's topology (storage's RigData seen
+// through spans, so algo/ does not depend on storage/).
+struct TrackerRig {
+  std::span<const float> neutral;  // 3 * model.vertex_count, model frame, mm
+  // (model fitting-shape index, full shape positions of 3 * vertex_count floats)
+  std::vector<std::pair<int, std::span<const float>>> shapes;
 };
 
 struct TrackTimes {
@@ -145,6 +165,11 @@ class FaceTracker {
 
   // Uses a known identity (sigma units) and skips calibration.
   Result<void> set_identity(std::span<const float> coefficients);
+  // Uses a stored subject rig (the face model's topology) and skips calibration: its neutral
+  // replaces the identity face, its shapes replace the model's expression deltas (shape - neutral)
+  // for the fitting shapes they name; fitting shapes the rig lacks keep the model's delta.
+  // identity() is all zeros afterwards (a rig has no identity coefficients).
+  Result<void> set_rig(const TrackerRig& rig);
   // Forgets the subject and the pose: the next frames search and calibrate again.
   void reset();
 

@@ -7,9 +7,10 @@
 // expression-weight tracks over a handful of shapes (smoothstep between random keyframes,
 // neutral for the first frames so the tracker can calibrate the identity), smooth head motion
 // (yaw/pitch/roll sinusoids and a few cm of translation), Kinect sensor noise on. 2D landmarks
-// come from the ground truth plus Gaussian pixel noise (the dlib detector of issue 4 is not
-// wired yet); the JSON says so. The occluder take composites a flat hand-sized plate into the
-// scene and renders it through the Kinect sensor model (projector shadow, dropouts, noise).
+// come from the ground truth plus Gaussian pixel noise, or (--landmarks dlib) from dlib on the
+// synthetic colour render; the JSON says which. The occluder take composites a flat hand-sized
+// plate into the scene and renders it through the Kinect sensor model (projector shadow, dropouts,
+// noise).
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -19,6 +20,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -30,6 +33,7 @@
 
 #include "algo/render/kinect_sensor.hpp"
 #include "algo/tracking/arkit.hpp"
+#include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/live_json.hpp"
@@ -39,6 +43,7 @@
 #include "host/cli/progress.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
+#include "storage/session_store.hpp"
 
 namespace fb::cli {
 namespace {
@@ -55,6 +60,19 @@ double thread_cpu_ms() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+constexpr const char* kShapePredictor = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+
+// dlib's detector + 68-point predictor (Debian libdlib-data), ~1 s to deserialise.
+Result<LandmarkDetector> load_landmark_detector(const std::string& option) {
+  const std::filesystem::path path = option.empty() ? kShapePredictor : option;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return fail("cannot read the landmark model " + path.string() +
+                " (install Debian's libdlib-data or pass --shape-predictor PATH)");
+  }
+  return LandmarkDetector::create(in);
 }
 
 struct Stats {
@@ -86,6 +104,7 @@ struct TakeSpec {
   int neutral_frames = 20;  // calibration window + margin: the subject holds a neutral face
   bool occluder = false;
   bool noise = true;
+  bool color = false;  // keep the colour images (for dlib landmarks; 0.9 MB a frame)
 };
 
 struct Take {
@@ -277,11 +296,13 @@ struct TakeFrame {
   std::vector<Eigen::Vector2f> landmarks;     // truth + noise, depth pixels
   std::vector<std::uint8_t> occluded_shapes;  // per model shape: its region is under the plate
   bool occluder_on_face = false;
+  ColorImage color;  // only when TakeSpec::color (dlib landmarks)
 };
 
 struct RenderedTake {
   Take take;
   PinholeIntrinsics intrinsics;
+  KinectCalibration calibration;
   std::vector<TakeFrame> frames;
 };
 
@@ -292,6 +313,7 @@ Result<RenderedTake> render_take(const FaceModel& model, const TakeSpec& spec) {
   if (!camera) return camera.failure();
   if (auto started = (*camera)->start(); !started) return started.failure();
   out.intrinsics = (*camera)->info().depth_intrinsics;
+  out.calibration = (*camera)->info().calibration;
   std::unique_ptr<OccluderCompositor> compositor;
   if (spec.occluder) compositor = std::make_unique<OccluderCompositor>(out.take.options);
   std::mt19937_64 rng(spec.seed * 31 + 5);
@@ -351,6 +373,7 @@ Result<RenderedTake> render_take(const FaceModel& model, const TakeSpec& spec) {
       }
     }
     tf.depth = frame.depth_mm;
+    if (spec.color) tf.color = frame.color;
     tf.truth = truth;
     tf.landmarks.resize(68);
     for (int l = 0; l < 68; ++l) {
@@ -382,12 +405,15 @@ struct FrameResult {
   double cpu_ms = 0;       // thread CPU time of track()
   double latency_ms = -1;  // frame arrival -> OSC datagrams sent (when a sender is given)
   int landmarks_used = 0;
+  double landmark_ms = 0;  // dlib detection + mapping (RunOptions::dlib), not in `times`
+  bool detected = false;
   RigidPose estimate, truth;  // filtered estimate and truth (camera_from_model)
 };
 
 struct RunOptions {
   bool landmarks = true;
-  bool known_identity = false;  // load the true identity instead of calibrating
+  TrackLandmarkSource* dlib = nullptr;  // landmarks from dlib on the colour images instead
+  bool known_identity = false;          // load the true identity instead of calibrating
   VmcSender* sender = nullptr;
   TrackerOptions tracker;
 };
@@ -422,10 +448,16 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
     TrackLandmarks landmarks{tf.landmarks, {}};
     const auto arrival = Clock::now();
     const double cpu0 = thread_cpu_ms();
-    (*tracker)->track(tf.depth, static_cast<double>(f) / 30.0, run.landmarks ? &landmarks : nullptr,
-                      report);
-    const double cpu1 = thread_cpu_ms();
+    const TrackLandmarks* used = run.landmarks ? &landmarks : nullptr;
     FrameResult r;
+    if (run.dlib != nullptr) {
+      const LandmarkFrameResult found = run.dlib->detect(tf.color, tf.depth);
+      used = run.dlib->landmarks();
+      r.landmark_ms = found.ms;
+      r.detected = found.found;
+    }
+    (*tracker)->track(tf.depth, static_cast<double>(f) / 30.0, used, report);
+    const double cpu1 = thread_cpu_ms();
     if (run.sender) {
       out.index = f;
       out.time_s = static_cast<double>(f) / 30.0;
@@ -610,6 +642,14 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       o.weak_shape_fraction = static_cast<float>(v);
     else if (key == "weak_shape_ridge")
       o.weak_shape_ridge = static_cast<float>(v);
+    else if (key == "weight_tukey_k")
+      o.weight_tukey_k = static_cast<float>(v);
+    else if (key == "weight_min_gate_mm")
+      o.weight_min_gate_mm = static_cast<float>(v);
+    else if (key == "landmark_huber_px")
+      o.landmark_huber_px = static_cast<float>(v);
+    else if (key == "icp_iterations")
+      o.icp_iterations = static_cast<int>(v);
     else
       return fail("--set: unknown key '" + key + "'");
   }
@@ -633,6 +673,12 @@ int run_eval_track(const ParsedOptions& options) {
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return report_failure(mapping.error());
   const int k = model.fitting_expression_count;
+  const std::string landmark_source = options.get("landmarks");
+  if (landmark_source != "truth" && landmark_source != "dlib") {
+    return report_failure({"--landmarks must be truth or dlib"});
+  }
+  std::optional<TrackLandmarkSource> dlib;
+  long long dlib_frames = 0, dlib_found = 0;
 
   Score with_landmarks, depth_only, known;
   nlohmann::json takes = nlohmann::json::array();
@@ -641,14 +687,27 @@ int run_eval_track(const ParsedOptions& options) {
     spec.seed = static_cast<std::uint64_t>(seed);
     spec.frames = static_cast<int>(*frames);
     spec.active_shapes = static_cast<int>(*active);
+    spec.color = landmark_source == "dlib";
     std::cerr << "eval track: seed " << seed << ": rendering " << spec.frames << " frames...\n";
     auto take = render_take(model, spec);
     if (!take) return report_failure(take.error());
+    if (landmark_source == "dlib" && !dlib) {
+      auto detector = load_landmark_detector(options.get("shape-predictor"));
+      if (!detector) return report_failure(detector.error());
+      dlib.emplace(std::move(*detector), take->calibration);
+    }
+    if (dlib) dlib->reset();
     RunOptions run;
     run.tracker = *overrides;
     run.landmarks = true;
+    run.dlib = dlib ? &*dlib : nullptr;
     auto a = run_take(model, *mapping, *take, run);
     if (!a) return report_failure(a.error());
+    for (const auto& r : *a) {
+      dlib_frames += dlib ? 1 : 0;
+      dlib_found += r.detected ? 1 : 0;
+    }
+    run.dlib = nullptr;
     run.landmarks = false;
     auto b = run_take(model, *mapping, *take, run);
     if (!b) return report_failure(b.error());
@@ -776,6 +835,8 @@ int run_eval_track(const ParsedOptions& options) {
       {"take", score_json(oscore, model)}};
   result["takes"] = takes;
   result["tracker_overrides"] = options.get("set");
+  result["landmark_source"] = landmark_source;
+  if (dlib) result["dlib_detection_rate"] = dlib_frames ? double(dlib_found) / dlib_frames : 0.0;
   if (auto t = FaceTracker::create(model, otake->intrinsics, *overrides); t) {
     nlohmann::json weak = nlohmann::json::array();
     for (int j : (*t)->weak_shapes())
@@ -803,8 +864,10 @@ int run_eval_track(const ParsedOptions& options) {
        "the same takes with the true identity loaded (set_identity) instead "
        "of calibrated: absolute pose errors are meaningful there"},
       {"landmarks",
-       "ground-truth 2D landmarks + N(0, 1.5 px) noise (dlib detector not wired "
-       "yet); contour points 0-16 unused"},
+       "--landmarks truth (default): ground-truth 2D landmarks + N(0, 1.5 px) noise; "
+       "--landmarks dlib: dlib HOG + shape_predictor_68 on the synthetic colour render, "
+       "mapped into the depth image (known_identity still uses truth); contour points 0-16 "
+       "unused"},
       {"head_motion",
        "yaw 20 deg, pitch 10 deg, roll 5 deg, 20/10/30 mm sinusoids, 3-5.5 s periods"},
       {"sensor", "Kinect v1 model, noise on, 700 mm"},
@@ -866,6 +929,7 @@ int run_bench_track(const ParsedOptions& options) {
   TakeSpec spec;
   spec.seed = 7;
   spec.frames = static_cast<int>(*frames);
+  spec.color = true;
   std::cerr << "bench track: rendering " << spec.frames << " frames...\n";
   auto take = render_take(model, spec);
   if (!take) return report_failure(take.error());
@@ -877,43 +941,66 @@ int run_bench_track(const ParsedOptions& options) {
   auto sender = VmcSender::open(vmc);
   if (!sender) return report_failure(sender.error());
 
+  auto detector = load_landmark_detector(options.get("shape-predictor"));
+  if (!detector) return report_failure(detector.error());
+  TrackLandmarkSource dlib(std::move(*detector), take->calibration);
+
   nlohmann::json result;
-  for (bool with_landmarks : {false, true}) {
+  // Landmark modes: none (depth only), truth (landmark rows from ground truth + noise: the solve
+  // cost without detection), dlib (detection + shape prediction + mapping on the colour image,
+  // then the solve: the real per-frame cost with landmarks).
+  for (const std::string mode : {"none", "truth", "dlib"}) {
     RunOptions run;
-    run.landmarks = with_landmarks;
+    run.landmarks = mode == "truth";
+    run.dlib = mode == "dlib" ? &dlib : nullptr;
     run.sender = sender->get();
-    std::cerr << "bench track: tracking " << (with_landmarks ? "with" : "without")
-              << " landmarks...\n";
+    std::cerr << "bench track: tracking, landmarks: " << mode << "...\n";
     auto res = run_take(model, *mapping, *take, run);
     if (!res) return report_failure(res.error());
     // Steady state: tracked frames after calibration (no acquisition, no identity fit).
-    std::vector<double> total, smooth, icp, weights, cpu, latency;
+    std::vector<double> total, smooth, icp, weights, cpu, latency, landmark, with_detection;
+    int detected = 0, steady = 0;
     for (const auto& r : *res) {
       if (!r.calibrated || !tracked(r.state) || r.times.acquire_ms > 0 ||
           r.times.calibrate_ms > 0) {
         continue;
       }
+      ++steady;
+      detected += r.detected ? 1 : 0;
       total.push_back(r.times.total_ms());
       smooth.push_back(r.times.smooth_ms);
       icp.push_back(r.times.icp_ms);
       weights.push_back(r.times.weights_ms);
       cpu.push_back(r.cpu_ms);
       latency.push_back(r.latency_ms);
+      landmark.push_back(r.landmark_ms);
+      with_detection.push_back(r.times.total_ms() + r.landmark_ms);
     }
-    const std::string key = with_landmarks ? "with_landmarks" : "without_landmarks";
-    result[key] = {
-        {"total_ms", to_json(stats_of(total))},    {"smooth_ms", to_json(stats_of(smooth))},
-        {"icp_ms", to_json(stats_of(icp))},        {"weights_ms", to_json(stats_of(weights))},
-        {"thread_cpu_ms", to_json(stats_of(cpu))}, {"latency_ms", to_json(stats_of(latency))}};
-    if (with_landmarks) {
-      result["ms_per_frame_with_landmarks"] = stats_of(total).mean;
-      result["ms_per_frame_with_landmarks_cpu"] = stats_of(cpu).mean;
-      result["latency_ms"] = stats_of(latency).mean;
-      result["latency_ms_p95"] = stats_of(latency).p95;
-    } else {
+    const std::string key = mode == "none"    ? "without_landmarks"
+                            : mode == "truth" ? "with_truth_landmarks"
+                                              : "with_dlib_landmarks";
+    result[key] = {{"tracker_ms", to_json(stats_of(total))},
+                   {"smooth_ms", to_json(stats_of(smooth))},
+                   {"icp_ms", to_json(stats_of(icp))},
+                   {"weights_ms", to_json(stats_of(weights))},
+                   {"thread_cpu_ms", to_json(stats_of(cpu))},
+                   {"latency_ms", to_json(stats_of(latency))},
+                   {"steady_frames", steady}};
+    if (mode == "none") {
       result["ms_per_frame"] = stats_of(total).mean;
       result["ms_per_frame_cpu"] = stats_of(cpu).mean;
       result["latency_ms_without_landmarks"] = stats_of(latency).mean;
+    } else if (mode == "truth") {
+      result["ms_per_frame_landmark_rows"] = stats_of(total).mean;
+      result["latency_ms_truth_landmarks"] = stats_of(latency).mean;
+    } else {
+      result[key]["dlib_ms"] = to_json(stats_of(landmark));
+      result[key]["frames_with_detection"] = detected;
+      result["ms_per_frame_with_landmarks"] = stats_of(with_detection).mean;
+      result["ms_per_frame_with_landmarks_cpu"] = stats_of(cpu).mean;
+      result["dlib_ms_per_frame"] = stats_of(landmark).mean;
+      result["latency_ms"] = stats_of(latency).mean;
+      result["latency_ms_p95"] = stats_of(latency).p95;
     }
   }
   auto tracker = FaceTracker::create(model, take->intrinsics);
@@ -925,13 +1012,20 @@ int run_bench_track(const ParsedOptions& options) {
       {"ms_per_frame",
        "mean wall time of track() on steady-state frames: temporal smoothing "
        "(k = 5) + rigid ICP + blendshape solve, depth only"},
-      {"ms_per_frame_with_landmarks", "the same with 51 landmark points in the weight solve"},
+      {"ms_per_frame_with_landmarks",
+       "the same plus dlib on the colour image (HOG detection in a window around the last "
+       "face, 68-point shape prediction, mapping into the depth image) and the 51 landmark "
+       "rows in the weight solve; dlib_ms_per_frame is the detection part alone"},
+      {"ms_per_frame_landmark_rows",
+       "tracker only, with ground-truth landmarks (+ 1.5 px noise) in the weight solve: the "
+       "solve's landmark cost without detection"},
+      {"ms_per_frame_with_landmarks_cpu", "thread CPU time of the dlib run (detection included)"},
       {"ms_per_frame_cpu",
        "thread CPU time of the same calls (the one-core cost even when other "
        "processes share the core; wall times include their preemption)"},
       {"latency_ms",
-       "frame arrival (before track()) -> the last VMC datagram handed to the "
-       "kernel (lo_send_bundle returned), loopback UDP, with landmarks"},
+       "frame arrival (before detection and track()) -> the last VMC datagram handed to the "
+       "kernel (lo_send_bundle returned), loopback UDP, with dlib landmarks"},
       {"frames", "pre-rendered synthetic take in memory (seed 7, sensor noise on)"}};
   std::cout << result.dump(2) << std::endl;
   return kExitOk;
@@ -939,6 +1033,80 @@ int run_bench_track(const ParsedOptions& options) {
 
 // ---------------------------------------------------------------------------------------------
 // track --camera URI
+
+// The take layout in the session store (TakeInfo): per frame tx ty tz (mm) qx qy qz qw of the
+// streamed camera_from_model pose, the 52 ARKit curves under their camelCase names, then one
+// extra column "timestamp_s": the frame's camera time relative to the take's first frame (the
+// store's TakeInfo has only a frame rate; the Live Link exporter ignores columns that are not
+// ARKit curves, so it still reads the take).
+constexpr const char* kTakeTimestampColumn = "timestamp_s";
+
+std::vector<std::string> take_columns() {
+  std::vector<std::string> names;
+  for (auto name : kArkitNames) names.emplace_back(name);
+  names.emplace_back(kTakeTimestampColumn);
+  return names;
+}
+
+void append_take_frame(const ArkitFrame& frame, double take_start_s, std::vector<float>& values) {
+  const RigidPose& p = frame.camera_from_model;
+  const Eigen::Quaterniond q = p.rotation.normalized();
+  const float pose[7] = {static_cast<float>(p.translation.x()),
+                         static_cast<float>(p.translation.y()),
+                         static_cast<float>(p.translation.z()),
+                         static_cast<float>(q.x()),
+                         static_cast<float>(q.y()),
+                         static_cast<float>(q.z()),
+                         static_cast<float>(q.w())};
+  values.insert(values.end(), pose, pose + 7);
+  values.insert(values.end(), frame.weights.begin(), frame.weights.end());
+  values.push_back(static_cast<float>(frame.time_s - take_start_s));
+}
+
+// The subject's newest stored rig as a TrackerRig over the model's fitting shapes (matched by
+// the model's expression names or the ARKit names of one-to-one curves). nullopt: no rig.
+struct LoadedRig {
+  RigId id = 0;
+  RigData data;
+  int matched = 0;
+  TrackerRig view;
+};
+Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, SubjectId subject,
+                                                  const FaceModel& model,
+                                                  const ArkitMapping& mapping) {
+  auto rigs = store.rigs(subject);
+  if (!rigs) return rigs.failure();
+  if (rigs->empty()) return std::optional<LoadedRig>{};
+  LoadedRig out;
+  out.id = rigs->front().id;  // newest first
+  auto data = store.read_rig(out.id);
+  if (!data) return data.failure();
+  out.data = std::move(*data);
+  if (out.data.vertex_count() != model.vertex_count) {
+    return fail("rig " + std::to_string(out.id) + " of subject " + std::to_string(subject) +
+                " has " + std::to_string(out.data.vertex_count()) + " vertices, the face model " +
+                std::to_string(model.vertex_count) +
+                "; the tracker needs a rig in the face model's topology (drop --rig-from-store "
+                "to calibrate the identity instead)");
+  }
+  out.view.neutral = out.data.neutral;
+  for (int s = 0; s < out.data.shape_count(); ++s) {
+    const std::string& name = out.data.shape_names[static_cast<std::size_t>(s)];
+    int index = model.expression_index(name);
+    if (index < 0) {
+      for (int a = 0; a < kArkitShapeCount; ++a) {
+        const auto& src = mapping.sources[static_cast<std::size_t>(a)];
+        if ((kArkitNames[a] == name || kLiveLinkNames[a] == name) && src[0] >= 0 && src[1] < 0) {
+          index = src[0];
+        }
+      }
+    }
+    if (index < 0 || index >= model.fitting_expression_count) continue;
+    out.view.shapes.emplace_back(index, out.data.shapes[static_cast<std::size_t>(s)]);
+    ++out.matched;
+  }
+  return std::optional<LoadedRig>(std::move(out));
+}
 
 int run_track(const ParsedOptions& options) {
   const std::string uri = options.get("camera");
@@ -950,14 +1118,55 @@ int run_track(const ParsedOptions& options) {
   if (!calibration || *calibration < 1)
     return report_failure({"--calibration-frames must be >= 1"});
   const std::string landmark_source = options.get("landmarks");
-  if (landmark_source != "truth" && landmark_source != "none") {
-    return report_failure({"--landmarks must be truth or none"});
+  if (landmark_source != "truth" && landmark_source != "none" && landmark_source != "dlib") {
+    return report_failure({"--landmarks must be dlib, truth or none"});
+  }
+  const std::string reacquire = options.get("reacquire");
+  if (reacquire != "dlib" && reacquire != "depth") {
+    return report_failure({"--reacquire must be dlib or depth"});
   }
   auto model_result = shared_model();
   if (!model_result) return report_failure(model_result.error());
   const FaceModel& model = **model_result;
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return report_failure(mapping.error());
+
+  // Storage: takes go to --store (a new subject unless --subject names one); --rig-from-store
+  // tracks with the subject's newest stored rig instead of calibrating an identity.
+  const std::string store_path = options.get("store");
+  const bool rig_from_store = options.flag("rig-from-store");
+  std::optional<SessionStore> store;
+  std::optional<SubjectId> subject;
+  if (!options.get("subject").empty()) {
+    auto id = options.get_int("subject");
+    if (!id || *id <= 0)
+      return report_failure({"--subject must be a subject id (see `facebooth store info`)"});
+    subject = *id;
+  }
+  if ((subject || rig_from_store) && store_path.empty()) {
+    return report_failure({"--subject and --rig-from-store need --store DIR"});
+  }
+  if (rig_from_store && !subject) {
+    return report_failure({"--rig-from-store needs --subject ID (whose rig to load)"});
+  }
+  if (!store_path.empty()) {
+    auto opened = SessionStore::open(store_path);
+    if (!opened) return report_failure(opened.error());
+    store.emplace(std::move(*opened));
+    if (subject) {
+      if (auto known = store->subject(*subject); !known) {
+        return report_failure({"there is no subject " + std::to_string(*subject) + " in " +
+                               store_path + " (see `facebooth store info --store " + store_path +
+                               "`), or omit --subject to record under a new subject"});
+      }
+    }
+  }
+  std::optional<LoadedRig> rig;
+  if (rig_from_store) {
+    auto loaded = load_subject_rig(*store, *subject, model, *mapping);
+    if (!loaded) return report_failure(loaded.error());
+    rig = std::move(*loaded);
+  }
 
   auto camera = open_started_camera(uri);
   if (!camera) return report_failure(camera.error());
@@ -966,6 +1175,37 @@ int run_track(const ParsedOptions& options) {
   tracker_options.calibration_frames = static_cast<int>(*calibration);
   auto tracker = FaceTracker::create(model, info.depth_intrinsics, tracker_options);
   if (!tracker) return report_failure(tracker.error());
+  std::string subject_model = "identity calibrated on the first frames";
+  if (rig) {
+    if (auto r = (*tracker)->set_rig(rig->view); !r) return report_failure(r.error());
+    subject_model =
+        "stored rig " + std::to_string(rig->id) + " (" + std::to_string(rig->matched) + " shapes)";
+  } else if (rig_from_store) {
+    subject_model = "subject " + std::to_string(*subject) +
+                    " has no stored rig: identity calibrated on the first frames";
+  }
+  std::vector<float> take_values;
+  int take_frames = 0;
+  double take_start_s = 0.0;
+  // dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
+  // for (--reacquire dlib: detection gives the tracker a starting pose after loss).
+  std::optional<TrackLandmarkSource> detector;
+  std::string reacquire_note = "depth only (nearest surface, last pose)";
+  if (landmark_source == "dlib" || reacquire == "dlib") {
+    auto loaded = load_landmark_detector(options.get("shape-predictor"));
+    if (loaded) {
+      detector.emplace(std::move(*loaded), info.calibration);
+      reacquire_note =
+          reacquire == "dlib" ? "dlib detection on the colour image, then depth" : reacquire_note;
+    } else if (landmark_source == "dlib") {
+      return report_failure(loaded.error());
+    } else {
+      std::cerr << "track: " << loaded.error().message << "; re-acquiring from depth only\n";
+    }
+  }
+  std::vector<double> landmark_ms;
+  long long detections = 0, detection_misses = 0;
+  bool face_before = false;
 
   std::unique_ptr<VmcSender> sender;
   if (!options.get("osc").empty()) {
@@ -1029,7 +1269,18 @@ int run_track(const ParsedOptions& options) {
         landmarks = &truth_landmarks;
       }
     }
+    if (detector && (landmark_source == "dlib" || (reacquire == "dlib" && !face_before))) {
+      const LandmarkFrameResult found = detector->detect(frame.color, frame.depth_mm);
+      landmark_ms.push_back(found.ms);
+      if (found.found) {
+        ++detections;
+        landmarks = detector->landmarks();
+      } else {
+        ++detection_misses;
+      }
+    }
     (*tracker)->track(frame.depth_mm, frame.depth_host_time_s, landmarks, report);
+    face_before = report.face_found;
     out.index = frame.index;
     out.time_s = frame.depth_host_time_s;
     out.face_found = report.face_found;
@@ -1046,6 +1297,11 @@ int run_track(const ParsedOptions& options) {
     cost.push_back(report.times.total_ms());
     if (csv) {
       if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());
+    }
+    if (store) {
+      if (take_frames == 0) take_start_s = out.time_s;
+      append_take_frame(out, take_start_s, take_values);
+      ++take_frames;
     }
     if (print_sse) {
       format_sse_event(out, sse);
@@ -1066,6 +1322,26 @@ int run_track(const ParsedOptions& options) {
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json result;
+  if (store && take_frames > 0) {
+    if (!subject) {
+      auto added = store->add_subject("tracking take");
+      if (!added) return report_failure(added.error());
+      subject = *added;
+    }
+    TakeInfo take;
+    take.subject = *subject;
+    take.fps = info.fps > 0 ? info.fps : 30.0;
+    take.shape_names = take_columns();
+    take.frame_count = take_frames;
+    auto id = store->add_take(take, take_values);
+    if (!id) return report_failure(id.error());
+    result["take"] = *id;
+    result["subject"] = *subject;
+    result["store"] = store_path;
+  } else if (store) {
+    result["take"] = nullptr;  // no frame: nothing to store
+  }
+  result["subject_model"] = subject_model;
   result["camera"] = uri;
   result["frames"] = read;
   result["frames_with_face"] = found;
@@ -1076,9 +1352,16 @@ int run_track(const ParsedOptions& options) {
   result["fps"] = seconds > 0 ? static_cast<double>(read) / seconds : 0.0;
   result["ms_per_frame"] = stats_of(cost).mean;
   result["latency_ms"] = to_json(stats_of(latency));
-  result["landmarks"] = landmark_source == "truth"
-                            ? "ground truth + N(0, 1.5 px) (synthetic camera only)"
-                            : "none (depth only)";
+  result["landmarks"] =
+      landmark_source == "truth"  ? "ground truth + N(0, 1.5 px) (synthetic camera only)"
+      : landmark_source == "dlib" ? "dlib HOG + shape_predictor_68 on the colour image"
+                                  : "none (depth only)";
+  result["reacquire"] = reacquire_note;
+  if (detector) {
+    result["detections"] = detections;
+    result["detection_misses"] = detection_misses;
+    result["landmark_ms"] = to_json(stats_of(landmark_ms));
+  }
   if (sender) {
     result["osc"] = sender->options().host + ":" + std::to_string(sender->options().port);
     result["osc_datagrams"] = sender->datagrams_sent();
@@ -1101,27 +1384,52 @@ std::vector<Command> tracking_commands() {
         {{"seeds", "N", "synthetic takes (seeds 1..N)", "5"},
          {"frames", "N", "frames per take", "150"},
          {"active", "N", "animated shapes per take", "5"},
+         {"landmarks", "truth|dlib",
+          "landmarks of the with-landmarks runs: ground truth + 1.5 px noise, or dlib on the "
+          "synthetic colour render",
+          "truth"},
+         {"shape-predictor", "PATH", "dlib 68-point model (--landmarks dlib)", kShapePredictor},
          {"set", "K=V,...", "tracker option overrides for tuning (e.g. temporal_frames=1)", ""},
          {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
        run_eval_track},
       {{"bench track",
         "per-frame tracking cost (ICP + weight solve) and frame-to-OSC latency, one core",
-        "Prints one JSON object: ms_per_frame (depth only), ms_per_frame_with_landmarks, "
-        "latency_ms (frame arrival -> VMC datagrams sent on loopback) and the stage split.",
+        "Prints one JSON object: ms_per_frame (depth only), ms_per_frame_with_landmarks (dlib "
+        "detection on the colour image included), latency_ms (frame arrival -> VMC datagrams "
+        "sent on loopback) and the stage split.",
         {{"frames", "N", "frames of the synthetic take", "150"},
+         {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
          {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
        run_bench_track},
       {{"track",
         "run the tracker live on a camera; stream VMC over OSC and/or record Live Link CSV",
-        "Calibrates the identity on the first frames (hold a neutral face), then tracks. Prints "
-        "a JSON summary at the end; loss of the face is reported on stderr and tracking "
-        "resumes when the face is found again.",
+        "Calibrates the identity on the first frames (hold a neutral face), or loads the "
+        "subject's stored rig (--rig-from-store), then tracks. Prints a JSON summary at the end "
+        "(with --store: the stored take's id); loss of the face is reported on stderr and "
+        "tracking resumes when the face is found again.",
         {{"camera", "URI", "camera URI, e.g. synthetic:frames=300 or freenect:0", ""},
          {"osc", "HOST:PORT", "send VMC (OSC/UDP) here; port 39539 if omitted", ""},
          {"csv", "FILE", "record a Live Link Face CSV take", ""},
+         {"store", "DIR",
+          "record the take in this session store (export it with `facebooth "
+          "export --take ID --store DIR --out OUT`)",
+          ""},
+         {"subject", "ID", "store the take under this subject (default: a new subject)", ""},
+         {"rig-from-store", "",
+          "track with --subject's newest stored rig (face model topology) instead of "
+          "calibrating; falls back to calibration when the subject has no rig",
+          ""},
          {"frames", "N", "stop after N frames (0 = until the stream ends)", "0"},
          {"calibration-frames", "N", "frames for the identity fit", "10"},
-         {"landmarks", "truth|none", "2D landmark source (truth: synthetic camera only)", "none"},
+         {"landmarks", "dlib|truth|none",
+          "2D landmarks in the weight solve: dlib on the colour image every frame, ground truth "
+          "+ noise (synthetic camera only), or none",
+          "none"},
+         {"reacquire", "dlib|depth",
+          "finding the face at the start and after loss: dlib detection on the colour image "
+          "(falls back to depth when the model is missing), or depth only",
+          "dlib"},
+         {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
          {"sse", "", "also print the kiosk's SSE events to stderr", ""}}},
        run_track},
   };

@@ -173,6 +173,58 @@ TEST(Tracker, KnownIdentityExpressionWithNoise) {
   EXPECT_LT((report.camera_from_model.apply(c_model) - c).norm(), 1.0);
 }
 
+// A stored subject rig (set_rig): the subject's neutral and personal shapes replace the model's
+// identity face and deltas. The rendered face uses jawOpen at 0.5; the rig's jawOpen shape is
+// the model's jawOpen delta doubled (a personal shape), so the rig tracker must report 0.25 for
+// it, while a tracker with the model's deltas would report ~0.5.
+TEST(Tracker, StoredRigReplacesIdentityAndShapes) {
+  SyntheticOptions o;
+  o.seed = 4;
+  o.motion = SyntheticMotion::kStatic;
+  o.frame_count = 10;
+  o.expression_weights.assign(model().expression_count, 0.0f);
+  const int jaw = model().expression_index("jawOpen");
+  o.expression_weights[jaw] = 0.5f;
+  const Frames frames = render(o);
+  ASSERT_EQ(frames.depth.size(), 10u);
+  const std::size_t size = 3 * static_cast<std::size_t>(model().vertex_count);
+  std::vector<float> neutral(size);
+  model().evaluate(frames.truth[0].identity_coeffs, {}, neutral);
+  std::vector<float> jaw_shape(size);
+  const auto delta = model().expression_shape(jaw);
+  for (std::size_t i = 0; i < size; ++i) jaw_shape[i] = neutral[i] + 2.0f * delta[i];
+  TrackerRig rig;
+  rig.neutral = neutral;
+  rig.shapes.emplace_back(jaw, jaw_shape);
+
+  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  ASSERT_TRUE(tracker.ok()) << tracker.error().message;
+  ASSERT_TRUE((*tracker)->set_rig(rig).ok());
+  EXPECT_TRUE((*tracker)->calibrated());
+  TrackReport report;
+  for (std::size_t f = 0; f < frames.depth.size(); ++f)
+    (*tracker)->track(frames.depth[f], f / 30.0, nullptr, report);
+  ASSERT_EQ(report.state, TrackState::kTracking);
+  EXPECT_NEAR(report.weights[jaw], 0.25f, 0.06f);
+  const auto& t = frames.truth.back();
+  EXPECT_LT(rotation_error_deg(report.camera_from_model, t.camera_from_model), 0.5);
+  const Eigen::Vector3d c = t.landmarks_3d[30];
+  const Eigen::Vector3d c_model = t.camera_from_model.inverse().apply(c);
+  EXPECT_LT((report.camera_from_model.apply(c_model) - c).norm(), 1.0);
+
+  // Back to the model's deltas with the same identity: jawOpen reads 0.5 again.
+  ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
+  for (std::size_t f = 0; f < frames.depth.size(); ++f)
+    (*tracker)->track(frames.depth[f], 1.0 + f / 30.0, nullptr, report);
+  EXPECT_NEAR(report.weights[jaw], 0.5f, 0.08f);
+
+  // A rig in another topology is refused with an error.
+  TrackerRig wrong;
+  std::vector<float> small(30, 0.0f);
+  wrong.neutral = small;
+  EXPECT_FALSE((*tracker)->set_rig(wrong).ok());
+}
+
 // Unknown identity: calibration on the first frames, then a neutral face stays neutral, and
 // head motion is followed (pose compared after the calibrated frame's constant offset).
 TEST(Tracker, CalibratesAndFollowsAHeadTurn) {

@@ -1,0 +1,190 @@
+// Takes through the real facebooth binary: `facebooth track --store` records a take in the session
+// store, `facebooth export --take` writes it as Live Link Face CSV, and the CSV matches what the
+// tracker streamed (the live `--csv` written from the tracker's outputs in the same run) and
+// what the store holds. Also `--rig-from-store`: a subject with a stored rig is tracked without
+// calibration; a subject without one falls back to calibrating.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "algo/tracking/arkit.hpp"
+#include "storage/asset_files.hpp"
+#include "storage/export/livelink_csv.hpp"
+#include "storage/export/synthetic_subject.hpp"
+#include "storage/session_store.hpp"
+
+namespace fb {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  int exit_code = -1;
+  std::string out;  // stdout only; stderr goes to the test log
+};
+
+Run facebooth(const std::string& args) {
+  Run r;
+  const std::string command = std::string(FB_CLI_PATH) + " " + args;
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
+  if (!pipe) return r;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) r.out.append(buf, n);
+  const int status = ::pclose(pipe.release());
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class TrackStoreCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("fb-track-store-" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "-" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(TrackStoreCli, TrackStoreExportMatchesTheTrackedValues) {
+  const fs::path store_dir = dir_ / "store";
+  const fs::path live_csv = dir_ / "live.csv";
+  constexpr int kFrames = 45;
+  auto r = facebooth("track --camera synthetic:frames=45,seed=3 --landmarks truth --store " +
+                     store_dir.string() + " --csv " + live_csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j["take"].is_number_integer()) << r.out;
+  const TakeId take = j["take"].get<TakeId>();
+  EXPECT_EQ(j["frames"], kFrames);
+  EXPECT_GE(j["frames_with_face"].get<int>(), kFrames - 2) << r.out;
+
+  // The stored take: pose, the 52 ARKit curves by name, and the frame times.
+  TakeInfo info;
+  {
+    StoreOptions ro;
+    ro.read_only = true;
+    auto store = SessionStore::open(store_dir, ro);
+    ASSERT_TRUE(store.ok()) << store.error().message;
+    auto values = store->read_take(take, &info);
+    ASSERT_TRUE(values.ok()) << values.error().message;
+    EXPECT_EQ(info.subject, j["subject"].get<SubjectId>());
+    ASSERT_EQ(info.frame_count, kFrames);
+    ASSERT_EQ(info.shape_names.size(), static_cast<std::size_t>(kArkitShapeCount + 1));
+    EXPECT_EQ(info.shape_names[0], "eyeBlinkLeft");
+    EXPECT_EQ(info.shape_names[static_cast<std::size_t>(kArkitShapeCount)], "timestamp_s");
+    EXPECT_NEAR(info.fps, 30.0, 1e-9);
+    const int stride = info.stride();
+    for (int f = 0; f < kFrames; ++f) {
+      const float t = (*values)[static_cast<std::size_t>(f * stride + stride - 1)];
+      EXPECT_NEAR(t, f / 30.0, 1e-3) << "frame " << f;
+      // A unit quaternion and a face ~0.7 m in front of the camera.
+      const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+      EXPECT_NEAR(std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]), 1.0, 1e-4);
+      EXPECT_GT(v[2], 500.0f);
+      EXPECT_LT(v[2], 900.0f);
+    }
+  }
+
+  // Export and compare with the live CSV of the same run, curve by curve and frame by frame.
+  const fs::path out = dir_ / "export";
+  r = facebooth("export --take " + std::to_string(take) + " --store " + store_dir.string() +
+                " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const fs::path exported = out / ("take_" + std::to_string(take) + ".csv");
+  ASSERT_TRUE(fs::exists(exported));
+  auto rows = read_livelink_csv(exported, 30.0);
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  auto live = read_livelink_csv(live_csv, 30.0);
+  ASSERT_TRUE(live.ok()) << live.error().message;
+  ASSERT_EQ(rows->size(), static_cast<std::size_t>(kFrames));
+  ASSERT_EQ(live->size(), rows->size());
+  double max_weight_diff = 0, max_angle_diff = 0, weight_sum = 0;
+  for (std::size_t f = 0; f < rows->size(); ++f) {
+    const LiveLinkRow& a = (*rows)[f];
+    const LiveLinkRow& b = (*live)[f];
+    EXPECT_NEAR(a.time_s - (*rows)[0].time_s, b.time_s - (*live)[0].time_s, 2e-3) << f;
+    for (int k = 0; k < kArkitShapeCount; ++k) {
+      max_weight_diff = std::max(max_weight_diff, std::abs(double(a.weights[k]) - b.weights[k]));
+      weight_sum += a.weights[k];
+    }
+    max_angle_diff =
+        std::max({max_angle_diff, std::abs(a.head.yaw - b.head.yaw),
+                  std::abs(a.head.pitch - b.head.pitch), std::abs(a.head.roll - b.head.roll)});
+  }
+  // 6 decimals in the CSV; the pose goes through float in the store.
+  EXPECT_LT(max_weight_diff, 2e-6);
+  EXPECT_LT(max_angle_diff, 1e-5);
+  // Not a take of zeros: the synthetic head turns (motion=headturn) and the curves are written.
+  double yaw_range = 0;
+  for (const auto& row : *rows) yaw_range = std::max(yaw_range, std::abs(row.head.yaw));
+  EXPECT_GT(yaw_range, 5.0 * M_PI / 180.0);
+}
+
+TEST_F(TrackStoreCli, StoredRigSkipsCalibrationAndMissingRigFallsBack) {
+  auto model = load_face_model(fs::path(FB_DATA_DIR) / "facemodel.fbfm");
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  const fs::path store_dir = dir_ / "store";
+  SubjectId with_rig = 0, without_rig = 0;
+  {
+    auto store = SessionStore::open(store_dir);
+    ASSERT_TRUE(store.ok()) << store.error().message;
+    // The mean face's rig (identity 0) matches the camera's identity=neutral subject.
+    SyntheticSubjectOptions o;
+    o.identity_sigma = 0.0f;
+    o.pose_count = 2;
+    auto subject = make_synthetic_subject(*model, o);
+    ASSERT_TRUE(subject.ok()) << subject.error().message;
+    auto added = store->add_subject("rigged");
+    ASSERT_TRUE(added.ok());
+    with_rig = *added;
+    ASSERT_TRUE(store->add_rig(with_rig, std::nullopt, subject->rig).ok());
+    auto other = store->add_subject("no rig yet");
+    ASSERT_TRUE(other.ok());
+    without_rig = *other;
+  }
+  const std::string camera = "--camera synthetic:frames=25,identity=neutral,seed=4 ";
+  auto r = facebooth("track " + camera + "--store " + store_dir.string() + " --subject " +
+                     std::to_string(with_rig) + " --rig-from-store");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_NE(j["subject_model"].get<std::string>().find("stored rig"), std::string::npos) << r.out;
+  EXPECT_FALSE(j["states"].contains("calibrating")) << r.out;
+  EXPECT_GE(j["frames_with_face"].get<int>(), 24) << r.out;
+  EXPECT_EQ(j["subject"].get<SubjectId>(), with_rig);
+
+  r = facebooth("track " + camera + "--store " + store_dir.string() + " --subject " +
+                std::to_string(without_rig) + " --rig-from-store");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_NE(j["subject_model"].get<std::string>().find("no stored rig"), std::string::npos)
+      << r.out;
+  EXPECT_GT(j["states"].value("calibrating", 0), 0) << r.out;
+  EXPECT_EQ(j["subject"].get<SubjectId>(), without_rig);
+
+  // Bad input is a clear error, not a crash.
+  r = facebooth("track " + camera + "--store " + store_dir.string() + " --subject 999");
+  EXPECT_NE(r.exit_code, 0);
+  r = facebooth("track " + camera + "--rig-from-store");
+  EXPECT_NE(r.exit_code, 0);
+
+  // Both subjects' takes are in the store.
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(store_dir, ro);
+  ASSERT_TRUE(store.ok());
+  EXPECT_EQ(store->takes(with_rig)->size(), 1u);
+  EXPECT_EQ(store->takes(without_rig)->size(), 1u);
+}
+
+}  // namespace
+}  // namespace fb

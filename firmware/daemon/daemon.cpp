@@ -77,6 +77,19 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   impl->options = options;
   if (auto ok = validate_daemon_config(config); !ok) return ok.failure();
 
+  if (options.handle_signals) {
+    // Block the stop signals first, so every thread started later (ours, and any a library
+    // starts while loading models) inherits the mask; they are
+    // then only ever read from the daemon's signalfd (no async handler, no global state).
+    sigset_t mask;
+    sigemptyset(&mask);
+    sigaddset(&mask, SIGTERM);
+    sigaddset(&mask, SIGINT);
+    if (pthread_sigmask(SIG_BLOCK, &mask, nullptr) != 0) return fail("cannot block signals");
+    impl->signal_fd.reset(::signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK));
+    if (impl->signal_fd.get() < 0)
+      return fail(std::string("signalfd failed: ") + std::strerror(errno));
+  }
   impl->token = config.http.token;
   if (!config.http.token_file.empty()) {
     std::ifstream in(config.http.token_file);
@@ -97,6 +110,11 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (!records) return fail("cannot open the session store: " + records.error().message);
   impl->records = std::move(*records);
 
+  // The landmark model and the face model, loaded once (the largest part of the daemon's memory).
+  if (auto ok = impl->start_fitter(); !ok)
+    return fail("landmarks and quick fit: " + ok.error().message +
+                " (or set [session] quick_fit = false)");
+
   auto gpio = open_gpio(config.gpio);
   if (!gpio) return gpio.failure();
   impl->gpio = std::move(*gpio);
@@ -108,18 +126,6 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (auto ok = impl->preview_camera->start(); !ok)
     return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
 
-  if (options.handle_signals) {
-    // Block the stop signals here so every thread started later inherits the mask; they are
-    // then only ever read from the daemon's signalfd (no async handler, no global state).
-    sigset_t mask;
-    sigemptyset(&mask);
-    sigaddset(&mask, SIGTERM);
-    sigaddset(&mask, SIGINT);
-    if (pthread_sigmask(SIG_BLOCK, &mask, nullptr) != 0) return fail("cannot block signals");
-    impl->signal_fd.reset(::signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK));
-    if (impl->signal_fd.get() < 0)
-      return fail(std::string("signalfd failed: ") + std::strerror(errno));
-  }
   impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
   if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
 
@@ -147,6 +153,7 @@ Result<void> Daemon::start() {
   if (d.started.exchange(true)) return success();
   d.gpio->set_pattern(led_for(KioskState::kIdle));
   d.worker_thread = std::thread([&d] { d.worker_loop(); });
+  d.fit_thread = std::thread([&d] { d.fit_loop(); });
   d.gpio_thread = std::thread([&d] { d.gpio_loop(); });
   if (d.http) {
     d.http_thread = std::thread([&d] { d.http->listen_after_bind(); });
@@ -192,6 +199,9 @@ void Daemon::request_stop() {
   [[maybe_unused]] auto n = ::write(impl_->wake_fd.get(), &one, sizeof one);
   impl_->queue_cv.notify_all();
   impl_->status_cv.notify_all();
+  { std::lock_guard lock(impl_->fit_mutex); }
+  impl_->fit_cv.notify_all();
+  impl_->live_cv.notify_all();
 }
 
 void Daemon::stop() {
@@ -200,9 +210,14 @@ void Daemon::stop() {
   if (d.started) sd_notify(0, "STOPPING=1");
   d.queue_cv.notify_all();
   d.status_cv.notify_all();
+  {
+    std::lock_guard lock(d.fit_mutex);  // the fit thread checks `stopping` under this lock
+  }
+  d.fit_cv.notify_all();
+  d.live_cv.notify_all();
   const auto t0 = Clock::now();
   if (d.http) d.http->stop();
-  for (auto* t : {&d.worker_thread, &d.gpio_thread, &d.http_thread})
+  for (auto* t : {&d.worker_thread, &d.fit_thread, &d.gpio_thread, &d.http_thread})
     if (t->joinable()) t->join();
   if (d.preview_camera) d.preview_camera->stop();
   if (d.started.exchange(false))
@@ -269,10 +284,25 @@ nlohmann::json Daemon::Impl::status_json() const {
       {"store", d.records->backend()},
       {"uptime_s", ms_since(d.created_at) / 1000.0},
       {"start_to_ready_ms", s.start_to_ready_ms},
-      // The device pipeline after fusion: these stages report 'pending' until their modules
-      // (algo/landmarks, algo/fitting, algo/tracking) are wired in.
-      {"stages", {{"fusion", "on"}, {"landmarks", "pending"}, {"quick_fit", "pending"}}},
-      {"tracking", {{"pipeline", "pending"}, {"osc_target", d.config.streaming.osc_target}}},
+      // The device pipeline after fusion.
+      {"stages",
+       {{"fusion", "on"},
+        {"landmarks", d.fitter ? "dlib 68-point" : d.fitter_error},
+        {"quick_fit", d.fitter ? "on" : d.fitter_error},
+        {"landmark_model_load_ms", d.fitter ? d.fitter->landmark_model_load_ms() : 0.0},
+        {"fit_stage", s.fit_stage},
+        {"store_keeps_fits", d.records->keeps_fits()}}},
+      {"tracking",
+       {{"pipeline", d.fitter ? "on" : "off: " + d.fitter_error},
+        {"vmc_target", !d.config.streaming.vmc_target.empty() ? d.config.streaming.vmc_target
+                                                              : d.config.streaming.osc_target},
+        {"state", s.tracking_state},
+        {"identity", s.tracking_identity},
+        {"frames", s.tracking_frames},
+        {"vmc_datagrams", s.vmc_datagrams},
+        {"last_take", s.last_take},
+        {"note", s.tracking_note},
+        {"live", "/api/tracking/events"}}},
   };
   if (s.capture_index >= 0 && s.capture_index < static_cast<int>(d.guide.size())) {
     j["expression"] = {{"name", d.guide[s.capture_index].name},
@@ -284,8 +314,24 @@ nlohmann::json Daemon::Impl::status_json() const {
                {"fused_fraction", s.last_qa->fused_fraction},
                {"passed", s.last_qa->passed},
                {"reason", s.last_qa->reason},
-               {"landmarks", "pending"},
-               {"fit", "pending"}};
+               {"landmarks", s.last_qa->landmarks},
+               {"fit", s.last_qa->fit},
+               {"landmark_score", s.last_qa->landmark_score},
+               {"landmarks_3d", s.last_qa->landmarks_3d},
+               {"landmark_error_mm", s.last_qa->landmark_error_mm},
+               {"fit_rms_mm", s.last_qa->fit_rms_mm},
+               {"fit_rms_initial_mm", s.last_qa->fit_rms_initial_mm},
+               {"fit_ms", s.last_qa->fit_ms},
+               {"corrections", s.last_qa->corrections}};
+    if (s.qa_capture.index >= 0) {
+      j["qa"]["capture"] = {
+          {"session", s.qa_capture.session},
+          {"index", s.qa_capture.index},
+          {"revision", s.qa_capture.revision},
+          {"image", "/api/qa/capture.bmp?r=" + std::to_string(s.qa_capture.revision)},
+          {"points", s.qa_capture.points},
+          {"corrected", s.qa_capture.corrected}};
+    }
   }
   if (!s.error.empty()) j["error"] = s.error;
   if (!s.last_export.empty()) j["last_export"] = s.last_export.string();
@@ -357,7 +403,10 @@ void Daemon::Impl::worker_loop() {
         queue.pop_front();
       }
     }
-    if (stopping) break;
+    if (stopping) {
+      if (tracker) stop_tracking();  // the take so far is stored, not lost
+      break;
+    }
     if (input) {
       handle(*input);
       continue;
@@ -396,33 +445,6 @@ void Daemon::Impl::preview_tick() {
   update_status([](StatusData& s) { ++s.frames_total; });
 }
 
-void Daemon::Impl::tracking_tick() {
-  // The tracking pipeline (algo/tracking) plugs in here; until it lands the loop still runs the
-  // camera at its rate so the preview, the watchdog and the frame counters are live.
-  const auto t0 = Clock::now();
-  RgbdFrame frame;
-  auto got = preview_camera->next_frame(frame, std::chrono::milliseconds(100));
-  if (got && *got == FrameStatus::kEndOfStream) {
-    preview_camera->stop();
-    if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start())
-      preview_camera = std::move(*reopened);
-    return;
-  }
-  if (!got || *got != FrameStatus::kFrame) return;
-  {
-    std::lock_guard lock(preview_mutex);
-    make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
-  }
-  update_status([](StatusData& s) {
-    ++s.frames_total;
-    ++s.tracking_frames;
-  });
-  if (config.camera.realtime) {
-    const auto period = std::chrono::duration<double>(1.0 / preview_camera->info().fps);
-    std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(period));
-  }
-}
-
 bool Daemon::Impl::cancel_pending() {
   std::lock_guard lock(queue_mutex);
   for (auto it = queue.begin(); it != queue.end(); ++it) {
@@ -436,6 +458,13 @@ bool Daemon::Impl::cancel_pending() {
 
 void Daemon::Impl::handle(const QueuedInput& first) {
   QueuedInput in = first;
+  if (in.session != 0 && (in.input == KioskInput::kQaPassed || in.input == KioskInput::kLastDone ||
+                          in.input == KioskInput::kQaFailed || in.input == KioskInput::kFailed)) {
+    // An outcome from the fit thread: it only counts for the session it was computed for (a
+    // cancel or a new session in between makes it stale).
+    std::lock_guard lock(status_mutex);
+    if (status.session != in.session) return;
+  }
   while (!stopping) {
     KioskState state;
     {
@@ -524,8 +553,8 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       return *took ? KioskInput::kTakeDone : KioskInput::kCancel;  // false = cancelled/stopping
     }
     case KioskAction::kProcess: {
-      // Fused depth and QA come from the take; landmarks and the quick fit are 'pending' until
-      // algo/landmarks and algo/fitting are wired in here (status "stages").
+      // Landmarks, quick fit, QA and the commit run on the fit thread; the frame loop goes on
+      // (preview, watchdog) and the outcome comes back as a queued input for this session.
       std::int64_t session;
       int index;
       {
@@ -533,26 +562,15 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
         session = status.session;
         index = status.capture_index;
       }
-      const QaReport qa = pending_qa;
-      CaptureCommit commit = std::move(pending_commit);
+      auto commit = std::make_shared<CaptureCommit>(std::move(pending_commit));
+      auto view = std::make_shared<CaptureView>(std::move(pending_view));
       pending_commit = {};
-      std::lock_guard lock(records_mutex);
-      *followup = true;
-      if (!qa.passed) {
-        if (auto ok = records->reject_capture(session, index, commit.qa_scores); !ok)
-          return failed(ok.error());
-        update_status([&](StatusData& s) { s.last_qa = qa; });
-        return KioskInput::kQaFailed;
-      }
-      if (auto ok = records->commit_capture(session, index, std::move(commit)); !ok)
-        return failed(ok.error());
-      auto s = records->session(session);
-      if (!s) return failed(s.error());
-      update_status([&](StatusData& st) {
-        st.last_qa = qa;
-        st.done_count = s->done_count;
+      pending_view = {};
+      update_status([](StatusData& s) { s.message = "Checking the capture (landmarks, fit)..."; });
+      post_fit_job([this, session, index, qa = pending_qa, commit, view](bool run) {
+        process_capture(session, index, qa, std::move(*commit), std::move(*view), run);
       });
-      return s->complete ? KioskInput::kLastDone : KioskInput::kQaPassed;
+      return in.input;
     }
     case KioskAction::kAbandon:
       update_status([&](StatusData& s) {
@@ -577,12 +595,18 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       });
       return in.input;
     }
-    case KioskAction::kStartTracking:
-      update_status([](StatusData& s) {
-        s.message = "Tracking mode (tracking pipeline pending). Press mode to go back.";
+    case KioskAction::kStartTracking: {
+      auto ok = start_tracking();
+      update_status([&](StatusData& s) {
+        s.message = ok ? "Tracking mode: look at the camera. Press mode to go back."
+                       : "Tracking mode without the tracker (" + ok.error().message +
+                             "). Press mode to go back.";
+        if (!ok) s.tracking_note = ok.error().message;
       });
       return in.input;
+    }
     case KioskAction::kStopTracking:
+      stop_tracking();
       update_status([](StatusData& s) { s.message = "Press the button to start"; });
       return in.input;
   }
@@ -689,6 +713,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   auto due = Clock::now();
   double rms_sum = 0;
   int fused = 0, recorded = 0;
+  RigidPose frontal_pose;
   long long dropped = 0;
   RgbdFrame frame;
   while (recorded < n) {
@@ -716,6 +741,11 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     if (*got == FrameStatus::kTimeout) continue;
     const FrameReport report = fusion.process(frame.depth_mm);
     if (report.fused) {
+      if (fused == 0) {
+        // The frontal frame: its colour image gets the landmarks, its pose the fused view.
+        frontal_pose = report.world_from_camera;
+        pending_view.color = frame.color;
+      }
       ++fused;
       rms_sum += report.rms_mm;
     }
@@ -738,7 +768,9 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
 
   // Quality: how much of the face box the fused surface covers, how well frames aligned, and how
   // many frames could be fused at all.
-  SurfaceView view = fusion.render(RigidPose{});
+  SurfaceView view = fusion.render(frontal_pose);
+  pending_view.intrinsics = info.depth_intrinsics;
+  pending_view.calibration = info.calibration;
   long long covered = 0;
   const FaceBox clipped = box.clipped(view.depth_mm.width, view.depth_mm.height);
   commit.fused_depth.resize(view.depth_mm.width, view.depth_mm.height);
@@ -763,6 +795,8 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   else if (fused == 0 || qa.residual_mm > th.max_residual_mm)
     qa.reason = "alignment residual " + std::to_string(qa.residual_mm).substr(0, 4) + " mm";
   qa.passed = qa.reason.empty();
+  pending_view.depth_mm = std::move(view.depth_mm);
+  pending_view.normals = std::move(view.normals);
   commit.qa_scores = {{"coverage", qa.coverage},
                       {"residual_mm", qa.residual_mm},
                       {"fused_fraction", qa.fused_fraction},

@@ -14,6 +14,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
@@ -86,7 +87,25 @@ class Daemon {
 // Encodes an RGB image as a 24-bit BMP (the kiosk's preview and guide pictures: every browser
 // shows BMP and it needs no codec library on the device).
 std::string encode_bmp(const ColorImage& image);
-// A POSIX ustar archive of the regular files directly in `folder` (export downloads).
+// A POSIX ustar archive of the regular files under `folder` (export downloads), read piece by
+// piece so a download never holds the whole bundle in memory.
+class TarStream {
+ public:
+  static Result<TarStream> open(const std::filesystem::path& folder, const std::string& prefix);
+  std::uint64_t size() const { return total_; }
+  Result<std::string> read(std::uint64_t offset, std::uint64_t length) const;
+
+ private:
+  struct Entry {
+    std::filesystem::path path;
+    std::uint64_t size = 0;
+    std::uint64_t offset = 0;  // of the header in the archive
+    std::string header;
+  };
+  std::vector<Entry> entries_;
+  std::uint64_t total_ = 0;
+};
+// The whole archive at once (small folders, tests).
 Result<std::string> tar_folder(const std::filesystem::path& folder, const std::string& prefix);
 
 }  // namespace fb

@@ -158,10 +158,21 @@ Result<DaemonConfig> parse_daemon_config(std::string_view toml_text, std::string
     r.read(t, "max_residual_mm", c.session.max_residual_mm);
     r.read(t, "min_fused_fraction", c.session.min_fused_fraction);
     r.read(t, "resume", c.session.resume);
+    r.read(t, "quick_fit", c.session.quick_fit);
+    std::filesystem::path predictor, model;
+    r.read(t, "shape_predictor", predictor);
+    if (!predictor.empty()) c.session.shape_predictor = resolve(predictor, base_dir);
+    r.read(t, "face_model", model);
+    if (!model.empty()) c.session.face_model = resolve(model, base_dir);
+    r.read(t, "max_fit_rms_mm", c.session.max_fit_rms_mm);
+    r.read(t, "max_landmark_error_mm", c.session.max_landmark_error_mm);
+    r.read(t, "min_landmark_score", c.session.min_landmark_score);
   }
   if (auto* t = r.section("streaming")) {
     r.read(t, "osc_target", c.streaming.osc_target);
     r.read(t, "vmc_target", c.streaming.vmc_target);
+    r.read(t, "save_takes", c.streaming.save_takes);
+    r.read(t, "max_take_frames", c.streaming.max_take_frames);
   }
   if (auto* t = r.section("systemd")) r.read(t, "watchdog_divisor", c.watchdog_divisor);
   r.check_unknown();
@@ -194,6 +205,9 @@ Result<void> validate_daemon_config(const DaemonConfig& c) {
   if (c.session.min_coverage < 0 || c.session.max_residual_mm <= 0 ||
       c.session.min_fused_fraction < 0 || c.session.min_fused_fraction > 1)
     return fail("session thresholds out of range");
+  if (!(c.session.max_fit_rms_mm > 0) || !(c.session.max_landmark_error_mm > 0))
+    return fail("session.max_fit_rms_mm and session.max_landmark_error_mm must be > 0");
+  if (c.streaming.max_take_frames < 1) return fail("streaming.max_take_frames must be >= 1");
   if (c.storage.data_dir.empty()) return fail("storage.data_dir is empty");
   if (c.watchdog_divisor < 2) return fail("systemd.watchdog_divisor must be at least 2");
   return success();
@@ -226,9 +240,17 @@ std::string to_toml(const DaemonConfig& c) {
                               {"min_coverage", c.session.min_coverage},
                               {"max_residual_mm", c.session.max_residual_mm},
                               {"min_fused_fraction", c.session.min_fused_fraction},
-                              {"resume", c.session.resume}}},
-      {"streaming",
-       toml::table{{"osc_target", c.streaming.osc_target}, {"vmc_target", c.streaming.vmc_target}}},
+                              {"resume", c.session.resume},
+                              {"quick_fit", c.session.quick_fit},
+                              {"shape_predictor", c.session.shape_predictor.string()},
+                              {"face_model", c.session.face_model.string()},
+                              {"max_fit_rms_mm", c.session.max_fit_rms_mm},
+                              {"max_landmark_error_mm", c.session.max_landmark_error_mm},
+                              {"min_landmark_score", c.session.min_landmark_score}}},
+      {"streaming", toml::table{{"osc_target", c.streaming.osc_target},
+                                {"vmc_target", c.streaming.vmc_target},
+                                {"save_takes", c.streaming.save_takes},
+                                {"max_take_frames", c.streaming.max_take_frames}}},
       {"systemd", toml::table{{"watchdog_divisor", c.watchdog_divisor}}},
   };
   std::ostringstream out;

@@ -47,11 +47,23 @@ struct SessionConfig {
   double max_residual_mm = 2.5;      // mean ICP point-to-plane RMS of the fused frames
   double min_fused_fraction = 0.6;   // fused frames / recorded frames
   bool resume = true;                // continue the newest incomplete session after a restart
+  // After fusion: dlib landmarks on the frontal colour frame + the quick fit (neutral for the
+  // first capture, expression fits from it for the others), folded into the quality check.
+  bool quick_fit = true;
+  std::filesystem::path shape_predictor = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+  std::filesystem::path face_model;    // default: facemodel.fbfm in the data directory
+  double max_fit_rms_mm = 1.5;         // RMS distance of the fitted mesh to the fused depth
+  double max_landmark_error_mm = 6.0;  // mean landmark residual of the fit
+  double min_landmark_score = -0.5;    // dlib's face detection margin
 };
 
 struct StreamingConfig {
-  std::string osc_target;  // host:port for OSC (tracking mode), empty = off
-  std::string vmc_target;  // host:port for VMC
+  // Tracking mode sends VMC (OSC over UDP) to vmc_target, or osc_target when that is empty:
+  // "host:port", "host" (port 39539) or ":port". Both empty = no streaming.
+  std::string osc_target;
+  std::string vmc_target;
+  bool save_takes = true;       // store each tracking run as a take in the session store
+  int max_take_frames = 18000;  // 10 min at 30 fps; longer runs keep the first part
 };
 
 struct DaemonConfig {

@@ -5,18 +5,25 @@
 #include <sys/signalfd.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
+#include <future>
 #include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
 
 #include "algo/fusion/face_fusion.hpp"
+#include "algo/tracking/arkit.hpp"
+#include "algo/tracking/face_tracker.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/guide_steps.hpp"
+#include "firmware/daemon/quick_fit.hpp"
+#include "firmware/streaming/vmc_sender.hpp"
 
 // After every Eigen header: httplib pulls in <resolv.h>, whose `_res` macro breaks Eigen.
 #include <httplib.h>
@@ -54,8 +61,27 @@ struct QaReport {
   double coverage = 0;        // fused face-box pixels / face-box pixels
   double residual_mm = 0;     // mean ICP RMS over fused frames
   double fused_fraction = 0;  // fused frames / recorded frames
+  // Landmarks and the quick fit ("off" when disabled, "failed" with a reason, else "ok").
+  std::string landmarks = "off";
+  std::string fit = "off";
+  double landmark_score = 0;     // dlib detection margin
+  int landmarks_3d = 0;          // interior points lifted with the fused depth
+  double landmark_error_mm = 0;  // mean landmark residual of the fit
+  double fit_rms_mm = 0;         // RMS of the fitted mesh to the fused depth
+  double fit_rms_initial_mm = 0;
+  double fit_ms = 0;
+  int corrections = 0;  // operator-corrected landmarks
   bool passed = false;
   std::string reason;  // why it failed
+};
+
+// The capture whose landmarks the QA screen shows (the last one processed), as the page needs it.
+struct QaCapture {
+  std::int64_t session = 0;
+  int index = -1;
+  int revision = 0;  // bumps with each refit (the page reloads the picture/points)
+  std::vector<std::array<double, 2>> points;  // 68 colour px
+  std::vector<bool> corrected;
 };
 
 // Everything the status JSON shows; guarded by Daemon::Impl::status_mutex.
@@ -70,12 +96,19 @@ struct StatusData {
   int attempts = 0;
   int take_frames = 0;  // frames recorded in the current take
   std::optional<QaReport> last_qa;
+  QaCapture qa_capture;
+  std::string fit_stage;  // what the fit thread is doing ("" = idle)
   std::string error;
   std::string message;  // kiosk text
   bool resumed = false;
   long long frames_total = 0;    // frames the frame loop took from the camera (all modes)
   long long frames_dropped = 0;  // frames a real-time sensor would have overwritten
   long long tracking_frames = 0;
+  std::string tracking_state;     // the tracker's state of the last frame
+  std::string tracking_identity;  // where the tracked identity came from
+  long long vmc_datagrams = 0;
+  std::int64_t last_take = 0;  // id of the last stored take
+  std::string tracking_note;   // e.g. why a take was not stored
   std::filesystem::path last_export;
   double start_to_ready_ms = 0;
 };
@@ -95,6 +128,47 @@ struct Daemon::Impl {
   FaceFusion fusion;                            // worker only
   QaReport pending_qa;                          // the last take, between record and process
   CaptureCommit pending_commit;
+  CaptureView pending_view;  // frontal colour + fused surface of the last take
+
+  // --- landmarks + quick fit (daemon_pipeline.cpp): a fit thread with a job queue, so the
+  // fit never blocks the frame loop or the HTTP threads.
+  std::unique_ptr<QuickFitter> fitter;  // fit thread only (model() is immutable: any thread)
+  std::string fitter_error;             // why there is no fitter (config off, model missing)
+  std::thread fit_thread;
+  std::mutex fit_mutex;
+  std::condition_variable fit_cv;
+  std::deque<std::function<void(bool run)>> fit_jobs;  // run = false: discarded at stop
+  struct LastCapture {                                 // fit thread only
+    std::int64_t session = 0;
+    int index = -1;
+    bool committed = false;
+    bool last = false;  // committing it completes the session
+    CaptureView view;
+    std::optional<QuickFitResult> fit;
+    QaReport qa;
+    CaptureCommit commit;  // kept while rejected: a correction may still accept it
+  };
+  std::optional<LastCapture> last_capture;
+  std::string last_capture_bmp;  // guarded by preview_mutex
+  // The subject identity tracking uses (from the fit thread), guarded by identity_mutex.
+  std::mutex identity_mutex;
+  std::vector<float> subject_identity;
+  std::int64_t identity_session = 0;
+
+  // --- tracking mode (worker thread)
+  std::unique_ptr<FaceTracker> tracker;
+  std::unique_ptr<VmcSender> vmc;
+  std::optional<ArkitMapping> arkit;
+  std::vector<float> take_values;
+  int take_frames = 0;
+  std::int64_t take_session = 0;
+  TrackReport track_report;
+  ArkitFrame track_frame;
+  // The live weights for the page (SSE /api/tracking/events), guarded by live_mutex.
+  mutable std::mutex live_mutex;
+  mutable std::condition_variable live_cv;
+  std::string live_json;
+  std::uint64_t live_version = 0;
 
   // Inputs for the worker.
   std::mutex queue_mutex;
@@ -136,6 +210,20 @@ struct Daemon::Impl {
   Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
   void preview_tick();
   void tracking_tick();
+  // daemon_pipeline.cpp
+  Result<void> start_fitter();
+  void fit_loop();
+  void post_fit_job(std::function<void(bool run)> job);
+  void process_capture(std::int64_t session, int index, QaReport qa, CaptureCommit commit,
+                       CaptureView view, bool run);
+  void publish_qa_capture(const LastCapture& c);
+  void fold_fit_into_qa(const Result<QuickFitResult>& fit, QaReport& qa);
+  Result<nlohmann::json> correct_landmarks(std::int64_t session, int index,
+                                           const std::vector<ColorCorrection>& corrections);
+  void ensure_session_neutral(std::int64_t session);
+  Result<void> start_tracking();
+  void stop_tracking();
+  void post_input(KioskInput input, std::int64_t session = 0);
   void watchdog_ping();
   bool cancel_pending();
   void set_state(KioskState s, const std::string& input_name);

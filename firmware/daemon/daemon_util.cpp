@@ -40,43 +40,96 @@ std::string encode_bmp(const ColorImage& image) {
   return out;
 }
 
-Result<std::string> tar_folder(const std::filesystem::path& folder, const std::string& prefix) {
-  std::vector<std::filesystem::path> files;
+namespace {
+
+std::string tar_header(const std::string& name, std::uint64_t size) {
+  char header[512] = {};
+  std::snprintf(header, 100, "%s", name.c_str());
+  std::snprintf(header + 100, 8, "%07o", 0644);
+  std::snprintf(header + 108, 8, "%07o", 0);
+  std::snprintf(header + 116, 8, "%07o", 0);
+  std::snprintf(header + 124, 12, "%011llo", static_cast<unsigned long long>(size));
+  std::snprintf(header + 136, 12, "%011llo", static_cast<unsigned long long>(std::time(nullptr)));
+  std::memset(header + 148, ' ', 8);
+  header[156] = '0';
+  std::memcpy(header + 257, "ustar", 6);
+  std::memcpy(header + 263, "00", 2);
+  unsigned sum = 0;
+  for (unsigned char c : header) sum += c;
+  std::snprintf(header + 148, 8, "%06o", sum);
+  header[155] = ' ';
+  return std::string(header, 512);
+}
+
+}  // namespace
+
+Result<TarStream> TarStream::open(const std::filesystem::path& folder, const std::string& prefix) {
+  namespace fs = std::filesystem;
+  TarStream t;
   std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(folder, ec))
-    if (entry.is_regular_file() && !entry.is_symlink()) files.push_back(entry.path());
+  std::vector<fs::path> files;
+  // Regular files only; symlinks are never followed (the folder is the daemon's own export).
+  for (fs::recursive_directory_iterator it(folder, fs::directory_options::none, ec), end;
+       !ec && it != end; it.increment(ec))
+    if (it->is_regular_file() && !it->is_symlink()) files.push_back(it->path());
   if (ec) return fail("cannot list '" + folder.string() + "': " + ec.message());
   std::sort(files.begin(), files.end());
-  std::string out;
   for (const auto& file : files) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) return fail("cannot read '" + file.string() + "'");
-    std::ostringstream data;
-    data << in.rdbuf();
-    const std::string bytes = data.str();
-    const std::string name = prefix + "/" + file.filename().string();
+    Entry e;
+    e.path = file;
+    e.size = fs::file_size(file, ec);
+    if (ec) return fail("cannot stat '" + file.string() + "'");
+    const std::string name = prefix + "/" + fs::relative(file, folder).generic_string();
     if (name.size() > 99) return fail("file name too long for the archive: " + name);
-    char header[512] = {};
-    std::snprintf(header, 100, "%s", name.c_str());
-    std::snprintf(header + 100, 8, "%07o", 0644);
-    std::snprintf(header + 108, 8, "%07o", 0);
-    std::snprintf(header + 116, 8, "%07o", 0);
-    std::snprintf(header + 124, 12, "%011llo", static_cast<unsigned long long>(bytes.size()));
-    std::snprintf(header + 136, 12, "%011llo", static_cast<unsigned long long>(std::time(nullptr)));
-    std::memset(header + 148, ' ', 8);
-    header[156] = '0';
-    std::memcpy(header + 257, "ustar", 6);
-    std::memcpy(header + 263, "00", 2);
-    unsigned sum = 0;
-    for (unsigned char c : header) sum += c;
-    std::snprintf(header + 148, 8, "%06o", sum);
-    header[155] = ' ';
-    out.append(header, 512);
-    out += bytes;
-    out.append((512 - bytes.size() % 512) % 512, '\0');
+    e.header = tar_header(name, e.size);
+    e.offset = t.total_;
+    t.total_ += 512 + e.size + (512 - e.size % 512) % 512;
+    t.entries_.push_back(std::move(e));
   }
-  out.append(1024, '\0');
+  t.total_ += 1024;
+  return t;
+}
+
+Result<std::string> TarStream::read(std::uint64_t offset, std::uint64_t length) const {
+  std::string out;
+  out.reserve(static_cast<std::size_t>(length));
+  while (length > 0 && offset < total_) {
+    // The entry containing `offset` (or the end-of-archive zeros).
+    auto it = std::upper_bound(entries_.begin(), entries_.end(), offset,
+                               [](std::uint64_t o, const Entry& e) { return o < e.offset; });
+    if (it == entries_.begin()) return fail("bad archive offset");
+    const Entry& e = *std::prev(it);
+    const std::uint64_t padded = 512 + e.size + (512 - e.size % 512) % 512;
+    std::uint64_t in_entry = offset - e.offset;
+    std::uint64_t n = 0;
+    if (in_entry >= padded) {  // past the last entry: the two zero blocks
+      n = std::min<std::uint64_t>(length, total_ - offset);
+      out.append(static_cast<std::size_t>(n), '\0');
+    } else if (in_entry < 512) {
+      n = std::min<std::uint64_t>(length, 512 - in_entry);
+      out.append(e.header, static_cast<std::size_t>(in_entry), static_cast<std::size_t>(n));
+    } else if (in_entry < 512 + e.size) {
+      n = std::min<std::uint64_t>(length, 512 + e.size - in_entry);
+      std::ifstream in(e.path, std::ios::binary);
+      in.seekg(static_cast<std::streamoff>(in_entry - 512));
+      std::string chunk(static_cast<std::size_t>(n), '\0');
+      if (!in.read(chunk.data(), static_cast<std::streamsize>(n)))
+        return fail("cannot read '" + e.path.string() + "'");
+      out += chunk;
+    } else {
+      n = std::min<std::uint64_t>(length, padded - in_entry);
+      out.append(static_cast<std::size_t>(n), '\0');
+    }
+    offset += n;
+    length -= n;
+  }
   return out;
+}
+
+Result<std::string> tar_folder(const std::filesystem::path& folder, const std::string& prefix) {
+  auto t = TarStream::open(folder, prefix);
+  if (!t) return t.failure();
+  return t->read(0, t->size());
 }
 
 Result<std::string> Daemon::Impl::guide_picture(int index) {

@@ -271,4 +271,32 @@ Result<std::unique_ptr<SessionRecords>> open_file_records(const fs::path& data_d
   return std::unique_ptr<SessionRecords>(std::move(records));
 }
 
+// The base class's answers for stores that keep only captures (the file store).
+namespace {
+Error unsupported(const SessionRecords& r, const char* what) {
+  return Error{"the '" + r.backend() + "' session store does not keep " + what +
+               " (build faceboothd with storage/'s SQLite SessionStore)"};
+}
+}  // namespace
+
+Result<void> SessionRecords::add_fit(std::int64_t, int, const FitRecord&) {
+  return fail(unsupported(*this, "fitted meshes"));
+}
+Result<std::optional<MeshData>> SessionRecords::neutral_mesh(std::int64_t) {
+  return std::optional<MeshData>{};
+}
+Result<void> SessionRecords::set_operator_landmarks(std::int64_t, int,
+                                                    const std::vector<Landmark>&) {
+  return fail(unsupported(*this, "landmark corrections"));
+}
+Result<std::int64_t> SessionRecords::add_take(const TakeRecord&, std::span<const float>) {
+  return fail(unsupported(*this, "tracking takes"));
+}
+Result<OffloadInfo> SessionRecords::offload_info(std::int64_t) {
+  return OffloadInfo{};
+}
+Result<std::int64_t> SessionRecords::add_rig(std::int64_t, const RigData&) {
+  return fail(unsupported(*this, "rigs"));
+}
+
 }  // namespace fb

@@ -26,6 +26,7 @@ Result<std::vector<GuideStep>> parse_guide_steps(std::string_view json_text) {
         std::ostringstream term;
         term << shape << ":" << weight.get<double>();
         spec += (spec.empty() ? "" : "+") + term.str();
+        step.weights.emplace_back(shape, weight.get<float>());
       }
     }
     step.synthetic_expr = spec.empty() ? "neutral" : spec;

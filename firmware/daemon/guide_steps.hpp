@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "algo/core/result.hpp"
@@ -16,6 +17,7 @@ struct GuideStep {
   std::string name;            // machine name, e.g. "mouth_stretch"
   std::string label;           // kiosk text
   std::string synthetic_expr;  // "jawOpen:0.7+mouthStretch_L:0.4", or "neutral"
+  std::vector<std::pair<std::string, float>> weights;  // the recipe (model expression names)
 };
 
 Result<std::vector<GuideStep>> parse_guide_steps(std::string_view json_text);

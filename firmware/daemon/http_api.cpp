@@ -1,10 +1,14 @@
 // The HTTP API and the kiosk page (cpp-httplib). JSON everywhere. Only numeric ids reach the
 // store; files are only ever served from folders the daemon wrote, by names it chose (no
 // request string becomes a path). Clients that are not on loopback need the token.
+#include <algorithm>
+#include <cmath>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "firmware/daemon/daemon_impl.hpp"
 #include "firmware/kiosk/kiosk_assets.hpp"
+#include "storage/export/facewarehouse.hpp"
 
 namespace fb {
 namespace {
@@ -80,9 +84,20 @@ Result<void> Daemon::Impl::setup_http() {
   srv.set_keep_alive_timeout(1);
   srv.set_read_timeout(1, 0);
   srv.set_write_timeout(2, 0);
-  srv.set_payload_max_length(64 * 1024);
+  // Bodies are small JSON, except a rig uploaded by the host (FaceWarehouse shape.bs, ~8 MB for
+  // the face model); the pre-routing handler refuses big bodies on every other route.
+  constexpr std::size_t kSmallBody = 64 * 1024;
+  constexpr std::size_t kRigBody = 32 * 1024 * 1024;
+  srv.set_payload_max_length(kRigBody);
 
   srv.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    const std::size_t length = req.get_header_value<uint64_t>("Content-Length");
+    const bool rig_upload = req.method == "POST" && req.path.rfind("/api/offload/", 0) == 0 &&
+                            req.path.size() > 4 && req.path.substr(req.path.size() - 4) == "/rig";
+    if (length > (rig_upload ? kRigBody : kSmallBody)) {
+      send_error(res, 413, "request body too large");
+      return httplib::Server::HandlerResponse::Handled;
+    }
     if (is_loopback(req.remote_addr)) return httplib::Server::HandlerResponse::Unhandled;
     std::string presented;
     const std::string auth = req.get_header_value("Authorization");
@@ -225,19 +240,175 @@ Result<void> Daemon::Impl::setup_http() {
             for (const auto& c : *caps) list.push_back(capture_json(c));
             send_json(res, {{"session", *id}, {"captures", list}});
           });
-  // The host tool's offload endpoints: which sessions are ready for rigging, and their bundle.
+  // The host tool's offload endpoints: the sessions ready for rigging (complete, every capture
+  // fitted), a session's bundle (streamed ustar of its export), and a rig uploaded back.
   srv.Get("/api/offload/ready", [this](const httplib::Request&, httplib::Response& res) {
     std::lock_guard lock(records_mutex);
     auto all = records->sessions();
     if (!all) return send_error(res, 500, all.error().message);
     json list = json::array();
-    for (const auto& s : *all)
-      if (s.complete) {
-        json j = session_json(s);
-        j["bundle"] = "/api/sessions/" + std::to_string(s.id) + "/export.tar";
-        list.push_back(j);
-      }
+    for (const auto& s : *all) {
+      if (!s.complete) continue;
+      auto info = records->offload_info(s.id);
+      if (!info) return send_error(res, 500, info.error().message);
+      json j = session_json(s);
+      j["fitted_captures"] = info->fitted_captures;
+      j["ready_for_rigging"] = info->fitted_captures == s.capture_count;
+      j["rigs"] = info->rigs;
+      j["bundle"] = "/api/offload/sessions/" + std::to_string(s.id) + "/bundle.tar";
+      j["rig_upload"] = "/api/offload/sessions/" + std::to_string(s.id) + "/rig";
+      list.push_back(j);
+    }
     send_json(res, {{"sessions", list}});
+  });
+  auto send_bundle = [this](const httplib::Request& req, httplib::Response& res) {
+    auto id = id_param(req, 1);
+    if (!id) return send_error(res, 400, id.error().message);
+    Result<std::filesystem::path> out = fail("");
+    {
+      std::lock_guard lock(records_mutex);
+      out = records->export_session(*id, config.storage.data_dir / "exports");
+    }
+    if (!out) return send_error(res, 404, out.error().message);
+    const std::string prefix = "session-" + std::to_string(*id);
+    auto tar = TarStream::open(*out, prefix);
+    if (!tar) return send_error(res, 500, tar.error().message);
+    auto stream = std::make_shared<TarStream>(std::move(*tar));
+    res.set_header("Content-Disposition", "attachment; filename=\"" + prefix + ".tar\"");
+    res.set_content_provider(static_cast<size_t>(stream->size()), "application/x-tar",
+                             [stream](size_t offset, size_t length, httplib::DataSink& sink) {
+                               auto bytes =
+                                   stream->read(offset, std::min<size_t>(length, 256 * 1024));
+                               if (!bytes) return false;
+                               return sink.write(bytes->data(), bytes->size());
+                             });
+  };
+  srv.Get(R"(/api/offload/sessions/(\d{1,12})/bundle\.tar)", send_bundle);
+  srv.Get(R"(/api/sessions/(\d{1,12})/export\.tar)", send_bundle);
+  // A rig from the host: FaceWarehouse's shape.bs (int32 shapes, vertices, faces; float32
+  // xyz of the neutral then of each shape) in the face model's topology. Optional query
+  // `names=a,b,...` names the shapes (default: the model's expression names in order).
+  srv.Post(R"(/api/offload/sessions/(\d{1,12})/rig)", [this](const httplib::Request& req,
+                                                             httplib::Response& res) {
+    auto id = id_param(req, 1);
+    if (!id) return send_error(res, 400, id.error().message);
+    if (!fitter) return send_error(res, 409, "rig upload needs the face model: " + fitter_error);
+    const FaceModel& model = fitter->model();
+    auto rig = decode_shape_bs(std::span<const std::uint8_t>(
+        reinterpret_cast<const std::uint8_t*>(req.body.data()), req.body.size()));
+    if (!rig) return send_error(res, 400, "not a FaceWarehouse shape.bs: " + rig.error().message);
+    if (rig->vertex_count() != model.vertex_count)
+      return send_error(res, 422,
+                        "the rig has " + std::to_string(rig->vertex_count()) +
+                            " vertices; the face model has " + std::to_string(model.vertex_count));
+    if (rig->shape_count() < 1 || rig->shape_count() > 256)
+      return send_error(res, 422, "a rig needs 1..256 blendshapes");
+    auto sane = [](const std::vector<float>& v) {
+      return std::all_of(v.begin(), v.end(),
+                         [](float x) { return std::isfinite(x) && std::abs(x) < 2000.f; });
+    };
+    if (!sane(rig->neutral) || !std::all_of(rig->shapes.begin(), rig->shapes.end(), sane))
+      return send_error(res, 422, "the rig has non-finite or out-of-range coordinates");
+    rig->triangles = model.triangles;
+    rig->shape_names.clear();
+    if (req.has_param("names")) {
+      std::stringstream ss(req.get_param_value("names"));
+      std::string name;
+      while (std::getline(ss, name, ','))
+        if (!name.empty() && name.size() <= 64) rig->shape_names.push_back(name);
+      if (static_cast<int>(rig->shape_names.size()) != rig->shape_count())
+        return send_error(res, 422,
+                          "names= lists " + std::to_string(rig->shape_names.size()) +
+                              " names for " + std::to_string(rig->shape_count()) + " shapes");
+    } else {
+      for (int k = 0; k < rig->shape_count(); ++k)
+        rig->shape_names.push_back(k < model.expression_count
+                                       ? model.expression_names[static_cast<std::size_t>(k)]
+                                       : "shape" + std::to_string(k));
+    }
+    std::lock_guard lock(records_mutex);
+    auto s = records->session(*id);
+    if (!s) return send_error(res, 404, s.error().message);
+    if (!s->complete)
+      return send_error(res, 409, "session " + std::to_string(*id) + " is not complete");
+    auto rid = records->add_rig(*id, *rig);
+    if (!rid) return send_error(res, 500, rid.error().message);
+    send_json(res,
+              {{"session", *id},
+               {"rig", *rid},
+               {"shapes", rig->shape_count()},
+               {"vertices", rig->vertex_count()}},
+              201);
+  });
+  // --- QA screen: the processed capture's frontal colour frame and landmark corrections.
+  srv.Get("/api/qa/capture.bmp", [this](const httplib::Request&, httplib::Response& res) {
+    std::string bmp;
+    {
+      std::lock_guard lock(preview_mutex);
+      bmp = last_capture_bmp;
+    }
+    if (bmp.empty()) return send_error(res, 404, "no processed capture yet");
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(bmp, "image/bmp");
+  });
+  srv.Post(R"(/api/sessions/(\d{1,12})/captures/(\d{1,3})/landmarks)", [this](
+                                                                           const httplib::Request&
+                                                                               req,
+                                                                           httplib::Response& res) {
+    auto id = id_param(req, 1);
+    auto index = id_param(req, 2);
+    if (!id || !index) return send_error(res, 400, "bad id");
+    json body = parse_body(req);
+    if (body.is_null() || !body.contains("corrections") || !body["corrections"].is_array() ||
+        body["corrections"].empty() || body["corrections"].size() > 68)
+      return send_error(res, 400,
+                        "body must be {\"corrections\": [{\"index\": 0..67, \"u\": px, "
+                        "\"v\": px}, ...]} with 1..68 entries");
+    std::vector<ColorCorrection> corrections;
+    for (const auto& c : body["corrections"]) {
+      if (!c.is_object() || !c.contains("index") || !c["index"].is_number_integer() ||
+          !c.contains("u") || !c["u"].is_number() || !c.contains("v") || !c["v"].is_number())
+        return send_error(res, 400, "each correction needs integer index, numbers u, v");
+      corrections.push_back({c["index"].get<int>(), c["u"].get<double>(), c["v"].get<double>()});
+    }
+    auto r = correct_landmarks(*id, static_cast<int>(*index), corrections);
+    if (!r) return send_error(res, 409, r.error().message);
+    send_json(res, *r);
+  });
+  // --- tracking mode's live weights: the latest frame, and as Server-Sent Events.
+  srv.Get("/api/tracking/live", [this](const httplib::Request&, httplib::Response& res) {
+    std::string body;
+    {
+      std::lock_guard lock(live_mutex);
+      body = live_json;
+    }
+    if (body.empty()) return send_error(res, 404, "no tracked frame yet (switch to tracking mode)");
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(body, "application/json");
+  });
+  srv.Get("/api/tracking/events", [this](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-store");
+    auto seen = std::make_shared<std::uint64_t>(0);
+    res.set_chunked_content_provider(
+        "text/event-stream", [this, seen](size_t, httplib::DataSink& sink) {
+          if (stopping) return false;
+          std::string msg;
+          {
+            std::unique_lock lock(live_mutex);
+            live_cv.wait_for(lock, std::chrono::milliseconds(250),
+                             [&] { return live_version != *seen || stopping.load(); });
+            if (stopping) return false;
+            if (live_version == *seen) {
+              msg = ": keep-alive\n\n";
+            } else {
+              *seen = live_version;
+              msg = "event: face\ndata: " + live_json + "\n\n";
+            }
+          }
+          // At most ~15 events/s per client: the page draws bars, not every frame.
+          std::this_thread::sleep_for(std::chrono::milliseconds(60));
+          return sink.write(msg.data(), msg.size());
+        });
   });
   srv.Post(R"(/api/sessions/(\d{1,12})/export)",
            [this](const httplib::Request& req, httplib::Response& res) {
@@ -250,23 +421,6 @@ Result<void> Daemon::Impl::setup_http() {
                              {"folder", out->string()},
                              {"download", "/api/sessions/" + std::to_string(*id) + "/export.tar"}});
            });
-  srv.Get(R"(/api/sessions/(\d{1,12})/export\.tar)",
-          [this](const httplib::Request& req, httplib::Response& res) {
-            auto id = id_param(req, 1);
-            if (!id) return send_error(res, 400, id.error().message);
-            Result<std::filesystem::path> out = fail("");
-            {
-              std::lock_guard lock(records_mutex);
-              out = records->export_session(*id, config.storage.data_dir / "exports");
-            }
-            if (!out) return send_error(res, 404, out.error().message);
-            const std::string prefix = "session-" + std::to_string(*id);
-            auto tar = tar_folder(*out, prefix);
-            if (!tar) return send_error(res, 500, tar.error().message);
-            res.set_header("Content-Disposition", "attachment; filename=\"" + prefix + ".tar\"");
-            res.set_content(std::move(*tar), "application/x-tar");
-          });
-
   // --- controls: the page's buttons and the simulated GPIO
   auto control = [this](const char* path, KioskInput input) {
     http->Post(path, [this, input](const httplib::Request& req, httplib::Response& res) {

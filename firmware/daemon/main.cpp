@@ -6,7 +6,10 @@
 //   faceboothd --run-session-headless [--config FILE] [--data-dir DIR] [--subject NAME]
 //              [--frames N]                   one complete session with simulated button
 //                                             presses; prints JSON with where it is stored
+#include <unistd.h>
+
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <string>
@@ -29,6 +32,15 @@ int usage_error(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // OpenBLAS (linked through dlib) starts its worker threads when the library loads, before
+  // main() can block SIGTERM for them, and a stop signal delivered to such a thread kills the
+  // process instead of reaching the daemon's signalfd. With one BLAS thread it starts none, so
+  // re-execute once with that set (the systemd unit sets it already, so no re-exec there).
+  if (std::getenv("OPENBLAS_NUM_THREADS") == nullptr) {
+    ::setenv("OPENBLAS_NUM_THREADS", "1", 1);
+    ::execv("/proc/self/exe", argv);
+    // If that fails, carry on: everything works except a clean stop on SIGTERM.
+  }
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string config_path, data_dir, subject, frames, port;
   bool check = false, print_default = false, headless = false;

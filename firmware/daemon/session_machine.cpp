@@ -35,6 +35,9 @@ std::optional<KioskTransition> kiosk_transition(KioskState s, KioskInput in) {
       break;
     case S::kRetry:
       if (in == I::kPress) return KioskTransition{S::kRecording, A::kRecord};
+      // The operator corrected the landmarks of the rejected take and the refit passed.
+      if (in == I::kQaPassed) return KioskTransition{S::kGuide, A::kShowGuide};
+      if (in == I::kLastDone) return KioskTransition{S::kComplete, A::kFinish};
       break;
     case S::kComplete:
       if (in == I::kStart || in == I::kPress) return KioskTransition{S::kEnrolled, A::kEnroll};

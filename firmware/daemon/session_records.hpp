@@ -9,11 +9,14 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "algo/core/frame.hpp"
 #include "algo/core/result.hpp"
+#include "storage/stored_data.hpp"
 
 namespace fb {
 
@@ -45,6 +48,29 @@ struct CaptureCommit {
   std::vector<RgbdFrame> frames;
   DepthImage fused_depth;
   std::map<std::string, double> qa_scores;
+  std::vector<Landmark> landmarks;  // automatic landmarks (colour px + lifted 3D), may be empty
+};
+
+// A fitted mesh of a capture (the quick fit); the newest one of a capture wins.
+struct FitRecord {
+  bool neutral = false;  // the session's fitted neutral (capture 0)
+  std::string name;      // the guide expression
+  MeshData mesh;         // model frame, mm
+};
+
+// A tracking take: per frame tx ty tz (mm) qx qy qz qw (camera_from_model), then the weights.
+struct TakeRecord {
+  std::int64_t session = 0;  // the session whose subject was tracked (0 = none)
+  std::string subject_name;  // used when there is no session
+  double fps = 30.0;
+  std::vector<std::string> shape_names;
+  int frame_count = 0;
+};
+
+// What the host tool needs to know before fetching a session (offload).
+struct OffloadInfo {
+  int fitted_captures = 0;  // done captures with a fitted mesh
+  int rigs = 0;             // rigs stored for the session's subject from this session
 };
 
 class SessionRecords {
@@ -66,6 +92,19 @@ class SessionRecords {
   // Writes (or rewrites) the session's export folder under `exports_dir` and returns it.
   virtual Result<std::filesystem::path> export_session(
       std::int64_t id, const std::filesystem::path& exports_dir) = 0;
+
+  // Fits, landmarks, takes and rigs: the SQLite store keeps them; the file store does not (its
+  // answers say so, and the daemon reports the stage as unsupported).
+  virtual bool keeps_fits() const { return false; }
+  virtual Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit);
+  // The newest fitted neutral of a session (nullopt when there is none).
+  virtual Result<std::optional<MeshData>> neutral_mesh(std::int64_t session);
+  virtual Result<void> set_operator_landmarks(std::int64_t session, int index,
+                                              const std::vector<Landmark>& landmarks);
+  virtual Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values);
+  virtual Result<OffloadInfo> offload_info(std::int64_t session);
+  // Stores a rig uploaded by the host for the session's subject; returns its id.
+  virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig);
 };
 
 // The SQLite store when this build has it, else the file store; both under `data_dir`.

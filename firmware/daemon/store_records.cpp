@@ -1,9 +1,15 @@
 // SessionRecords over the SQLite SessionStore (storage/session_store.hpp): the production
 // store, with crash-safe commits of every frame, the fused depth and the QA scores.
+#include <algorithm>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "firmware/daemon/record_files.hpp"
 #include "firmware/daemon/session_records.hpp"
+#include "storage/export/export_folder.hpp"
+#include "storage/export/export_session.hpp"
+#include "storage/export/mesh_files.hpp"
+#include "storage/export/png_file.hpp"
 #include "storage/session_store.hpp"
 
 namespace fb {
@@ -76,56 +82,67 @@ class StoreRecords : public SessionRecords {
                               const std::map<std::string, double>& qa) override {
     return store_.reject_capture(session, index, qa);
   }
-  Result<void> commit_capture(std::int64_t session, int index, CaptureCommit commit) override {
-    CaptureInput input;
-    input.frames = std::move(commit.frames);
-    input.fused_depth = std::move(commit.fused_depth);
-    input.qa_scores = std::move(commit.qa_scores);
-    return store_.commit_capture(session, index, input);
+  Result<void> commit_capture(std::int64_t session, int index, CaptureCommit commit) override;
+  Result<fs::path> export_session(std::int64_t id, const fs::path& exports_dir) override;
+
+  bool keeps_fits() const override { return true; }
+  Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit) override {
+    auto id = store_.add_mesh(session, index, fit.neutral ? MeshRole::kNeutral : MeshRole::kFitted,
+                              fit.name, fit.mesh);
+    if (!id) return id.failure();
+    return success();
   }
-  Result<fs::path> export_session(std::int64_t id, const fs::path& exports_dir) override {
-    auto s = store_.session(id);
-    if (!s) return s.failure();
-    auto caps = store_.captures(id);
-    if (!caps) return caps.failure();
-    const fs::path out = exports_dir / ("session-" + std::to_string(id));
-    std::error_code ec;
-    fs::create_directories(out, ec);
-    if (ec) return fail("cannot create '" + out.string() + "': " + ec.message());
-    nlohmann::json list = nlohmann::json::array();
-    for (const auto& c : *caps) {
-      nlohmann::json j = {{"index", c.index},
-                          {"expression", c.expression},
-                          {"state", to_string(from_store(c.state))},
-                          {"attempts", c.attempts},
-                          {"qa", c.qa_scores},
-                          {"frame_count", c.frame_count}};
-      if (c.state == CaptureState::kDone) {
-        auto data = store_.read_capture(id, c.index);
-        if (!data) return data.failure();
-        char name[96];
-        std::snprintf(name, sizeof name, "capture-%02d-%s-fused.pgm", c.index,
-                      c.expression.c_str());
-        if (!data->fused_depth.empty()) {
-          if (auto ok = records::write_durable(out / name, records::pgm16(data->fused_depth)); !ok)
-            return ok.failure();
-          j["fused_depth"] = name;
-        }
-      }
-      list.push_back(std::move(j));
+  Result<std::optional<MeshData>> neutral_mesh(std::int64_t session) override {
+    auto all = store_.meshes(session);
+    if (!all) return all.failure();
+    std::optional<MeshId> newest;
+    for (const auto& m : *all)
+      if (m.role == MeshRole::kNeutral) newest = m.id;  // listed oldest first
+    if (!newest) return std::optional<MeshData>{};
+    auto mesh = store_.read_mesh(*newest);
+    if (!mesh) return mesh.failure();
+    return std::optional<MeshData>(std::move(*mesh));
+  }
+  Result<void> set_operator_landmarks(std::int64_t session, int index,
+                                      const std::vector<Landmark>& landmarks) override {
+    return store_.set_operator_landmarks(session, index, landmarks);
+  }
+  Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values) override {
+    TakeInfo info;
+    if (take.session > 0) {
+      auto s = store_.session(take.session);
+      if (!s) return s.failure();
+      info.subject = s->subject;
+      info.session = take.session;
+    } else {
+      auto subject = store_.add_subject(take.subject_name.empty() ? "tracking" : take.subject_name);
+      if (!subject) return subject.failure();
+      info.subject = *subject;
     }
-    std::string subject_name;
-    if (auto subj = store_.subject(s->subject)) subject_name = subj->name;
-    nlohmann::json manifest = {{"format", "facebooth-session-export"},
-                               {"version", 1},
-                               {"session", id},
-                               {"subject", subject_name},
-                               {"complete", s->complete},
-                               {"store", store_.root().string()},
-                               {"captures", list}};
-    if (auto ok = records::write_durable(out / "manifest.json", manifest.dump(1)); !ok)
-      return ok.failure();
-    return out;
+    info.fps = take.fps;
+    info.shape_names = take.shape_names;
+    info.frame_count = take.frame_count;
+    return store_.add_take(info, values);
+  }
+  Result<OffloadInfo> offload_info(std::int64_t session) override {
+    OffloadInfo info;
+    auto s = store_.session(session);
+    if (!s) return s.failure();
+    auto meshes = store_.meshes(session);
+    if (!meshes) return meshes.failure();
+    std::set<int> fitted;
+    for (const auto& m : *meshes)
+      if (m.capture_index && m.role != MeshRole::kScan) fitted.insert(*m.capture_index);
+    info.fitted_captures = static_cast<int>(fitted.size());
+    auto rigs = store_.rigs(s->subject);
+    if (!rigs) return rigs.failure();
+    for (const auto& r : *rigs) info.rigs += r.session == session;
+    return info;
+  }
+  Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig) override {
+    auto s = store_.session(session);
+    if (!s) return s.failure();
+    return store_.add_rig(s->subject, session, rig);
   }
 
  private:
@@ -145,6 +162,137 @@ class StoreRecords : public SessionRecords {
   SessionStore store_;
 };
 
+Result<void> StoreRecords::commit_capture(std::int64_t session, int index, CaptureCommit commit) {
+  CaptureInput input;
+  input.frames = std::move(commit.frames);
+  input.fused_depth = std::move(commit.fused_depth);
+  input.qa_scores = std::move(commit.qa_scores);
+  input.landmarks = std::move(commit.landmarks);
+  return store_.commit_capture(session, index, input);
+}
+
+// The session bundle the host fetches (offload) and the kiosk's export: assembled with
+// storage/export's ExportFolder (temporary folder, SHA-256 manifest, atomic rename). Per done
+// capture: the fused depth (16-bit PGM, mm), the frontal colour frame (PNG), its landmarks
+// (JSON, the operator's correction when there is one) and the newest fitted mesh (OBJ, model
+// frame, mm). When the subject has a rig from this session, a FaceWarehouse folder is added
+// through storage/export's session exporter.
+Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& exports_dir) {
+  auto s = store_.session(id);
+  if (!s) return s.failure();
+  auto caps = store_.captures(id);
+  if (!caps) return caps.failure();
+  auto meshes = store_.meshes(id);
+  if (!meshes) return meshes.failure();
+  const fs::path out = exports_dir / ("session-" + std::to_string(id));
+  std::error_code ec;
+  fs::create_directories(exports_dir, ec);
+  if (ec) return fail("cannot create '" + exports_dir.string() + "': " + ec.message());
+  auto folder = ExportFolder::create(out, /*overwrite=*/true);
+  if (!folder) return folder.failure();
+  auto write = [&](const std::string& name, const std::string& bytes) {
+    return folder->write_file(name,
+                              {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()});
+  };
+  nlohmann::json list = nlohmann::json::array();
+  int fitted = 0;
+  for (const auto& c : *caps) {
+    nlohmann::json j = {{"index", c.index},
+                        {"expression", c.expression},
+                        {"state", to_string(from_store(c.state))},
+                        {"attempts", c.attempts},
+                        {"qa", c.qa_scores},
+                        {"frame_count", c.frame_count}};
+    if (c.state == CaptureState::kDone) {
+      char dir[96];
+      std::snprintf(dir, sizeof dir, "capture-%02d-%s/", c.index, c.expression.c_str());
+      auto data = store_.read_capture(id, c.index);
+      if (!data) return data.failure();
+      if (!data->fused_depth.empty()) {
+        if (auto ok =
+                write(dir + std::string("fused_depth.pgm"), records::pgm16(data->fused_depth));
+            !ok)
+          return ok.failure();
+        j["fused_depth"] = dir + std::string("fused_depth.pgm");
+      }
+      if (!data->frames.empty() && !data->frames.front().color.empty()) {
+        auto png = encode_png(data->frames.front().color);
+        if (!png) return png.failure();
+        if (auto ok = folder->write_file(dir + std::string("color.png"), *png); !ok)
+          return ok.failure();
+        j["color"] = dir + std::string("color.png");
+      }
+      if (!data->landmarks.empty()) {
+        nlohmann::json pts = nlohmann::json::array();
+        for (const auto& l : data->landmarks) {
+          nlohmann::json p = {{"u", l.u}, {"v", l.v}};
+          if (l.has_3d) p["xyz_mm"] = {l.x, l.y, l.z};
+          pts.push_back(p);
+        }
+        nlohmann::json doc = {
+            {"source",
+             data->landmark_source == LandmarkSource::kOperator ? "operator" : "automatic"},
+            {"order", "iBUG 68"},
+            {"units", "colour image px; xyz in the depth camera frame, mm"},
+            {"points", pts}};
+        if (auto ok = write(dir + std::string("landmarks.json"), doc.dump(1)); !ok)
+          return ok.failure();
+        j["landmarks"] = dir + std::string("landmarks.json");
+      }
+      data = fail("");  // release the frames before the next capture
+      const MeshInfo* newest = nullptr;
+      for (const auto& m : *meshes)
+        if (m.capture_index == c.index && m.role != MeshRole::kScan) newest = &m;
+      if (newest) {
+        auto mesh = store_.read_mesh(newest->id);
+        if (!mesh) return mesh.failure();
+        if (auto ok =
+                write(dir + std::string("mesh.obj"),
+                      encode_obj(*mesh, "quick fit of " + c.expression + ", model frame, mm"));
+            !ok)
+          return ok.failure();
+        j["mesh"] = dir + std::string("mesh.obj");
+        j["mesh_role"] = to_string(newest->role);
+        ++fitted;
+      }
+    }
+    list.push_back(std::move(j));
+  }
+  std::string subject_name;
+  if (auto subj = store_.subject(s->subject)) subject_name = subj->name;
+  nlohmann::json session_doc = {{"format", "facebooth-session-bundle"},
+                                {"version", 2},
+                                {"session", id},
+                                {"subject", subject_name},
+                                {"subject_id", s->subject},
+                                {"complete", s->complete},
+                                {"fitted_captures", fitted},
+                                {"captures", list}};
+  if (auto ok = write("session.json", session_doc.dump(1)); !ok) return ok.failure();
+  ExportManifest manifest;
+  manifest.what = "facebooth-session-bundle";
+  manifest.source = {{"kind", "session"},
+                     {"store", store_.root().string()},
+                     {"session", std::to_string(id)},
+                     {"subject", std::to_string(s->subject)}};
+  manifest.details = {{"captures", std::to_string(caps->size())},
+                      {"fitted_captures", std::to_string(fitted)},
+                      {"units", "mm; meshes in the face model frame"}};
+  if (auto ok = folder->finish(manifest); !ok) return ok.failure();
+
+  // With a rig from the host: the FaceWarehouse layout next to the bundle.
+  auto rigs = store_.rigs(s->subject);
+  if (rigs && std::any_of(rigs->begin(), rigs->end(), [&](auto& r) { return r.session == id; })) {
+    auto content = load_session_content(store_, id);
+    if (!content) return content.failure();
+    ExportRequest request;
+    request.format = ExportFormat::kFaceWarehouse;
+    request.out = exports_dir / ("session-" + std::to_string(id) + "-facewarehouse");
+    request.overwrite = true;
+    if (auto ok = export_content(*content, request); !ok) return ok.failure();
+  }
+  return out;
+}
 }  // namespace
 
 Result<std::unique_ptr<SessionRecords>> open_session_records(const fs::path& data_dir) {

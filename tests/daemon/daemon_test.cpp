@@ -7,15 +7,21 @@
 
 #include <arpa/inet.h>
 
+#include <sys/socket.h>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <thread>
 
+#include "algo/fitting/face_fit.hpp"
+#include "algo/landmarks/landmark_lifting.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/session_machine.hpp"
 #include "firmware/daemon/session_records.hpp"
+#include "storage/asset_files.hpp"
+#include "storage/export/facewarehouse.hpp"
+#include "storage/session_store.hpp"
 
 // After every Eigen header (httplib's <resolv.h> defines _res).
 #include <httplib.h>
@@ -223,41 +229,228 @@ class DaemonTest : public ::testing::Test {
   fs::path dir_;
 };
 
-TEST_F(DaemonTest, HeadlessSessionCompletesStoresAndExports) {
+// Check of a stored fit against stored data only: the stored mesh (model frame) placed with the
+// stored fit pose onto the stored fused depth, scored with the fitting module's residual.
+double stored_fit_rms_mm(const FaceModel& model, const CaptureData& capture, const MeshData& mesh) {
+  const KinectCalibration calibration = KinectCalibration::defaults();  // the synthetic camera's
+  FitTarget target;
+  target.intrinsics = calibration.depth_intrinsics();
+  target.depth_mm = depth_to_float(capture.fused_depth);
+  std::vector<Eigen::Vector2d> color(capture.landmarks.size());
+  for (std::size_t i = 0; i < color.size(); ++i)
+    color[i] = {capture.landmarks[i].u, capture.landmarks[i].v};
+  auto lifted = lift_landmarks(color, target.depth_mm, KinectRegistration(calibration));
+  if (!lifted) return 1e9;
+  target.landmarks = *lifted;
+  if (!prepare_fit_target(target)) return 1e9;
+  const auto& q = capture.info.qa_scores;
+  if (!q.count("fit_pose_qw")) return 1e9;
+  RigidPose pose;
+  pose.translation = {q.at("fit_pose_tx"), q.at("fit_pose_ty"), q.at("fit_pose_tz")};
+  pose.rotation = Eigen::Quaterniond(q.at("fit_pose_qw"), q.at("fit_pose_qx"), q.at("fit_pose_qy"),
+                                     q.at("fit_pose_qz"));
+  // rms_to_depth_mm_initial describes the start mesh, i.e. the stored one.
+  RefineOptions once;
+  once.iterations = 1;
+  auto scored = refine_fit(model, target, mesh.positions, pose, once);
+  if (!scored || scored->depth_correspondences < 1000) return 1e9;
+  return scored->rms_to_depth_mm_initial;
+}
+
+TEST_F(DaemonTest, HeadlessSessionFitsStoresAndOffloads) {
   auto d = make(config());
   ASSERT_TRUE(d);
   auto r = d->run_headless_session("Ada");
   ASSERT_TRUE(r) << r.error().message;
   EXPECT_EQ(r->captures_done, 3);
   EXPECT_EQ(r->frames_total, 24);
-  EXPECT_TRUE(fs::exists(r->export_folder / "manifest.json"));
-  EXPECT_TRUE(fs::exists(r->session_folder));
-  std::ifstream in(r->export_folder / "manifest.json");
-  auto manifest = nlohmann::json::parse(in);
-  EXPECT_TRUE(manifest["complete"].get<bool>());
-  EXPECT_EQ(manifest["subject"], "Ada");
-  ASSERT_EQ(manifest["captures"].size(), 3u);
-  for (const auto& c : manifest["captures"]) {
+  const auto status = d->status();
+  EXPECT_EQ(status["stages"]["quick_fit"], "on");
+  EXPECT_GT(status["stages"]["landmark_model_load_ms"].get<double>(), 0.0);
+  EXPECT_EQ(status["qa"]["landmarks"], "ok");
+  EXPECT_EQ(status["qa"]["fit"], "expression");
+  ASSERT_EQ(status["qa"]["capture"]["points"].size(), 68u);
+
+  // The export bundle (storage/export's ExportFolder: manifest with checksums + session.json).
+  EXPECT_TRUE(verify_export_folder(r->export_folder));
+  std::ifstream in(r->export_folder / "session.json");
+  auto doc = nlohmann::json::parse(in);
+  EXPECT_TRUE(doc["complete"].get<bool>());
+  EXPECT_EQ(doc["subject"], "Ada");
+  EXPECT_EQ(doc["fitted_captures"], 3);
+  ASSERT_EQ(doc["captures"].size(), 3u);
+  for (const auto& c : doc["captures"]) {
     EXPECT_EQ(c["state"], "done");
     EXPECT_GT(c["qa"]["coverage"].get<double>(), 0.25);  // the face fills part of the box
     EXPECT_LT(c["qa"]["residual_mm"].get<double>(), 2.5);
-    EXPECT_TRUE(fs::exists(r->export_folder / c["fused_depth"].get<std::string>()));
+    EXPECT_LT(c["qa"]["fit_rms_mm"].get<double>(), 1.5);
+    EXPECT_GT(c["qa"]["landmarks_3d"].get<double>(), 30);
+    for (const char* f : {"fused_depth", "color", "landmarks", "mesh"})
+      EXPECT_TRUE(fs::exists(r->export_folder / c[f].get<std::string>())) << f;
   }
-  // The API agrees.
+
+  // The store has landmarks and a fitted mesh per capture, and the meshes fit the stored depth.
+  auto model = load_face_model();
+  ASSERT_TRUE(model);
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(r->store, ro);
+  ASSERT_TRUE(store) << store.error().message;
+  auto meshes = store->meshes(r->session_id);
+  ASSERT_TRUE(meshes);
+  ASSERT_EQ(meshes->size(), 3u);
+  EXPECT_EQ((*meshes)[0].role, MeshRole::kNeutral);
+  for (const auto& m : *meshes) {
+    auto mesh = store->read_mesh(m.id);
+    auto cap = store->read_capture(r->session_id, *m.capture_index);
+    ASSERT_TRUE(mesh && cap);
+    ASSERT_EQ(cap->landmarks.size(), 68u);
+    const double rms = stored_fit_rms_mm(*model, *cap, *mesh);
+    std::printf("capture %d (%s): stored mesh vs stored fused depth RMS %.2f mm\n",
+                *m.capture_index, m.name.c_str(), rms);
+    EXPECT_LT(rms, 1.5) << m.name;
+  }
+
+  // Offload: ready for rigging, the bundle, a rig back.
   httplib::Client http("127.0.0.1", d->http_port());
-  auto sessions = http.Get("/api/sessions");
-  ASSERT_TRUE(sessions);
-  EXPECT_EQ(sessions->status, 200);
-  auto j = nlohmann::json::parse(sessions->body);
-  ASSERT_EQ(j["sessions"].size(), 1u);
-  EXPECT_TRUE(j["sessions"][0]["complete"].get<bool>());
-  auto ready = nlohmann::json::parse(http.Get("/api/offload/ready")->body);
-  EXPECT_EQ(ready["sessions"].size(), 1u);
-  auto tar = http.Get("/api/sessions/" + std::to_string(r->session_id) + "/export.tar");
+  http.set_read_timeout(60, 0);
+  auto ready_res = http.Get("/api/offload/ready");
+  ASSERT_TRUE(ready_res) << httplib::to_string(ready_res.error());
+  auto ready = nlohmann::json::parse(ready_res->body);
+  ASSERT_EQ(ready["sessions"].size(), 1u);
+  EXPECT_TRUE(ready["sessions"][0]["ready_for_rigging"].get<bool>());
+  EXPECT_EQ(ready["sessions"][0]["rigs"], 0);
+  const std::string base = "/api/offload/sessions/" + std::to_string(r->session_id);
+  auto tar = http.Get(base + "/bundle.tar");
   ASSERT_TRUE(tar);
   EXPECT_EQ(tar->status, 200);
   EXPECT_EQ(tar->body.substr(257, 5), "ustar");
-  EXPECT_NE(tar->body.find("manifest.json"), std::string::npos);
+  EXPECT_EQ(tar->body.size() % 512, 0u);
+  EXPECT_NE(tar->body.find("session.json"), std::string::npos);
+  EXPECT_NE(tar->body.find("mesh.obj"), std::string::npos);
+  RigData rig;
+  rig.neutral = model->neutral;
+  for (int j = 0; j < 2; ++j) {
+    auto shape = model->expression_shape(j);
+    rig.shapes.emplace_back(shape.begin(), shape.end());
+  }
+  const auto bs = encode_shape_bs(rig);
+  const std::string body(reinterpret_cast<const char*>(bs.data()), bs.size());
+  auto up =
+      http.Post(base + "/rig?names=eyeBlinkLeft,eyeBlinkRight", body, "application/octet-stream");
+  ASSERT_TRUE(up);
+  EXPECT_EQ(up->status, 201) << up->body;
+  EXPECT_EQ(http.Post(base + "/rig", "garbage", "application/octet-stream")->status, 400);
+  EXPECT_EQ(http.Post(base + "/rig?names=a", body, "application/octet-stream")->status, 422);
+  EXPECT_EQ(http.Post("/api/offload/sessions/99/rig", body, "application/octet-stream")->status,
+            404);
+  EXPECT_EQ(http.Post("/api/session/start", std::string(100000, 'x'), "application/json")->status,
+            413);
+  ready = nlohmann::json::parse(http.Get("/api/offload/ready")->body);
+  EXPECT_EQ(ready["sessions"][0]["rigs"], 1);
+  // With a rig the export adds the FaceWarehouse layout (storage/export).
+  EXPECT_EQ(http.Post("/api/sessions/" + std::to_string(r->session_id) + "/export", "{}",
+                      "application/json")
+                ->status,
+            200);
+  EXPECT_TRUE(fs::exists(r->export_folder.parent_path() /
+                         ("session-" + std::to_string(r->session_id) + "-facewarehouse")));
+
+  // Landmark correction of the last capture: the point moves, the store keeps the operator's
+  // points and a new mesh, and the fit changes.
+  const auto before = d->status()["qa"];
+  const double u = before["capture"]["points"][33][0].get<double>() + 12.0;
+  const double v = before["capture"]["points"][33][1].get<double>() + 6.0;
+  nlohmann::json corr = {{"corrections", {{{"index", 33}, {"u", u}, {"v", v}}}}};
+  const std::string path =
+      "/api/sessions/" + std::to_string(r->session_id) + "/captures/2/landmarks";
+  auto c = http.Post(path, corr.dump(), "application/json");
+  ASSERT_TRUE(c);
+  ASSERT_EQ(c->status, 200) << c->body;
+  auto answer = nlohmann::json::parse(c->body);
+  EXPECT_EQ(answer["qa"]["corrections"], 1);
+  const auto after = d->status()["qa"];
+  EXPECT_NEAR(after["capture"]["points"][33][0].get<double>(), u, 1e-6);
+  EXPECT_TRUE(after["capture"]["corrected"][33].get<bool>());
+  EXPECT_GT(after["capture"]["revision"].get<int>(), before["capture"]["revision"].get<int>());
+  EXPECT_NE(after["landmark_error_mm"].get<double>(), before["landmark_error_mm"].get<double>());
+  auto store2 = SessionStore::open(r->store, ro);
+  ASSERT_TRUE(store2);
+  auto corrected = store2->read_capture(r->session_id, 2);
+  ASSERT_TRUE(corrected);
+  EXPECT_EQ(corrected->landmark_source, LandmarkSource::kOperator);
+  EXPECT_NEAR(corrected->landmarks[33].u, u, 1e-3);
+  auto meshes2 = store2->meshes(r->session_id);
+  ASSERT_EQ(meshes2->size(), 4u);
+  auto m_old = store2->read_mesh((*meshes2)[2].id);
+  auto m_new = store2->read_mesh((*meshes2)[3].id);
+  double moved = 0;
+  for (std::size_t i = 0; i < m_old->positions.size(); ++i)
+    moved = std::max<double>(moved, std::abs(m_old->positions[i] - m_new->positions[i]));
+  EXPECT_GT(moved, 0.01);  // the refit changed the mesh
+  // Bad corrections are refused; only the latest capture can be corrected.
+  EXPECT_EQ(
+      http.Post(path, R"({"corrections": [{"index": 99, "u": 1, "v": 1}]})", "application/json")
+          ->status,
+      409);
+  EXPECT_EQ(http.Post(path, R"({"corrections": "no"})", "application/json")->status, 400);
+  EXPECT_EQ(http.Post("/api/sessions/" + std::to_string(r->session_id) + "/captures/0/landmarks",
+                      corr.dump(), "application/json")
+                ->status,
+            409);
+}
+
+// Tracking mode on the synthetic camera: the tracker runs with the session's neutral identity,
+// VMC datagrams reach a UDP receiver, the page's live JSON has weights, and the take is stored.
+TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
+  const int udp = ::socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(udp, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(::bind(udp, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  ASSERT_EQ(::getsockname(udp, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  timeval tv{2, 0};
+  ::setsockopt(udp, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  DaemonConfig c = config();
+  c.streaming.vmc_target = "127.0.0.1:" + std::to_string(ntohs(a.sin_port));
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  httplib::Client http("127.0.0.1", d->http_port());
+  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
+  auto s = wait_for(*d, [](auto& s) {
+    return s["state"] == "tracking" && s["tracking"]["frames"].template get<int>() >= 45;
+  });
+  EXPECT_EQ(s["tracking"]["identity"].get<std::string>().rfind("mean face", 0), 0u);
+  char buf[2048];
+  const auto got = ::recv(udp, buf, sizeof buf, 0);
+  ::close(udp);
+  ASSERT_GT(got, 16);
+  EXPECT_EQ(std::string(buf, 7), "#bundle");
+  EXPECT_NE(std::string(buf, static_cast<std::size_t>(got)).find("/VMC/Ext/"), std::string::npos);
+  auto live = http.Get("/api/tracking/live");
+  ASSERT_TRUE(live);
+  ASSERT_EQ(live->status, 200);
+  auto frame = nlohmann::json::parse(live->body);
+  EXPECT_TRUE(frame["face"].get<bool>()) << live->body;
+  EXPECT_EQ(frame["weights"].size(), 52u);
+  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
+  s = wait_for(*d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(c.storage.data_dir / "store", ro);
+  ASSERT_TRUE(store);
+  TakeInfo info;
+  auto values = store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+  ASSERT_TRUE(values) << values.error().message;
+  EXPECT_GE(info.frame_count, 45);
+  EXPECT_EQ(info.shape_names.size(), 52u);
+  EXPECT_EQ(values->size(), static_cast<std::size_t>(info.frame_count * info.stride()));
+  // The head is about 700 mm in front of the camera in the synthetic scene.
+  const float tz = (*values)[static_cast<std::size_t>((info.frame_count - 1) * info.stride() + 2)];
+  EXPECT_NEAR(tz, 700.0f, 150.0f);
 }
 
 TEST_F(DaemonTest, CancelThenResumeAfterRestart) {
@@ -323,7 +516,7 @@ TEST_F(DaemonTest, HttpControlsAndRejectsBadRequests) {
   ASSERT_TRUE(status);
   auto j = nlohmann::json::parse(status->body);
   EXPECT_EQ(j["state"], "idle");
-  EXPECT_EQ(j["stages"]["landmarks"], "pending");
+  EXPECT_EQ(j["stages"]["landmarks"], "dlib 68-point");
   EXPECT_EQ(http.Get("/")->status, 200);
   EXPECT_NE(http.Get("/")->body.find("<html"), std::string::npos);
   // Nothing outside the routes, no traversal, ids are numbers.

@@ -1,0 +1,539 @@
+// The daemon's processing after a take (landmarks, quick fit, QA, commit) on its fit thread,
+// the operator's landmark corrections, and tracking mode (on the frame loop).
+//
+// Threads: the worker (frame loop + state machine) hands a recorded take to the fit thread and
+// keeps running; the fit thread posts the outcome (qa_passed / last_done / qa_failed, tagged with
+// the session) back into the worker's queue. A stop discards queued jobs and abandons a job
+// whose fit is running before it commits (the capture stays not done and is recorded again
+// after a restart, exactly like a take interrupted by SIGTERM).
+#include <cmath>
+#include <cstdio>
+
+#include "firmware/daemon/daemon_impl.hpp"
+#include "firmware/streaming/live_json.hpp"
+#include "storage/asset_files.hpp"
+
+namespace fb {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+std::string fixed(double v, int digits = 2) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+}  // namespace
+
+void Daemon::Impl::post_input(KioskInput input, std::int64_t session) {
+  {
+    std::lock_guard lock(queue_mutex);
+    queue.push_back({input, {}, session});
+  }
+  queue_cv.notify_all();
+}
+
+Result<void> Daemon::Impl::start_fitter() {
+  if (!config.session.quick_fit) {
+    fitter_error = "off ([session] quick_fit = false)";
+    return success();
+  }
+  QuickFitPaths paths;
+  paths.face_model =
+      config.session.face_model.empty() ? default_face_model_path() : config.session.face_model;
+  paths.shape_predictor = config.session.shape_predictor;
+  auto f = QuickFitter::create(paths, guide);
+  if (!f) return f.failure();
+  fitter = std::move(*f);
+  std::fprintf(stderr, "faceboothd: landmark model loaded in %.0f ms (%s)\n",
+               fitter->landmark_model_load_ms(), paths.shape_predictor.c_str());
+  // Tracking after a restart uses the newest session's stored neutral.
+  post_fit_job([this](bool run) {
+    if (!run) return;
+    std::int64_t newest = 0;
+    {
+      std::lock_guard lock(records_mutex);
+      if (auto all = records->sessions(); all && !all->empty()) newest = all->back().id;
+    }
+    if (newest > 0) ensure_session_neutral(newest);
+  });
+  return success();
+}
+
+void Daemon::Impl::post_fit_job(std::function<void(bool run)> job) {
+  {
+    std::lock_guard lock(fit_mutex);
+    fit_jobs.push_back(std::move(job));
+  }
+  fit_cv.notify_all();
+}
+
+void Daemon::Impl::fit_loop() {
+  while (true) {
+    std::function<void(bool)> job;
+    {
+      std::unique_lock lock(fit_mutex);
+      fit_cv.wait(lock, [&] { return !fit_jobs.empty() || stopping.load(); });
+      if (stopping) {
+        // Discard what is queued (each job learns it was not run: promises are answered).
+        auto jobs = std::move(fit_jobs);
+        fit_jobs.clear();
+        lock.unlock();
+        for (auto& j : jobs) j(false);
+        return;
+      }
+      job = std::move(fit_jobs.front());
+      fit_jobs.pop_front();
+    }
+    job(true);
+  }
+}
+
+void Daemon::Impl::ensure_session_neutral(std::int64_t session) {
+  if (!fitter || fitter->neutral_session() == session) return;
+  Result<std::optional<MeshData>> mesh = std::optional<MeshData>{};
+  {
+    std::lock_guard lock(records_mutex);
+    mesh = records->neutral_mesh(session);
+  }
+  if (!mesh || !*mesh) return;
+  if (auto ok = fitter->set_neutral(session, (*mesh)->positions); !ok) {
+    std::fprintf(stderr, "faceboothd: stored neutral of session %lld unusable: %s\n",
+                 static_cast<long long>(session), ok.error().message.c_str());
+    return;
+  }
+  std::lock_guard lock(identity_mutex);
+  subject_identity = fitter->identity();
+  identity_session = session;
+}
+
+void Daemon::Impl::fold_fit_into_qa(const Result<QuickFitResult>& fit, QaReport& qa) {
+  const auto& th = config.session;
+  if (!fit) {
+    const std::string& why = fit.error().message;
+    const bool no_face = why.find("no face") != std::string::npos;
+    qa.landmarks = no_face ? "failed" : "ok";
+    qa.fit = "failed";
+    if (qa.passed) {
+      qa.passed = false;
+      qa.reason = no_face ? "no face found by the landmark detector" : "quick fit failed: " + why;
+    }
+    return;
+  }
+  qa.landmarks = "ok";
+  qa.fit = fit->neutral
+               ? "neutral"
+               : (fit->neutral_was_mean_face ? "expression (mean-face start)" : "expression");
+  qa.landmark_score = fit->detection_score;
+  qa.landmarks_3d = fit->landmarks_3d;
+  qa.landmark_error_mm = fit->landmark_error_mm;
+  qa.fit_rms_mm = fit->fit.rms_to_depth_mm;
+  qa.fit_rms_initial_mm = fit->fit.rms_to_depth_mm_initial;
+  qa.corrections = 0;
+  for (bool c : fit->corrected) qa.corrections += c;
+  if (!qa.passed) return;  // the take's own reason stays first
+  if (qa.corrections == 0 && fit->detection_score < th.min_landmark_score)
+    qa.reason = "landmark confidence " + fixed(fit->detection_score) + " below " +
+                fixed(th.min_landmark_score);
+  else if (!(fit->fit.rms_to_depth_mm <= th.max_fit_rms_mm))
+    qa.reason = "fit residual " + fixed(fit->fit.rms_to_depth_mm) + " mm above " +
+                fixed(th.max_fit_rms_mm) + " mm";
+  else if (!(fit->landmark_error_mm <= th.max_landmark_error_mm))
+    qa.reason = "landmarks disagree with the fit by " + fixed(fit->landmark_error_mm, 1) +
+                " mm (correct them on the screen, or retry)";
+  qa.passed = qa.reason.empty();
+}
+
+namespace {
+
+void add_fit_scores(const QaReport& qa, std::map<std::string, double>& scores) {
+  scores["landmark_score"] = qa.landmark_score;
+  scores["landmarks_3d"] = qa.landmarks_3d;
+  scores["landmark_error_mm"] = qa.landmark_error_mm;
+  scores["fit_rms_mm"] = qa.fit_rms_mm;
+  scores["fit_rms_initial_mm"] = qa.fit_rms_initial_mm;
+  scores["fit_ms"] = qa.fit_ms;
+  scores["landmark_corrections"] = qa.corrections;
+}
+
+}  // namespace
+
+void Daemon::Impl::publish_qa_capture(const LastCapture& c) {
+  QaCapture q;
+  q.session = c.session;
+  q.index = c.index;
+  if (c.fit) {
+    for (int i = 0; i < 68; ++i) {
+      q.points.push_back({c.fit->color_points[static_cast<std::size_t>(i)].x(),
+                          c.fit->color_points[static_cast<std::size_t>(i)].y()});
+      q.corrected.push_back(c.fit->corrected[static_cast<std::size_t>(i)]);
+    }
+  }
+  {
+    std::lock_guard lock(preview_mutex);
+    last_capture_bmp = c.view.color.empty() ? std::string() : encode_bmp(c.view.color);
+  }
+  update_status([&](StatusData& s) {
+    q.revision = s.qa_capture.revision + 1;
+    s.qa_capture = std::move(q);
+    s.last_qa = c.qa;
+  });
+}
+
+// The kProcess action's work, on the fit thread.
+void Daemon::Impl::process_capture(std::int64_t session, int index, QaReport qa,
+                                   CaptureCommit commit, CaptureView view, bool run) {
+  if (!run) return;  // discarded at stop: begin_capture counted the attempt, nothing else
+  LastCapture lc;
+  lc.session = session;
+  lc.index = index;
+  if (fitter && qa.passed) {
+    update_status([](StatusData& s) { s.fit_stage = "landmarks and quick fit"; });
+    if (index > 0) ensure_session_neutral(session);
+    const auto t0 = Clock::now();
+    auto fit = fitter->fit(session, index, view);
+    qa.fit_ms = ms_since(t0);
+    fold_fit_into_qa(fit, qa);
+    std::fprintf(stderr,
+                 "faceboothd: capture %d: %s, fit %s in %.0f ms (RMS %.2f mm, landmarks %.1f mm, "
+                 "score %.2f)%s%s\n",
+                 index, qa.landmarks.c_str(), qa.fit.c_str(), qa.fit_ms, qa.fit_rms_mm,
+                 qa.landmark_error_mm, qa.landmark_score, qa.passed ? "" : ": ", qa.reason.c_str());
+    if (fit) {
+      if (fit->neutral) {
+        std::lock_guard lock(identity_mutex);
+        subject_identity = fitter->identity();
+        identity_session = session;
+      }
+      lc.fit = std::move(*fit);
+    }
+  } else if (!fitter) {
+    qa.landmarks = qa.fit = fitter_error.empty() ? "off" : fitter_error;
+  }
+  if (stopping) return;  // abandoned before anything was written
+  add_fit_scores(qa, commit.qa_scores);
+  if (lc.fit) {
+    // The fit's pose (camera_from_model), so the stored mesh can be put back onto the stored
+    // depth without refitting.
+    const RigidPose& p = lc.fit->fit.camera_from_model;
+    const double pose[7] = {p.translation.x(), p.translation.y(), p.translation.z(), p.rotation.x(),
+                            p.rotation.y(),    p.rotation.z(),    p.rotation.w()};
+    const char* names[7] = {"fit_pose_tx", "fit_pose_ty", "fit_pose_tz", "fit_pose_qx",
+                            "fit_pose_qy", "fit_pose_qz", "fit_pose_qw"};
+    for (int i = 0; i < 7; ++i) commit.qa_scores[names[i]] = pose[i];
+  }
+  update_status([](StatusData& s) { s.fit_stage = "storing"; });
+
+  KioskInput outcome = KioskInput::kQaFailed;
+  std::string error;
+  {
+    std::lock_guard lock(records_mutex);
+    if (!qa.passed) {
+      if (auto ok = records->reject_capture(session, index, commit.qa_scores); !ok)
+        error = ok.error().message;
+      lc.commit = std::move(commit);  // a correction may still accept this take
+    } else {
+      if (lc.fit) commit.landmarks = lc.fit->stored_landmarks(view.intrinsics);
+      if (auto ok = records->commit_capture(session, index, std::move(commit)); !ok) {
+        error = ok.error().message;
+      } else {
+        lc.committed = true;
+        if (lc.fit && records->keeps_fits()) {
+          FitRecord rec{lc.fit->neutral, guide[static_cast<std::size_t>(index)].name,
+                        fitter->mesh(*lc.fit)};
+          if (auto ok = records->add_fit(session, index, rec); !ok) error = ok.error().message;
+        }
+        if (auto s = records->session(session); !s) {
+          error = s.error().message;
+        } else {
+          outcome = s->complete ? KioskInput::kLastDone : KioskInput::kQaPassed;
+          update_status([&](StatusData& st) {
+            if (st.session == session) st.done_count = s->done_count;
+          });
+        }
+      }
+    }
+  }
+  lc.qa = qa;
+  lc.view = std::move(view);
+  publish_qa_capture(lc);
+  last_capture = std::move(lc);
+  update_status([&](StatusData& s) {
+    s.fit_stage.clear();
+    if (!error.empty()) s.error = error;
+  });
+  post_input(error.empty() ? outcome : KioskInput::kFailed, session);
+}
+
+Result<nlohmann::json> Daemon::Impl::correct_landmarks(
+    std::int64_t session, int index, const std::vector<ColorCorrection>& corrections) {
+  if (!fitter) return fail("landmarks are off: " + fitter_error);
+  auto promise = std::make_shared<std::promise<Result<nlohmann::json>>>();
+  auto future = promise->get_future();
+  post_fit_job([this, promise, session, index, corrections](bool run) {
+    auto answer = [&]() -> Result<nlohmann::json> {
+      if (!run) return fail("the daemon is stopping");
+      if (!last_capture || last_capture->session != session || last_capture->index != index)
+        return fail("only the latest processed capture can be corrected on the device" +
+                    (last_capture ? " (session " + std::to_string(last_capture->session) +
+                                        ", capture " + std::to_string(last_capture->index) + ")"
+                                  : std::string(" (none yet)")));
+      LastCapture& lc = *last_capture;
+      if (!lc.fit)
+        return fail("capture " + std::to_string(index) +
+                    " has no landmarks to correct (the detector found no face or the take "
+                    "failed before fitting); record it again");
+      bool accept_now = false;
+      if (!lc.committed) {
+        // A rejected take can be accepted by a correction only while the kiosk still waits
+        // for its retry (after a new take starts, the old one is gone).
+        std::lock_guard lock(status_mutex);
+        if (status.state != KioskState::kRetry || status.session != session ||
+            status.capture_index != index)
+          return fail("capture " + std::to_string(index) + " is being recorded again");
+      }
+      const auto t0 = Clock::now();
+      if (auto ok = fitter->refit(session, index, lc.view, corrections, *lc.fit); !ok)
+        return ok.failure();
+      QaReport qa = lc.qa;
+      qa.passed = qa.coverage >= config.session.min_coverage &&
+                  qa.fused_fraction >= config.session.min_fused_fraction &&
+                  qa.residual_mm <= config.session.max_residual_mm;
+      qa.reason = qa.passed ? "" : lc.qa.reason;
+      fold_fit_into_qa(*lc.fit, qa);
+      qa.fit_ms = ms_since(t0);
+      if (lc.fit->neutral) {
+        std::lock_guard lock(identity_mutex);
+        subject_identity = fitter->identity();
+        identity_session = session;
+      }
+      const std::vector<Landmark> points = lc.fit->stored_landmarks(lc.view.intrinsics);
+      std::optional<KioskInput> outcome;
+      {
+        std::lock_guard lock(records_mutex);
+        if (!lc.committed && qa.passed) {
+          CaptureCommit commit = std::move(lc.commit);
+          lc.commit = {};
+          add_fit_scores(qa, commit.qa_scores);
+          commit.landmarks = points;
+          if (auto ok = records->commit_capture(session, index, std::move(commit)); !ok)
+            return ok.failure();
+          lc.committed = true;
+          accept_now = true;
+          auto s = records->session(session);
+          if (!s) return s.failure();
+          outcome = s->complete ? KioskInput::kLastDone : KioskInput::kQaPassed;
+          update_status([&](StatusData& st) { st.done_count = s->done_count; });
+        } else if (!lc.committed) {
+          add_fit_scores(qa, lc.commit.qa_scores);
+          if (auto ok = records->reject_capture(session, index, lc.commit.qa_scores); !ok)
+            return ok.failure();
+        }
+        if (lc.committed) {
+          if (auto ok = records->set_operator_landmarks(session, index, points); !ok)
+            return ok.failure();
+          if (records->keeps_fits()) {
+            FitRecord rec{lc.fit->neutral, guide[static_cast<std::size_t>(index)].name,
+                          fitter->mesh(*lc.fit)};
+            if (auto ok = records->add_fit(session, index, rec); !ok) return ok.failure();
+          }
+        }
+      }
+      lc.qa = qa;
+      publish_qa_capture(lc);
+      if (outcome) post_input(*outcome, session);
+      return nlohmann::json{{"session", session},
+                            {"capture", index},
+                            {"accepted", accept_now},
+                            {"committed", lc.committed},
+                            {"qa",
+                             {{"passed", qa.passed},
+                              {"reason", qa.reason},
+                              {"fit_rms_mm", qa.fit_rms_mm},
+                              {"landmark_error_mm", qa.landmark_error_mm},
+                              {"landmarks_3d", qa.landmarks_3d},
+                              {"corrections", qa.corrections},
+                              {"fit_ms", qa.fit_ms}}}};
+    };
+    promise->set_value(answer());
+  });
+  // The fit takes well under a second here; the bound only guards against a wedged thread.
+  if (future.wait_for(std::chrono::seconds(60)) != std::future_status::ready)
+    return fail("the refit did not finish within 60 s");
+  return future.get();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tracking mode
+
+Result<void> Daemon::Impl::start_tracking() {
+  update_status([](StatusData& s) {
+    s.tracking_frames = 0;
+    s.tracking_state.clear();
+    s.tracking_note.clear();
+  });
+  if (!fitter) return fail("tracking needs the face model: " + fitter_error);
+  const FaceModel& model = fitter->model();  // immutable after create(): safe on this thread
+  auto t = FaceTracker::create(model, preview_camera->info().depth_intrinsics);
+  if (!t) return t.failure();
+  tracker = std::move(*t);
+  std::vector<float> identity;
+  std::int64_t from_session = 0;
+  {
+    std::lock_guard lock(identity_mutex);
+    identity = subject_identity;
+    from_session = identity_session;
+  }
+  std::string identity_note;
+  if (!identity.empty()) {
+    identity_note = "neutral fit of session " + std::to_string(from_session);
+    if (auto ok = tracker->set_identity(identity); !ok) return ok.failure();
+  } else {
+    // No neutral fit yet: the tracker starts from the mean face and calibrates the identity on
+    // its first frames.
+    identity_note = "mean face, calibrated on the first frames (no neutral fit yet)";
+  }
+  auto mapping = make_arkit_mapping(model);
+  if (!mapping) return mapping.failure();
+  arkit = *mapping;
+  const std::string target = !config.streaming.vmc_target.empty() ? config.streaming.vmc_target
+                                                                  : config.streaming.osc_target;
+  vmc.reset();
+  if (!target.empty()) {
+    auto dest = parse_osc_destination(target);
+    if (!dest) return fail("[streaming] target '" + target + "': " + dest.error().message);
+    auto sender = VmcSender::open(*dest);
+    if (!sender) return sender.failure();
+    vmc = std::move(*sender);
+  }
+  take_values.clear();
+  take_frames = 0;
+  {
+    std::lock_guard lock(status_mutex);
+    take_session = status.session;
+  }
+  if (take_session == 0) {
+    std::lock_guard lock(records_mutex);
+    if (auto all = records->sessions(); all && !all->empty()) take_session = all->back().id;
+  }
+  update_status([&](StatusData& s) {
+    s.tracking_identity = identity_note;
+    s.vmc_datagrams = 0;
+  });
+  std::fprintf(stderr, "faceboothd: tracking with %s identity, VMC %s\n", identity_note.c_str(),
+               target.empty() ? "off" : target.c_str());
+  return success();
+}
+
+void Daemon::Impl::stop_tracking() {
+  if (!tracker) return;
+  std::string note;
+  std::int64_t take_id = 0;
+  if (config.streaming.save_takes && take_frames > 0) {
+    TakeRecord take;
+    take.session = take_session;
+    take.subject_name = "tracking";
+    take.fps = preview_camera->info().fps > 0 ? preview_camera->info().fps : 30.0;
+    for (auto name : kArkitNames) take.shape_names.emplace_back(name);
+    take.frame_count = take_frames;
+    std::lock_guard lock(records_mutex);
+    auto id = records->add_take(take, take_values);
+    if (id) {
+      take_id = *id;
+      note = "take " + std::to_string(*id) + " stored (" + std::to_string(take_frames) + " frames)";
+    } else {
+      note = "take not stored: " + id.error().message;
+    }
+  }
+  tracker.reset();
+  vmc.reset();
+  take_values.clear();
+  take_values.shrink_to_fit();
+  update_status([&](StatusData& s) {
+    s.tracking_note = note;
+    if (take_id > 0) s.last_take = take_id;
+  });
+  if (!note.empty()) std::fprintf(stderr, "faceboothd: %s\n", note.c_str());
+}
+
+void Daemon::Impl::tracking_tick() {
+  const auto t0 = Clock::now();
+  RgbdFrame frame;
+  auto got = preview_camera->next_frame(frame, std::chrono::milliseconds(100));
+  if (got && *got == FrameStatus::kEndOfStream) {
+    preview_camera->stop();
+    if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start())
+      preview_camera = std::move(*reopened);
+    return;
+  }
+  if (!got || *got != FrameStatus::kFrame) return;
+  {
+    std::lock_guard lock(preview_mutex);
+    const FaceBox box = default_face_box(frame.color.width, frame.color.height);
+    const int w = frame.color.width / 2, h = frame.color.height / 2;
+    preview.resize(w, h);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
+    (void)box;
+  }
+  bool state_changed = false;
+  if (tracker) {
+    tracker->track(frame.depth_mm, frame.depth_host_time_s, nullptr, track_report);
+    track_frame.index = frame.index;
+    track_frame.time_s = frame.depth_host_time_s;
+    track_frame.face_found = track_report.face_found;
+    track_frame.camera_from_model = track_report.camera_from_model;
+    arkit->to_arkit(std::span<const float>(track_report.weights.data(),
+                                           static_cast<std::size_t>(track_report.shape_count)),
+                    track_frame.weights);
+    if (vmc) {
+      if (auto sent = vmc->send(track_frame); !sent)
+        update_status([&](StatusData& s) { s.tracking_note = sent.error().message; });
+    }
+    if (take_frames < config.streaming.max_take_frames) {
+      const auto& p = track_frame.camera_from_model;
+      const float pose[7] = {
+          static_cast<float>(p.translation.x()), static_cast<float>(p.translation.y()),
+          static_cast<float>(p.translation.z()), static_cast<float>(p.rotation.x()),
+          static_cast<float>(p.rotation.y()),    static_cast<float>(p.rotation.z()),
+          static_cast<float>(p.rotation.w())};
+      take_values.insert(take_values.end(), pose, pose + 7);
+      take_values.insert(take_values.end(), track_frame.weights.begin(), track_frame.weights.end());
+      ++take_frames;
+    }
+    {
+      std::lock_guard lock(live_mutex);
+      format_frame_json(track_frame, live_json);
+      ++live_version;
+    }
+    live_cv.notify_all();
+    std::lock_guard lock(status_mutex);
+    state_changed = status.tracking_state != to_string(track_report.state);
+  }
+  const long long vmc_sent = vmc ? vmc->datagrams_sent() : 0;
+  const char* state = tracker ? to_string(track_report.state) : "";
+  // The status (and its SSE stream) changes on tracker state changes and twice a second; the
+  // per-frame weights go through the live stream.
+  long long frames;
+  {
+    std::lock_guard lock(status_mutex);
+    frames = ++status.frames_total;
+    ++status.tracking_frames;
+  }
+  if (state_changed || frames % 15 == 0)
+    update_status([&](StatusData& s) {
+      s.tracking_state = state;
+      s.vmc_datagrams = vmc_sent;
+    });
+  if (config.camera.realtime) {
+    const auto period = std::chrono::duration<double>(1.0 / preview_camera->info().fps);
+    std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(period));
+  }
+}
+
+}  // namespace fb

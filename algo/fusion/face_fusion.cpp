@@ -119,7 +119,8 @@ void FaceFusion::cast_model(const PoseF& pose) {
   const Image<float>& hint = model_.first_level > 0 ? pyramid_.levels[model_.first_level].depth
                              : options_.integrate_filtered_depth ? pyramid_.levels[0].depth
                                                                  : pyramid_.raw;
-  ray_caster_.cast(volume_, pose, &hint, false, model_.levels[0], *runner_);
+  const bool hint_is_raw = model_.first_level == 0 && !options_.integrate_filtered_depth;
+  ray_caster_.cast(volume_, pose, &hint, hint_is_raw, false, model_.levels[0], *runner_);
   subsample_model_levels(model_);
   model_.world_from_camera = pose;
   model_.valid = true;
@@ -235,7 +236,8 @@ void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
         render_level_.box.width == box_.width && render_level_.box.height == box_.height))
     render_level_.allocate(LevelIntrinsics::from(intrinsics_), box_);
   std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
-  ray_caster_.cast(volume_, PoseF::from(world_from_camera), nullptr, true, render_level_, *runner_);
+  ray_caster_.cast(volume_, PoseF::from(world_from_camera), nullptr, false, true, render_level_,
+                   *runner_);
   out.depth_mm = render_level_.depth;
   out.normals = render_level_.normals;
 }

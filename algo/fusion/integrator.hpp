@@ -27,6 +27,7 @@ class TsdfIntegrator {
   int max_weight_ = 64;
   std::vector<std::uint8_t> marks_;
   std::vector<int> bricks_;
+  std::vector<float> depth_lo_, depth_hi_;  // per marked brick: depth range of its rays
 };
 
 }  // namespace fb

@@ -44,7 +44,7 @@ inline Sample nearest(const TsdfVolume& vol, const Eigen::Vector3f& g) {
 }  // namespace
 
 void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
-                     const Image<float>* hint, bool full_search, MapLevel& out,
+                     const Image<float>* hint, bool hint_is_raw, bool full_search, MapLevel& out,
                      ParallelRunner& runner) const {
   const LevelIntrinsics& k = out.k;
   const FaceBox& box = out.box;
@@ -58,6 +58,8 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
   const Eigen::Matrix3f gr = world_from_camera.r * inv_vs;
   const float ifx = 1.0f / k.fx, ify = 1.0f / k.fy;
   const float min_step = 0.5f * vs, free_step = 0.8f * mu;
+  // Raw depth (Kinect noise ~1.5 mm at face range) needs 0.75 mu; filtered depth 0.4 mu.
+  const float start_margin = (hint_is_raw ? 0.75f : 0.4f) * mu;
 
   runner.run([&](int part, int parts) {
     int y0, y1;
@@ -87,10 +89,16 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
           if (pass == 1 && !behind && !full_search) break;
           if (pass == 0) {
             if (h <= 0.0f) continue;
-            // 0.75 mu in front: beyond 3 sigma of Kinect noise at face range, yet only a few
+            // start_margin in front: beyond 3 sigma of the hint's noise, yet only one or two
             // TSDF-sized steps from the surface.
-            t = std::max(t_enter, h - 0.75f * mu);
+            t = std::max(t_enter, h - start_margin);
             t_end = std::min(t_exit, h + 3.0f * mu);
+          } else if (!full_search) {
+            // The hint started behind the surface: the model is in front of this frame's depth
+            // by more than the margin; look up to 2 mu in front (beyond that the tracker's
+            // association gate would reject the pair anyway).
+            t = std::max(t_enter, h - 2.0f * mu);
+            t_end = std::min(t_exit, h);
           }
           float prev_t = -1.0f, prev_f = 0.0f;
           bool first = true;

@@ -16,11 +16,12 @@ class RayCaster {
 
   // Writes out.vertices (camera frame), out.depth and out.normals inside out.box.
   // `hint` (optional, level-0 sized) holds a depth near the surface per pixel, 0 = none; the
-  // previous content of out.depth is the second hint. With `full_search` false, pixels without
-  // any hint are left empty (the tracker's model view: it only needs surface where the frame
-  // has data), which skips the long march through empty space around the head.
+  // previous content of out.depth is the second hint. Rays start a margin in front of the hint:
+  // wider for raw depth (`hint_is_raw`) than for filtered depth. With `full_search` false, pixels
+  // without any hint are left empty (the tracker's model view: it only needs surface where the
+  // frame has data), which skips the long march through empty space around the head.
   void cast(const TsdfVolume& volume, const PoseF& world_from_camera, const Image<float>* hint,
-            bool full_search, MapLevel& out, ParallelRunner& runner) const;
+            bool hint_is_raw, bool full_search, MapLevel& out, ParallelRunner& runner) const;
 
  private:
   FusionOptions options_;

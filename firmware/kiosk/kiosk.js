@@ -46,9 +46,14 @@ function render(s) {
     qa.textContent = (s.qa.passed ? "QA passed" : "QA failed: " + s.qa.reason) +
         ` (coverage ${s.qa.coverage.toFixed(2)}, residual ${s.qa.residual_mm.toFixed(2)} mm,` +
         ` landmarks ${s.qa.landmarks}, fit ${s.qa.fit})`;
+    if (s.qa.fit_rms_mm) qa.textContent += ` fit RMS ${s.qa.fit_rms_mm.toFixed(2)} mm,` +
+        ` landmark error ${s.qa.landmark_error_mm.toFixed(1)} mm`;
+    renderQaCapture(s.qa.capture);
   } else {
     qa.hidden = true;
+    renderQaCapture(null);
   }
+  renderTracking(s);
   const inSession = ["enrolled", "guide", "recording", "processing", "retry"].includes(s.state);
   $("start").disabled = !(s.state === "idle" || s.state === "complete");
   $("next").disabled = s.state !== "guide";
@@ -56,6 +61,89 @@ function render(s) {
   $("cancel").disabled = !inSession;
   $("mode").textContent = s.state === "tracking" ? "Capture mode" : "Tracking mode";
   $("mode").disabled = inSession;
+}
+
+// QA screen: the capture's colour frame (640x480 shown at half size) with its 68 landmarks;
+// dragging one posts a correction, the daemon refits and the status brings the new QA.
+let qaKey = "";
+let dragging = null;
+const SVG = "http://www.w3.org/2000/svg";
+function renderQaCapture(c) {
+  const view = $("qa-view");
+  if (!c || !c.points || c.points.length !== 68) { view.hidden = true; qaKey = ""; return; }
+  view.hidden = false;
+  const key = `${c.session}/${c.index}/${c.revision}`;
+  if (key === qaKey || dragging) return;
+  qaKey = key;
+  $("qa-img").src = c.image;
+  const svg = $("qa-points");
+  svg.setAttribute("viewBox", "0 0 640 480");
+  svg.innerHTML = "";
+  c.points.forEach(([u, v], i) => {
+    const dot = document.createElementNS(SVG, "circle");
+    dot.setAttribute("cx", u); dot.setAttribute("cy", v); dot.setAttribute("r", 4);
+    dot.dataset.index = i;
+    if (c.corrected[i]) dot.classList.add("corrected");
+    dot.addEventListener("pointerdown", (e) => {
+      dragging = {dot, session: c.session, capture: c.index};
+      dot.setPointerCapture(e.pointerId);
+    });
+    svg.appendChild(dot);
+  });
+}
+function svgPoint(e) {
+  const r = $("qa-points").getBoundingClientRect();
+  return [(e.clientX - r.left) * 640 / r.width, (e.clientY - r.top) * 480 / r.height];
+}
+$("qa-points").addEventListener("pointermove", (e) => {
+  if (!dragging) return;
+  const [u, v] = svgPoint(e);
+  dragging.dot.setAttribute("cx", u);
+  dragging.dot.setAttribute("cy", v);
+});
+$("qa-points").addEventListener("pointerup", async (e) => {
+  if (!dragging) return;
+  const d = dragging;
+  const [u, v] = svgPoint(e);
+  d.dot.classList.add("corrected");
+  await post(`/api/sessions/${d.session}/captures/${d.capture}/landmarks`,
+             {corrections: [{index: Number(d.dot.dataset.index), u, v}]});
+  dragging = null;
+  qaKey = "";  // redraw from the next status
+});
+
+// Tracking view: live weights from /api/tracking/events while in tracking mode.
+let live = null;
+function renderTracking(s) {
+  const on = s.state === "tracking";
+  $("tracking").hidden = !on;
+  if (on) {
+    const t = s.tracking || {};
+    $("tracking-info").textContent = `tracker: ${t.state || "starting"}, identity: ` +
+        `${t.identity || "-"}, VMC: ${t.vmc_target || "off"} (${t.vmc_datagrams || 0} datagrams)`;
+  }
+  if (on && !live) {
+    live = new EventSource("/api/tracking/events");
+    live.addEventListener("face", (e) => renderWeights(JSON.parse(e.data)));
+  } else if (!on && live) {
+    live.close();
+    live = null;
+  }
+}
+function renderWeights(f) {
+  const box = $("weights");
+  const top = Object.entries(f.weights).sort((a, b) => b[1] - a[1]).slice(0, 12);
+  box.innerHTML = "";
+  box.dataset.frame = f.frame;
+  box.dataset.face = f.face;
+  for (const [name, w] of top) {
+    const label = document.createElement("span");
+    label.textContent = name;
+    const bar = document.createElement("div");
+    bar.className = "bar";
+    bar.style.width = (100 * w).toFixed(0) + "%";
+    box.append(label, bar);
+  }
 }
 
 function connect() {

@@ -102,6 +102,40 @@ try {
   const detail = await (await fetch(`${base}/api/sessions/${s.id}`)).json();
   if (detail.captures.some((c) => c.state !== "done")) throw new Error("a capture is not done");
   if ((await page.textContent("#progress")) === null) throw new Error("no progress bar");
+  // The QA screen shows the last capture's 68 landmarks; dragging one refits (a correction).
+  await page.waitForFunction(() => document.querySelectorAll("#qa-points circle").length === 68);
+  const before = (await (await fetch(base + "/api/status")).json()).qa;
+  const dot = page.locator("#qa-points circle").nth(33);
+  const box = await dot.boundingBox();
+  await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width / 2 + 8, box.y + box.height / 2 + 4, {steps: 4});
+  await page.mouse.up();
+  let after = before;
+  for (let i = 0; i < 200 && after.capture.revision === before.capture.revision; i++) {
+    await page.waitForTimeout(100);
+    after = (await (await fetch(base + "/api/status")).json()).qa;
+  }
+  if (after.capture.revision === before.capture.revision || !after.capture.corrected[33])
+    throw new Error("the landmark correction did not refit: " + JSON.stringify(after));
+  const moved = Math.hypot(after.capture.points[33][0] - before.capture.points[33][0],
+                           after.capture.points[33][1] - before.capture.points[33][1]);
+  if (moved < 4) throw new Error(`landmark 33 moved only ${moved.toFixed(1)} px`);
+  await page.screenshot({path: path.join(outDir, "kiosk-qa-corrected.png")});
+  // Tracking mode: live weights on the page, then back; the take is stored.
+  await page.click("#mode");
+  await page.waitForSelector("body[data-state=tracking]");
+  await page.waitForFunction(() => Number(document.querySelector("#weights").dataset.frame) > 20,
+                             null, {timeout: 60000});
+  await page.screenshot({path: path.join(outDir, "kiosk-tracking.png")});
+  await page.click("#mode");
+  await page.waitForSelector("body[data-state=idle]");
+  let take = 0;
+  for (let i = 0; i < 100 && !take; i++) {
+    take = (await (await fetch(base + "/api/status")).json()).tracking.last_take;
+    if (!take) await page.waitForTimeout(100);
+  }
+  if (!take) throw new Error("the tracking take was not stored");
   console.log(`session ${s.id} complete: ${s.done_count}/20 captures, stored in ${s.folder};` +
               ` screenshots in ${outDir}`);
 } catch (e) {

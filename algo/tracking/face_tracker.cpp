@@ -673,7 +673,11 @@ void FaceTracker::State::calibrate() {
     for (int j = 0; j < modes; ++j)
       coefficients[static_cast<std::size_t>(j)] = static_cast<float>(solution[j]);
     const Twist rigid = rigid_of_mode * solution.cast<float>();
-    build_rig(coefficients, rigid);
+    // The last round keeps the identity's rigid part when asked (keep_identity_rigid): the
+    // PCA modes tie it to their shape, so the fitted shape predicts it, and the face's frame
+    // then stays the model's (absolute pose) instead of moving by the removed motion.
+    const bool last = round == options.calibration_rounds - 1;
+    build_rig(coefficients, last && options.keep_identity_rigid ? Twist::Zero() : rigid);
     // Re-track the stored frames with the new face.
     for (int f = 0; f < calib_count; ++f) {
       Pose& p = calib_pose[static_cast<std::size_t>(f)];

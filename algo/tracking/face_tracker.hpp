@@ -88,6 +88,11 @@ struct TrackerOptions {
   int calibration_rounds = 4;
   int identity_modes = 100;      // leading identity PCA modes fitted
   float identity_prior = 20.0f;  // mm^2 per unit coefficient^2 (coefficients are in sigma)
+  // Calibration fits the identity with the rigid part of its modes removed (depth cannot tell
+  // it from pose); true keeps the fitted coefficients' rigid part in the final face: the PCA
+  // modes tie it to their shape, so it predicts the true face frame (absolute pose error
+  // 1.98 -> 0.94 deg, 2.72 -> 1.59 mm over 5 seeds; relative figures unchanged).
+  bool keep_identity_rigid = true;
 
   // --- Acquisition (first frame and after loss) ---
   int acquire_iterations = 20;

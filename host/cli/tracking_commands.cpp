@@ -415,6 +415,7 @@ struct RunOptions {
   TrackLandmarkSource* dlib = nullptr;  // landmarks from dlib on the colour images instead
   bool known_identity = false;          // load the true identity instead of calibrating
   VmcSender* sender = nullptr;
+  std::vector<float>* identity_out = nullptr;  // the tracker's identity after the take
   TrackerOptions tracker;
 };
 
@@ -492,7 +493,40 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
     r.truth = truth_pose;
     results.push_back(std::move(r));
   }
+  if (run.identity_out != nullptr) {
+    const auto id = (*tracker)->identity();
+    run.identity_out->assign(id.begin(), id.end());
+  }
   return results;
+}
+
+// The rigid motion between two identities' neutral faces (model frame), least squares over the
+// front-facing face vertices: how far the calibrated face's frame sits from the true one. Depth
+// of the front of the face cannot tell this apart from a head pose (the gauge of the absolute
+// pose), so it predicts the constant offset between estimated and true poses.
+std::pair<double, double> identity_rigid_offset(const FaceModel& model,
+                                                std::span<const float> truth,
+                                                std::span<const float> estimate,
+                                                const Eigen::Vector3d& centre) {
+  std::vector<float> a(static_cast<std::size_t>(3 * model.vertex_count)), b(a.size());
+  model.evaluate(truth, {}, a);
+  model.evaluate(estimate, {}, b);
+  std::vector<std::uint32_t> vertices;
+  for (auto v : model.fitting_vertices) {
+    if (static_cast<int>(v) < model.face_vertex_count && model.neutral[3 * v + 2] > 0.0f)
+      vertices.push_back(v);
+  }
+  Eigen::Matrix3Xd src(3, vertices.size()), dst(3, vertices.size());
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const auto v = vertices[i];
+    src.col(static_cast<Eigen::Index>(i)) = Eigen::Vector3d(a[3 * v], a[3 * v + 1], a[3 * v + 2]);
+    dst.col(static_cast<Eigen::Index>(i)) = Eigen::Vector3d(b[3 * v], b[3 * v + 1], b[3 * v + 2]);
+  }
+  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, false);
+  const Eigen::Matrix3d r = t.topLeftCorner<3, 3>();
+  const double angle = Eigen::AngleAxisd(r).angle() * kDeg;
+  const double shift = (r * centre + t.topRightCorner<3, 1>() - centre).norm();
+  return {angle, shift};
 }
 
 bool tracked(TrackState s) {
@@ -642,6 +676,8 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       o.weak_shape_fraction = static_cast<float>(v);
     else if (key == "weak_shape_ridge")
       o.weak_shape_ridge = static_cast<float>(v);
+    else if (key == "keep_identity_rigid")
+      o.keep_identity_rigid = v != 0.0;
     else if (key == "weight_tukey_k")
       o.weight_tukey_k = static_cast<float>(v);
     else if (key == "weight_min_gate_mm")
@@ -701,8 +737,18 @@ int run_eval_track(const ParsedOptions& options) {
     run.tracker = *overrides;
     run.landmarks = true;
     run.dlib = dlib ? &*dlib : nullptr;
+    std::vector<float> calibrated_identity;
+    run.identity_out = &calibrated_identity;
     auto a = run_take(model, *mapping, *take, run);
     if (!a) return report_failure(a.error());
+    run.identity_out = nullptr;
+    const auto [offset_deg, offset_mm] =
+        identity_rigid_offset(model, take->frames[0].truth.identity_coeffs, calibrated_identity,
+                              take->take.face_centre_model);
+    const RigidPose gauge = calibration_gauge(*a);
+    const double gauge_deg = Eigen::AngleAxisd(gauge.rotation).angle() * kDeg;
+    const double gauge_mm =
+        (gauge.apply(take->take.face_centre_model) - take->take.face_centre_model).norm();
     for (const auto& r : *a) {
       dlib_frames += dlib ? 1 : 0;
       dlib_found += r.detected ? 1 : 0;
@@ -730,6 +776,12 @@ int run_eval_track(const ParsedOptions& options) {
                      {"weight_mae_active_shapes", stats_of(sa.active_error).mean},
                      {"pose_error_deg", stats_of(sa.rot).mean},
                      {"pose_error_mm", stats_of(sa.centre).mean},
+                     {"absolute_pose_error_deg", stats_of(sa.abs_rot).mean},
+                     {"absolute_pose_error_mm", stats_of(sa.abs_centre).mean},
+                     {"constant_pose_offset_deg", gauge_deg},
+                     {"constant_pose_offset_mm", gauge_mm},
+                     {"identity_rigid_offset_deg", offset_deg},
+                     {"identity_rigid_offset_mm", offset_mm},
                      {"frames_lost", sa.lost},
                      {"depth_only_weight_mae", stats_of(sb.weight_error).mean},
                      {"depth_only_pose_error_deg", stats_of(sb.rot).mean},
@@ -755,6 +807,7 @@ int run_eval_track(const ParsedOptions& options) {
   if (!ores) return report_failure(ores.error());
   std::vector<double> unaffected;  // per occluded frame: mean abs error of unoccluded shapes
   std::vector<double> occluded_err;
+  nlohmann::json worst_unaffected = nlohmann::json::array();
   int lost_during = 0;
   for (int f = otake->take.occluder_first; f >= 0 && f <= otake->take.occluder_last; ++f) {
     const auto& r = (*ores)[static_cast<std::size_t>(f)];
@@ -772,6 +825,22 @@ int run_eval_track(const ParsedOptions& options) {
       }
     }
     if (n) unaffected.push_back(sum / n);
+    // The unoccluded shape with the largest error on this frame (diagnostics).
+    int worst = -1;
+    for (int j = 0; j < k; ++j) {
+      if (tf.occluded_shapes[static_cast<std::size_t>(j)]) continue;
+      if (worst < 0 ||
+          r.abs_error[static_cast<std::size_t>(j)] > r.abs_error[static_cast<std::size_t>(worst)])
+        worst = j;
+    }
+    if (worst >= 0) {
+      worst_unaffected.push_back(
+          {{"frame", f},
+           {"unaffected_mae", n ? sum / n : 0.0},
+           {"occluded_shapes", on},
+           {"worst_shape", model.expression_names[static_cast<std::size_t>(worst)]},
+           {"worst_error", r.abs_error[static_cast<std::size_t>(worst)]}});
+    }
     if (on) occluded_err.push_back(osum / on);
   }
   // Recovery: frames after the plate leaves the face until the tracker is tracking again with
@@ -832,6 +901,7 @@ int run_eval_track(const ParsedOptions& options) {
       {"frames_lost_during_occlusion", lost_during},
       {"unaffected_weight_error_per_frame", to_json(stats_of(unaffected))},
       {"occluded_shapes_weight_error_per_frame", to_json(stats_of(occluded_err))},
+      {"per_frame", worst_unaffected},
       {"take", score_json(oscore, model)}};
   result["takes"] = takes;
   result["tracker_overrides"] = options.get("set");

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
 namespace fb {
@@ -696,10 +697,22 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   std::unique_ptr<DepthCamera> take_camera;
   DepthCamera* camera = preview_camera.get();
   if (is_synthetic(config.camera.uri) && config.camera.synthetic_imitates_guide) {
-    auto opened =
-        open_camera(synthetic_take_uri(config.camera.uri, guide[index].synthetic_expr, n));
-    if (!opened) return opened.failure();
-    take_camera = std::move(*opened);
+    const std::string uri = synthetic_take_uri(config.camera.uri, guide[index].synthetic_expr, n);
+    if (fitter) {
+      // Render with the face model the fitter already holds (FaceModel is immutable after
+      // loading) instead of loading another 21 MB copy for every take.
+      const FaceModel& model = fitter->model();
+      auto options = parse_synthetic_options(uri.substr(uri.find(':') + 1), model);
+      if (!options) return options.failure();
+      options->uri = uri;
+      auto opened = make_synthetic_camera(model, *options);
+      if (!opened) return opened.failure();
+      take_camera = std::move(*opened);
+    } else {
+      auto opened = open_camera(uri);
+      if (!opened) return opened.failure();
+      take_camera = std::move(*opened);
+    }
     if (auto ok = take_camera->start(); !ok) return ok.failure();
     camera = take_camera.get();
   }

@@ -21,9 +21,11 @@ struct CameraConfig {
   // With the synthetic camera, render the guide expression on the simulated subject, so each
   // take shows the expression asked for.
   bool synthetic_imitates_guide = true;
-  // Keep every Nth frame of a take for the store (1 = all). A 90-frame take at full size is
-  // ~190 MB in memory; 2 keeps the daemon inside its 256 MB budget. Fusion uses every frame.
-  int stored_frame_stride = 2;
+  // Keep every Nth frame of a take for the store (1 = all). A stored 640x480 frame is 1.5 MB
+  // (colour + depth) and the store's API takes a capture's frames in one call, so they are held
+  // until the quality check; 3 (30 of 90 frames, 46 MB) keeps the daemon, with the ~100 MB
+  // landmark model, inside its 256 MB budget. Fusion uses every frame.
+  int stored_frame_stride = 3;
 };
 
 struct StorageConfig {

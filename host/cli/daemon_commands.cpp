@@ -174,6 +174,11 @@ int bench_daemon(const ParsedOptions& o) {
   if (start_to_ready_ms < 0) return report_failure({"faceboothd never became ready; see its log"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const double rss_idle = rss_mb(pid, "VmRSS:");
+  // The daemon loads the landmark model before it reports ready; say so only if it did.
+  const json ready_status = status();
+  const double landmark_load_ms =
+      ready_status.is_null() ? 0.0
+                             : ready_status["stages"].value("landmark_model_load_ms", 0.0);
 
   std::cerr << "bench daemon: ready in " << start_to_ready_ms << " ms; loading the API with "
             << *threads << " clients and running " << *captures << " captures\n";
@@ -214,10 +219,15 @@ int bench_daemon(const ParsedOptions& o) {
 
   json out = {{"start_to_ready_ms", start_to_ready_ms},
               {"daemon_reported_ready_ms", last.value("start_to_ready_ms", 0.0)},
-              {"rss_mb", rss_now},
-              {"rss_idle_mb", rss_idle},
+              // Peak resident memory over start-up and the session (VmHWM), landmark model
+              // and face model loaded: what the 256 MB budget is about.
+              {"rss_mb", rss_peak},
               {"rss_peak_mb", rss_peak},
-              {"landmark_model_loaded", false},
+              {"rss_idle_mb", rss_idle},
+              {"rss_end_mb", rss_now},
+              {"rss_budget_mb", 256},
+              {"landmark_model_loaded", landmark_load_ms > 0},
+              {"landmark_model_load_ms", landmark_load_ms},
               {"frames_dropped_under_load", last["frames_dropped"]},
               {"frames_total", last["frames_total"]},
               {"captures", last["done_count"]},
@@ -239,9 +249,10 @@ std::vector<Command> daemon_commands() {
             "faceboothd start-to-ready, memory, frames dropped under HTTP load",
             "Starts faceboothd (synthetic camera, simulated buttons, real-time takes) in a scratch "
             "directory, runs a session through its HTTP API while a second process loads the API "
-            "from several keep-alive clients, then stops it with SIGTERM. The landmark model is "
-            "not loaded yet (algo/landmarks is not wired into the daemon), so rss_mb is without "
-            "it.",
+            "from several keep-alive clients, then stops it with SIGTERM. rss_mb is the peak "
+            "resident memory (VmHWM) with the dlib landmark model and the face model loaded, "
+            "takes fused, landmarked, fitted and stored (budget 256 MB); rss_idle_mb is after "
+            "start-up, rss_end_mb after the session.",
             {{"json", "", "print the JSON result (always on; for symmetry with other benches)", ""},
              {"daemon", "PATH", "the faceboothd binary", ""},
              {"captures", "N", "guide expressions to capture (1-20)", "5"},

@@ -611,10 +611,20 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   Pose best_pose;
   for (int c = 0; c < count; ++c) {
     Pose p = candidates[c];
-    const IcpStats s =
-        icp(smoothed, full, p, options.acquire_iterations, 40.0f, options.icp_gate_mm);
-    if (!good(s)) continue;
-    if (from_landmarks && landmark_error_px(p) > options.acquire_landmark_px) continue;
+    IcpStats s = icp(smoothed, full, p, options.acquire_iterations, 40.0f, options.icp_gate_mm);
+    if (!acceptable(s, true)) continue;
+    if (calibrated) {
+      // The face may show any expression: fit the weights at this pose and refine it before
+      // judging the residual (a neutral face on an open jaw leaves several mm).
+      int unused = 0;
+      solve_weights(smoothed, full, p, landmarks, unused);
+      s = icp(smoothed, full, p, options.icp_iterations, options.icp_gate_mm, options.icp_gate_mm);
+    }
+    if (!good(s) || (from_landmarks && landmark_error_px(p) > options.acquire_landmark_px)) {
+      weights = previous_weights;
+      update_current();
+      continue;
+    }
     found = true;
     best = s;
     best_pose = p;

@@ -360,7 +360,15 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
                               {"corrections", qa.corrections},
                               {"fit_ms", qa.fit_ms}}}};
     };
-    promise->set_value(answer());
+    auto result = answer();
+    if (result)
+      std::fprintf(stderr,
+                   "faceboothd: capture %d: %zu landmark correction(s), refit RMS %.2f mm\n", index,
+                   corrections.size(), (*result)["qa"]["fit_rms_mm"].get<double>());
+    else
+      std::fprintf(stderr, "faceboothd: capture %d: correction refused: %s\n", index,
+                   result.error().message.c_str());
+    promise->set_value(std::move(result));
   });
   // The fit takes well under a second here; the bound only guards against a wedged thread.
   if (future.wait_for(std::chrono::seconds(60)) != std::future_status::ready)

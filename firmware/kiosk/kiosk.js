@@ -65,6 +65,8 @@ function render(s) {
 
 // QA screen: the capture's colour frame (640x480 shown at half size) with its 68 landmarks;
 // dragging one posts a correction, the daemon refits and the status brings the new QA.
+// The outcome of the last correction is kept in #qa-view's data-correction for the operator
+// (and the browser test): "posting", "refitting" or "rejected: <why>".
 let qaKey = "";
 let dragging = null;
 const SVG = "http://www.w3.org/2000/svg";
@@ -75,19 +77,18 @@ function renderQaCapture(c) {
   const key = `${c.session}/${c.index}/${c.revision}`;
   if (key === qaKey || dragging) return;
   qaKey = key;
+  view.dataset.key = key;
   $("qa-img").src = c.image;
   const svg = $("qa-points");
   svg.setAttribute("viewBox", "0 0 640 480");
+  svg.dataset.session = c.session;
+  svg.dataset.capture = c.index;
   svg.innerHTML = "";
   c.points.forEach(([u, v], i) => {
     const dot = document.createElementNS(SVG, "circle");
     dot.setAttribute("cx", u); dot.setAttribute("cy", v); dot.setAttribute("r", 4);
     dot.dataset.index = i;
     if (c.corrected[i]) dot.classList.add("corrected");
-    dot.addEventListener("pointerdown", (e) => {
-      dragging = {dot, session: c.session, capture: c.index};
-      dot.setPointerCapture(e.pointerId);
-    });
     svg.appendChild(dot);
   });
 }
@@ -95,19 +96,32 @@ function svgPoint(e) {
   const r = $("qa-points").getBoundingClientRect();
   return [(e.clientX - r.left) * 640 / r.width, (e.clientY - r.top) * 480 / r.height];
 }
-$("qa-points").addEventListener("pointermove", (e) => {
+// Delegated on the svg, and move/up on window: a redraw of the points or a pointer leaving the
+// picture mid-drag must not lose the drag.
+$("qa-points").addEventListener("pointerdown", (e) => {
+  const dot = e.target.closest("circle");
+  if (!dot) return;
+  e.preventDefault();
+  const svg = $("qa-points");
+  dragging = {dot, session: svg.dataset.session, capture: svg.dataset.capture};
+});
+window.addEventListener("pointermove", (e) => {
   if (!dragging) return;
   const [u, v] = svgPoint(e);
   dragging.dot.setAttribute("cx", u);
   dragging.dot.setAttribute("cy", v);
 });
-$("qa-points").addEventListener("pointerup", async (e) => {
+window.addEventListener("pointerup", async (e) => {
   if (!dragging) return;
   const d = dragging;
   const [u, v] = svgPoint(e);
   d.dot.classList.add("corrected");
-  await post(`/api/sessions/${d.session}/captures/${d.capture}/landmarks`,
-             {corrections: [{index: Number(d.dot.dataset.index), u, v}]});
+  const view = $("qa-view");
+  view.dataset.correction = "posting";
+  const r = await fetch(`/api/sessions/${d.session}/captures/${d.capture}/landmarks`, {
+    method: "POST", headers: {"Content-Type": "application/json"},
+    body: JSON.stringify({corrections: [{index: Number(d.dot.dataset.index), u, v}]})});
+  view.dataset.correction = r.ok ? "refitting" : "rejected: " + (await r.text());
   dragging = null;
   qaKey = "";  // redraw from the next status
 });

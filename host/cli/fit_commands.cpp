@@ -81,7 +81,6 @@ Result<FitTarget> make_target(const Capture& c, std::span<const Eigen::Vector2d>
   return make_fit_target(c, color_px, g_noiseless_depth);
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Error maps (paper Fig. 2 style): |mesh depth - fused depth| per pixel over the face.
 
@@ -567,7 +566,8 @@ int run_guide_thumbnails(const ParsedOptions& options) {
     if (auto ok = rasterize(k, v, model->triangles, RasterOptions{}, rb); !ok)
       return report_failure(ok.error());
     cv::Mat img(n, n, CV_8UC3, cv::Scalar(235, 235, 235));
-    const Eigen::Vector3f light = Eigen::Vector3f(0.3f, -0.4f, -1.0f).normalized();
+    // Direction towards the light: from the camera side (-z), a little up (-y) and to the left.
+    const Eigen::Vector3f to_light = Eigen::Vector3f(0.3f, -0.4f, -1.0f).normalized();
     for (int y = 0; y < n; ++y)
       for (int x = 0; x < n; ++x) {
         const std::int32_t t = rb.triangle[rb.index(x, y)];
@@ -575,9 +575,8 @@ int run_guide_thumbnails(const ParsedOptions& options) {
         const auto a = model->triangles[3 * t], b = model->triangles[3 * t + 1],
                    c = model->triangles[3 * t + 2];
         Eigen::Vector3f nn = (v[b] - v[a]).cross(v[c] - v[a]).normalized();
-        if (nn.z() > 0) nn = -nn;
-        const float shade =
-            0.25f + 0.75f * std::max(0.0f, nn.dot(-light) * -1.0f < 0 ? -nn.dot(light) : 0.0f);
+        if (nn.z() > 0) nn = -nn;                                            // towards the camera
+        const float shade = 0.3f + 0.7f * std::max(0.0f, nn.dot(to_light));  // ambient + Lambert
         img.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(150 * shade + 20),
                                             static_cast<std::uint8_t>(175 * shade + 20),
                                             static_cast<std::uint8_t>(215 * shade + 25));

@@ -103,14 +103,32 @@ try {
   if (detail.captures.some((c) => c.state !== "done")) throw new Error("a capture is not done");
   if ((await page.textContent("#progress")) === null) throw new Error("no progress bar");
   // The QA screen shows the last capture's 68 landmarks; dragging one refits (a correction).
-  await page.waitForFunction(() => document.querySelectorAll("#qa-points circle").length === 68);
+  await page.waitForSelector("body[data-state=complete]");
   const before = (await (await fetch(base + "/api/status")).json()).qa;
+  const shownKey = `${before.capture.session}/${before.capture.index}/${before.capture.revision}`;
+  await page.waitForFunction((k) => document.querySelector("#qa-view").dataset.key === k &&
+                                 document.querySelectorAll("#qa-points circle").length === 68,
+                             shownKey);
+  // The page settles (text above the picture may rewrap as the status changes) before the drag.
   const dot = page.locator("#qa-points circle").nth(33);
-  const box = await dot.boundingBox();
+  let box = await dot.boundingBox();
+  for (let i = 0; i < 20; i++) {
+    await page.waitForTimeout(250);
+    const again = await dot.boundingBox();
+    if (again.x === box.x && again.y === box.y) break;
+    box = again;
+  }
   await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
   await page.mouse.down();
   await page.mouse.move(box.x + box.width / 2 + 8, box.y + box.height / 2 + 4, {steps: 4});
   await page.mouse.up();
+  await page.waitForFunction(() => ["refitting", "rejected"].some(
+                                 (p) => (document.querySelector("#qa-view").dataset.correction ||
+                                         "").startsWith(p)),
+                             null, {timeout: 30000})
+      .catch(() => { throw new Error("dragging landmark 33 posted no correction"); });
+  const outcome = await page.getAttribute("#qa-view", "data-correction");
+  if (outcome !== "refitting") throw new Error("the correction was " + outcome);
   let after = before;
   for (let i = 0; i < 200 && after.capture.revision === before.capture.revision; i++) {
     await page.waitForTimeout(100);

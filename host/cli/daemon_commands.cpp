@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "algo/core/result.hpp"
 #include "host/cli/commands.hpp"
 
 // httplib last: its <resolv.h> defines `_res`, which breaks Eigen headers included after it.
@@ -107,6 +108,114 @@ class Child {
   std::_Exit(0);
 }
 
+struct SessionRun {
+  double start_to_ready_ms = 0, daemon_ready_ms = 0, landmark_load_ms = 0;
+  double rss_idle = 0, rss_peak = 0, rss_end = 0;
+  long long frames_dropped = 0, frames_total = 0, captures = 0, load_requests = 0;
+  double session_s = 0, export_wait_ms = 0, stop_ms = 0;
+  bool clean_exit = false;
+};
+
+// One daemon from start to SIGTERM: a session of the configured captures, with `load_threads`
+// HTTP clients in a second process (0 = no load). SIGTERM is sent once the session's end-of-
+// session export has been written, so stop_ms is the stop of a daemon at rest.
+Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& dir, int port,
+                                      int load_threads) {
+  SessionRun out;
+  fs::remove_all(dir / "data");
+  const auto t0 = Clock::now();
+  const pid_t pid = ::fork();
+  if (pid < 0) return fail("fork failed");
+  if (pid == 0) {
+    const std::string log = (dir / "faceboothd.log").string();
+    std::freopen(log.c_str(), "w", stderr);
+    ::execl(daemon.c_str(), daemon.c_str(), "--config", (dir / "faceboothd.toml").c_str(), nullptr);
+    std::_Exit(127);
+  }
+  Child daemon_proc(pid);
+  httplib::Client http("127.0.0.1", port);
+  http.set_read_timeout(10, 0);
+  auto status = [&]() -> json {
+    auto r = http.Get("/api/status");
+    return r && r->status == 200 ? json::parse(r->body, nullptr, false) : json();
+  };
+  out.start_to_ready_ms = -1;
+  for (int i = 0; i < 3000; ++i) {
+    auto s = status();
+    if (!s.is_null() && s.value("ready", false)) {
+      out.start_to_ready_ms = ms_since(t0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  if (out.start_to_ready_ms < 0)
+    return fail("faceboothd never became ready; see " + (dir / "faceboothd.log").string());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  out.rss_idle = rss_mb(pid, "VmRSS:");
+  // The daemon loads the landmark model before it reports ready; say so only if it did.
+  const json ready_status = status();
+  out.landmark_load_ms =
+      ready_status.is_null() ? 0.0 : ready_status["stages"].value("landmark_model_load_ms", 0.0);
+
+  std::cerr << "bench daemon: ready in " << out.start_to_ready_ms << " ms; "
+            << (load_threads > 0 ? "loading the API with " + std::to_string(load_threads) +
+                                       " clients while running the session"
+                                 : std::string("running the session without HTTP load"))
+            << "\n";
+  pid_t load_pid = -1;
+  if (load_threads > 0) {
+    load_pid = ::fork();
+    if (load_pid == 0) run_load(port, load_threads, dir / "load-count");
+  }
+  Child load(load_pid);
+  const auto session_t0 = Clock::now();
+  http.Post("/api/session/start", R"({"subject": "bench"})", "application/json");
+  std::string acted;
+  json last;
+  while (true) {
+    last = status();
+    if (last.is_null()) return fail("faceboothd stopped answering");
+    const std::string state = last["state"];
+    const std::string key = state + std::to_string(last["capture_index"].get<int>()) +
+                            std::to_string(last["attempts"].get<int>());
+    if (state == "error") return fail("faceboothd: " + last.value("error", "?"));
+    if (state == "complete") break;
+    if ((state == "guide" || state == "retry") && key != acted) {
+      if (state == "retry" && last["attempts"].get<int>() >= 3)
+        return fail("a capture failed QA three times");
+      http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+      acted = key;
+    }
+    if (ms_since(session_t0) > 600000) return fail("session took over 10 minutes");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  out.session_s = ms_since(session_t0) / 1000.0;
+  // "complete" is published before the session's export folder is written.
+  const auto export_t0 = Clock::now();
+  while (!last.contains("last_export") && ms_since(export_t0) < 60000) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    last = status();
+    if (last.is_null()) return fail("faceboothd stopped answering");
+  }
+  out.export_wait_ms = ms_since(export_t0);
+  out.rss_peak = rss_mb(pid, "VmHWM:");
+  out.rss_end = rss_mb(pid, "VmRSS:");
+  if (load_threads > 0) {
+    load.kill(SIGKILL);
+    std::ifstream(dir / "load-count") >> out.load_requests;
+  }
+  out.frames_dropped = last["frames_dropped"];
+  out.frames_total = last["frames_total"];
+  out.captures = last["done_count"];
+  out.daemon_ready_ms = last.value("start_to_ready_ms", 0.0);
+
+  const auto stop_t0 = Clock::now();
+  const int exit_status = daemon_proc.kill(SIGTERM);
+  out.stop_ms = ms_since(stop_t0);
+  out.clean_exit = WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0;
+  return out;
+}
+
 int bench_daemon(const ParsedOptions& o) {
   const fs::path daemon = find_daemon(o.get("daemon"));
   if (daemon.empty())
@@ -116,6 +225,7 @@ int bench_daemon(const ParsedOptions& o) {
   auto threads = o.get_int("load-threads");
   if (!captures || !frames || !threads) return report_failure({"bad numeric option"});
   if (*captures < 1 || *captures > 20) return report_failure({"--captures must be 1..20"});
+  if (*threads < 1) return report_failure({"--load-threads must be at least 1"});
 
   const fs::path dir =
       fs::temp_directory_path() / ("facebooth-bench-daemon-" + std::to_string(::getpid()));
@@ -145,99 +255,47 @@ int bench_daemon(const ParsedOptions& o) {
       << "\"\n[http]\nport = " << port << "\n[session]\nguide_file = \""
       << (dir / "guide.json").string() << "\"\n";
 
-  std::cerr << "bench daemon: starting " << daemon << " on port " << port << "\n";
-  const auto t0 = Clock::now();
-  const pid_t pid = ::fork();
-  if (pid < 0) return report_failure({"fork failed"});
-  if (pid == 0) {
-    const std::string log = (dir / "faceboothd.log").string();
-    std::freopen(log.c_str(), "w", stderr);
-    ::execl(daemon.c_str(), daemon.c_str(), "--config", (dir / "faceboothd.toml").c_str(), nullptr);
-    std::_Exit(127);
-  }
-  Child daemon_proc(pid);
-  httplib::Client http("127.0.0.1", port);
-  http.set_read_timeout(10, 0);
-  auto status = [&]() -> json {
-    auto r = http.Get("/api/status");
-    return r && r->status == 200 ? json::parse(r->body, nullptr, false) : json();
-  };
-  double start_to_ready_ms = -1;
-  for (int i = 0; i < 3000; ++i) {
-    auto s = status();
-    if (!s.is_null() && s.value("ready", false)) {
-      start_to_ready_ms = ms_since(t0);
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  if (start_to_ready_ms < 0) return report_failure({"faceboothd never became ready; see its log"});
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  const double rss_idle = rss_mb(pid, "VmRSS:");
-  // The daemon loads the landmark model before it reports ready; say so only if it did.
-  const json ready_status = status();
-  const double landmark_load_ms =
-      ready_status.is_null() ? 0.0
-                             : ready_status["stages"].value("landmark_model_load_ms", 0.0);
+  // The same session twice: without load (the frames the frame loop drops by itself on this
+  // machine: the synthetic camera renders on that thread) and under load (the figure).
+  std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (no load)\n";
+  auto quiet = run_daemon_session(daemon, dir, port, 0);
+  if (!quiet) return report_failure(quiet.error());
+  std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (under load)\n";
+  auto loaded = run_daemon_session(daemon, dir, port, static_cast<int>(*threads));
+  if (!loaded) return report_failure(loaded.error());
+  const SessionRun& r = *loaded;
 
-  std::cerr << "bench daemon: ready in " << start_to_ready_ms << " ms; loading the API with "
-            << *threads << " clients and running " << *captures << " captures\n";
-  const pid_t load_pid = ::fork();
-  if (load_pid == 0) run_load(port, static_cast<int>(*threads), dir / "load-count");
-  Child load(load_pid);
-  const auto session_t0 = Clock::now();
-  http.Post("/api/session/start", R"({"subject": "bench"})", "application/json");
-  std::string acted;
-  json last;
-  while (true) {
-    last = status();
-    if (last.is_null()) return report_failure({"faceboothd stopped answering"});
-    const std::string state = last["state"];
-    const std::string key = state + std::to_string(last["capture_index"].get<int>()) +
-                            std::to_string(last["attempts"].get<int>());
-    if (state == "error") return report_failure({"faceboothd: " + last.value("error", "?")});
-    if (state == "complete") break;
-    if ((state == "guide" || state == "retry") && key != acted) {
-      if (state == "retry" && last["attempts"].get<int>() >= 3)
-        return report_failure({"a capture failed QA three times"});
-      http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
-      acted = key;
-    }
-    if (ms_since(session_t0) > 600000) return report_failure({"session took over 10 minutes"});
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  const double session_s = ms_since(session_t0) / 1000.0;
-  const double rss_peak = rss_mb(pid, "VmHWM:");
-  const double rss_now = rss_mb(pid, "VmRSS:");
-  load.kill(SIGKILL);
-  long long load_requests = 0;
-  std::ifstream(dir / "load-count") >> load_requests;
-
-  const auto stop_t0 = Clock::now();
-  const int exit_status = daemon_proc.kill(SIGTERM);
-  const double stop_ms = ms_since(stop_t0);
-
-  json out = {{"start_to_ready_ms", start_to_ready_ms},
-              {"daemon_reported_ready_ms", last.value("start_to_ready_ms", 0.0)},
+  json out = {{"start_to_ready_ms", r.start_to_ready_ms},
+              {"daemon_reported_ready_ms", r.daemon_ready_ms},
               // Peak resident memory over start-up and the session (VmHWM), landmark model
               // and face model loaded: what the 256 MB budget is about.
-              {"rss_mb", rss_peak},
-              {"rss_peak_mb", rss_peak},
-              {"rss_idle_mb", rss_idle},
-              {"rss_end_mb", rss_now},
+              {"rss_mb", r.rss_peak},
+              {"rss_peak_mb", r.rss_peak},
+              {"rss_peak_mb_without_load", quiet->rss_peak},
+              {"rss_idle_mb", r.rss_idle},
+              {"rss_end_mb", r.rss_end},
               {"rss_budget_mb", 256},
-              {"landmark_model_loaded", landmark_load_ms > 0},
-              {"landmark_model_load_ms", landmark_load_ms},
-              {"frames_dropped_under_load", last["frames_dropped"]},
-              {"frames_total", last["frames_total"]},
-              {"captures", last["done_count"]},
+              {"landmark_model_loaded", r.landmark_load_ms > 0},
+              {"landmark_model_load_ms", r.landmark_load_ms},
+              {"frames_dropped_under_load", r.frames_dropped},
+              {"frames_total", r.frames_total},
+              {"frames_dropped_without_load", quiet->frames_dropped},
+              {"frames_total_without_load", quiet->frames_total},
+              {"frames_dropped_note",
+               "a take is paced at the camera's 30 fps; a frame is dropped when the frame loop "
+               "(synthetic rendering of the frame + fusion, one thread) falls a period behind. "
+               "The load's own effect is the difference to the run without load"},
+              {"captures", r.captures},
               {"frames_per_capture", *frames},
-              {"session_s", session_s},
+              {"session_s", r.session_s},
+              {"session_s_without_load", quiet->session_s},
+              {"export_wait_ms", r.export_wait_ms},
               {"load_clients", *threads},
-              {"load_requests", load_requests},
-              {"load_requests_per_s", load_requests / session_s},
-              {"stop_ms", stop_ms},
-              {"clean_exit", WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0}};
+              {"load_requests", r.load_requests},
+              {"load_requests_per_s", r.load_requests / r.session_s},
+              {"stop_ms", r.stop_ms},
+              {"stop_ms_without_load", quiet->stop_ms},
+              {"clean_exit", r.clean_exit && quiet->clean_exit}};
   std::cout << out.dump(2) << "\n";
   return kExitOk;
 }
@@ -252,7 +310,8 @@ std::vector<Command> daemon_commands() {
             "from several keep-alive clients, then stops it with SIGTERM. rss_mb is the peak "
             "resident memory (VmHWM) with the dlib landmark model and the face model loaded, "
             "takes fused, landmarked, fitted and stored (budget 256 MB); rss_idle_mb is after "
-            "start-up, rss_end_mb after the session.",
+            "start-up, rss_end_mb after the session. The session runs twice, first without "
+            "load: frames_dropped_without_load is what the frame loop drops by itself.",
             {{"json", "", "print the JSON result (always on; for symmetry with other benches)", ""},
              {"daemon", "PATH", "the faceboothd binary", ""},
              {"captures", "N", "guide expressions to capture (1-20)", "5"},

@@ -598,6 +598,8 @@ std::vector<Command> fit_commands() {
                              "guide recipes (default: DATA_DIR/guide_expressions.json)", ""};
   const OptionSpec predictor_opt{"shape-predictor", "FILE",
                                  "dlib 68-point model (.dat or .dat.bz2)", kShapePredictorDefault};
+  const OptionSpec json_opt{"json", "",
+                            "print JSON (the only output format; accepted for symmetry)", ""};
   return {
       {{"eval fit",
         "score landmarks + neutral/expression fitting on synthetic subjects (JSON on stdout)",
@@ -619,7 +621,8 @@ std::vector<Command> fit_commands() {
           "error, the noiseless rendering",
           "fused"},
          predictor_opt,
-         guide_opt}},
+         guide_opt,
+         json_opt}},
        run_eval_fit},
       {{"bench fit",
         "time landmarks, neutral fit and expression fits (JSON on stdout)",
@@ -628,7 +631,8 @@ std::vector<Command> fit_commands() {
          {"repeats", "N", "best of N", "3"},
          {"dlib", "on|off", "time the dlib landmark tracker", "on"},
          predictor_opt,
-         guide_opt}},
+         guide_opt,
+         json_opt}},
        run_bench_fit},
       {{"guide thumbnails",
         "render the guide expressions G0..G19 as PNG thumbnails for the kiosk",

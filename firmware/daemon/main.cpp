@@ -25,6 +25,27 @@ constexpr const char* kUsage =
     "                  [--run-session-headless [--subject NAME] [--frames N]] [--data-dir DIR]\n"
     "                  [--port N]\n";
 
+constexpr const char* kHelp =
+    "\n"
+    "The facebooth device daemon: kiosk capture sessions (20 guide expressions: record a 3 s\n"
+    "head turn, fuse, landmarks, quick fit, quality check), tracking mode (VMC over OSC, live\n"
+    "JSON), the HTTP API and kiosk page, buttons and LEDs.\n"
+    "\n"
+    "  --config FILE           TOML configuration (default: built-in defaults: synthetic camera,\n"
+    "                          simulated GPIO, storage in $STATE_DIRECTORY or else\n"
+    "                          ./facebooth-data, HTTP on 127.0.0.1:8080; see\n"
+    "                          --print-default-config)\n"
+    "  --check-config          validate the configuration, print the effective one, exit\n"
+    "  --print-default-config  print the defaults as TOML and exit\n"
+    "  --run-session-headless  run one complete session with simulated button presses, then\n"
+    "                          exit; prints JSON with the session id, store and export folder\n"
+    "  --subject NAME          subject name for --run-session-headless\n"
+    "  --frames N              frames per take (default 90 = 3 s at 30 fps)\n"
+    "  --data-dir DIR          storage folder (overrides [storage] data_dir)\n"
+    "  --port N                HTTP port (overrides [http] port; 0 = any free port)\n"
+    "\n"
+    "Stops cleanly on SIGTERM/SIGINT; an unfinished session resumes at its next capture.\n";
+
 int usage_error(const std::string& message) {
   std::cerr << "faceboothd: " << message << "\n" << kUsage;
   return 2;
@@ -75,7 +96,7 @@ int main(int argc, char** argv) {
     } else if (a == "--run-session-headless") {
       headless = true;
     } else if (a == "-h" || a == "--help") {
-      std::cout << kUsage;
+      std::cout << kUsage << kHelp;
       return 0;
     } else {
       return usage_error("unknown argument '" + a + "'");

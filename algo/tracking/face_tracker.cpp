@@ -507,13 +507,16 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     if (count < 8) return;
     // H = J^T J in chunks of rows: Eigen's GEMM packs its operands into a workspace that it
     // heap-allocates above 128 KB (EIGEN_STACK_ALLOCATION_LIMIT); 256 x 53 floats stay on the
-    // stack, so the steady state does not allocate (and it is no slower).
+    // stack, so the steady state does not allocate (and it is no slower). A symmetric rank-k
+    // update (SYRK) builds the lower triangle only, half the multiply-adds of the full product;
+    // the upper triangle is then mirrored (the solver reads whole columns).
     constexpr int kChunkRows = 256;
     h.setZero();
     for (int first = 0; first < count; first += kChunkRows) {
       const int n = std::min(kChunkRows, count - first);
-      h.noalias() += rows.middleRows(first, n).transpose() * rows.middleRows(first, n);
+      h.selfadjointView<Eigen::Lower>().rankUpdate(rows.middleRows(first, n).transpose());
     }
+    h = h.selfadjointView<Eigen::Lower>();
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
     const float lt = options.temporal_weight;
     h.diagonal().array() += lt + shape_ridge.array();

@@ -36,6 +36,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using ColMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor>;
 
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
@@ -98,12 +99,13 @@ struct FaceTracker::State {
 
   std::vector<std::uint32_t> sample_vertices;
   // Identity-independent: expression deltas and identity modes at the samples (3n x k, 3n x m).
-  RowMatrix expression_at_samples;
+  // The deltas by column: update_current() adds only the shapes with a non-zero weight.
+  ColMatrix expression_at_samples;
   RowMatrix identity_at_samples;
   RowMatrix expression_at_landmarks;  // 3*68 x k
   RowMatrix identity_at_landmarks;    // 3*68 x m
   // The model's own expression deltas; a stored rig (set_rig) replaces the two above.
-  RowMatrix model_expression_at_samples;
+  ColMatrix model_expression_at_samples;
   RowMatrix model_expression_at_landmarks;
   bool custom_rig = false;
 
@@ -178,8 +180,12 @@ struct FaceTracker::State {
     custom_rig = false;
   }
   void update_current() {
+    // current = base + B w over the shapes with w_j != 0 (w >= 0 with an L1 prior: most are
+    // exactly 0, and the others add exactly what the full product adds, up to rounding).
     current = base;
-    current.noalias() += expression_at_samples * weights;
+    for (int j = 0; j < k; ++j) {
+      if (weights[j] != 0.0f) current.noalias() += weights[j] * expression_at_samples.col(j);
+    }
     landmark_current = landmark_base;
     landmark_current.noalias() += expression_at_landmarks * weights;
   }
@@ -877,7 +883,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->identity_at_samples.resize(3 * n, s->modes);
   s->expression_at_landmarks.resize(3 * 68, s->k);
   s->identity_at_landmarks.resize(3 * 68, s->modes);
-  auto fill = [&](RowMatrix& out, std::span<const std::uint32_t> vertices, bool expression) {
+  auto fill = [&](auto& out, std::span<const std::uint32_t> vertices, bool expression) {
     const int columns = expression ? s->k : s->modes;
     for (int j = 0; j < columns; ++j) {
       const auto shape = expression ? model.expression_shape(j) : model.identity_mode(j);
@@ -977,7 +983,7 @@ Result<void> FaceTracker::set_rig(const TrackerRig& rig) {
   }
   s.expression_at_samples = s.model_expression_at_samples;
   s.expression_at_landmarks = s.model_expression_at_landmarks;
-  auto replace = [&](RowMatrix& out, std::span<const std::uint32_t> vertices, int j,
+  auto replace = [&](auto& out, std::span<const std::uint32_t> vertices, int j,
                      std::span<const float> shape) {
     for (std::size_t i = 0; i < vertices.size(); ++i) {
       for (int a = 0; a < 3; ++a) {

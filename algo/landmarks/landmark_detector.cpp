@@ -1,6 +1,9 @@
 #include "algo/landmarks/landmark_detector.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <optional>
 
 #include <dlib/image_processing.h>
@@ -8,13 +11,226 @@
 
 namespace fb {
 
+namespace {
+
+// Axis-aligned box as centre + size (double precision; dlib's rectangle is inclusive ints).
+struct Box {
+  double cx = 0, cy = 0, w = 0, h = 0;
+};
+
+Box box_of(const dlib::rectangle& r) {
+  return {r.left() + r.width() / 2.0, r.top() + r.height() / 2.0, static_cast<double>(r.width()),
+          static_cast<double>(r.height())};
+}
+
+dlib::rectangle rect_of(const Box& b) {
+  const long left = std::lround(b.cx - b.w / 2), top = std::lround(b.cy - b.h / 2);
+  return dlib::rectangle(left, top, left + std::max(1L, std::lround(b.w)) - 1,
+                         top + std::max(1L, std::lround(b.h)) - 1);
+}
+
+// Bounding box of the 68 points.
+Box points_box(const dlib::full_object_detection& shape) {
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (unsigned i = 0; i < shape.num_parts(); ++i) {
+    x0 = std::min<double>(x0, shape.part(i).x());
+    y0 = std::min<double>(y0, shape.part(i).y());
+    x1 = std::max<double>(x1, shape.part(i).x());
+    y1 = std::max<double>(y1, shape.part(i).y());
+  }
+  return {(x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0};
+}
+
+bool inside_image(const dlib::full_object_detection& shape, long w, long h) {
+  for (unsigned i = 0; i < shape.num_parts(); ++i) {
+    const dlib::point p = shape.part(i);
+    if (p.x() < 0 || p.y() < 0 || p.x() >= w || p.y() >= h) return false;
+  }
+  return true;
+}
+
+// The grey image under a box, resampled to kPatch x kPatch (nearest pixel, clamped to the
+// image), zero-mean and unit-norm; all zeros when the patch is flat.
+constexpr int kPatch = 24;
+using Patch = std::array<float, kPatch * kPatch>;
+
+Patch patch_of(const dlib::array2d<unsigned char>& gray, const Box& b) {
+  Patch out{};
+  const long w = gray.nc(), h = gray.nr();
+  double mean = 0;
+  for (int j = 0; j < kPatch; ++j) {
+    const long y = std::clamp<long>(std::lround(b.cy + b.h * ((j + 0.5) / kPatch - 0.5)), 0, h - 1);
+    for (int i = 0; i < kPatch; ++i) {
+      const long x =
+          std::clamp<long>(std::lround(b.cx + b.w * ((i + 0.5) / kPatch - 0.5)), 0, w - 1);
+      out[j * kPatch + i] = gray[y][x];
+      mean += gray[y][x];
+    }
+  }
+  mean /= kPatch * kPatch;
+  double norm = 0;
+  for (float& v : out) {
+    v -= static_cast<float>(mean);
+    norm += double(v) * v;
+  }
+  if (norm < 1e-6 * kPatch * kPatch) return Patch{};
+  for (float& v : out) v /= static_cast<float>(std::sqrt(norm));
+  return out;
+}
+
+// Normalised cross-correlation of two patches (0 when either is flat).
+double correlation(const Patch& a, const Patch& b) {
+  double c = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) c += double(a[i]) * b[i];
+  return c;
+}
+
+// dlib's shape_predictor (same model file, same arithmetic: the points are identical), with the
+// trees of each cascade level packed into two contiguous arrays (splits, leaf vectors) and
+// evaluated in two passes: first every tree is walked to its leaf (the features are fixed within
+// a level) and the leaf vector is prefetched, then the leaves are summed. dlib's operator() walks
+// and sums tree by tree through ~7500 separately allocated trees, so the CPU mostly waits for
+// cache misses in the 65 MB of leaves; this costs several times less.
+struct ShapeCascade {
+  struct Split {
+    std::uint32_t idx1, idx2;
+    float thresh;
+  };
+  struct Level {
+    std::vector<Split> splits;
+    std::vector<float> leaves;                // leaf vectors, initial_shape.size() floats each
+    std::vector<std::uint32_t> split_begin;   // per tree (+1 end): first split
+    std::vector<std::uint32_t> leaf_begin;    // per tree: first leaf (in leaf vectors)
+    std::vector<unsigned long> anchor_idx;
+    std::vector<dlib::vector<float, 2>> deltas;
+  };
+  dlib::matrix<float, 0, 1> initial_shape;
+  std::vector<Level> levels;
+  // Scratch, reused.
+  mutable std::vector<float> features;
+  mutable std::vector<const float*> leaves;
+
+  unsigned long num_parts() const { return initial_shape.size() / 2; }
+
+  static void add_into(float* __restrict c, const float* __restrict leaf, long n) {
+    using V4 = float __attribute__((vector_size(16)));
+    long k = 0;
+    for (; k + 4 <= n; k += 4) {
+      V4 a, b;
+      std::memcpy(&a, c + k, sizeof a);
+      std::memcpy(&b, leaf + k, sizeof b);
+      a += b;
+      std::memcpy(c + k, &a, sizeof a);
+    }
+    for (; k < n; ++k) c[k] += leaf[k];
+  }
+
+  void deserialize(std::istream& in) {
+    int version = 0;
+    dlib::deserialize(version, in);
+    if (version != 1)
+      throw dlib::serialization_error("unexpected version of dlib::shape_predictor");
+    std::vector<std::vector<dlib::impl::regression_tree>> forests;
+    std::vector<std::vector<unsigned long>> anchor_idx;
+    std::vector<std::vector<dlib::vector<float, 2>>> deltas;
+    dlib::deserialize(initial_shape, in);
+    dlib::deserialize(forests, in);
+    dlib::deserialize(anchor_idx, in);
+    dlib::deserialize(deltas, in);
+    if (anchor_idx.size() != forests.size() || deltas.size() != forests.size())
+      throw dlib::serialization_error("inconsistent shape_predictor cascade");
+    const long n = initial_shape.size();
+    levels.clear();
+    levels.resize(forests.size());
+    for (std::size_t l = 0; l < forests.size(); ++l) {
+      Level& level = levels[l];
+      level.anchor_idx = std::move(anchor_idx[l]);
+      level.deltas = std::move(deltas[l]);
+      std::uint32_t leaf_count = 0;
+      for (const auto& tree : forests[l]) {
+        if (tree.leaf_values.size() != tree.splits.size() + 1)
+          throw dlib::serialization_error("shape_predictor tree is not complete");
+        level.split_begin.push_back(static_cast<std::uint32_t>(level.splits.size()));
+        level.leaf_begin.push_back(leaf_count);
+        for (const auto& sp : tree.splits) {
+          if (sp.idx1 >= level.deltas.size() || sp.idx2 >= level.deltas.size())
+            throw dlib::serialization_error("shape_predictor split uses an unknown pixel");
+          level.splits.push_back({static_cast<std::uint32_t>(sp.idx1),
+                                  static_cast<std::uint32_t>(sp.idx2), sp.thresh});
+        }
+        for (const auto& leaf : tree.leaf_values) {
+          if (leaf.size() != n)
+            throw dlib::serialization_error("shape_predictor leaf has the wrong size");
+          level.leaves.insert(level.leaves.end(), leaf.begin(), leaf.end());
+          ++leaf_count;
+        }
+      }
+      level.split_begin.push_back(static_cast<std::uint32_t>(level.splits.size()));
+      std::vector<dlib::impl::regression_tree>().swap(forests[l]);  // free as we go
+    }
+  }
+
+  dlib::full_object_detection operator()(const dlib::array2d<unsigned char>& img,
+                                         const dlib::rectangle& rect) const {
+    dlib::matrix<float, 0, 1> shape = initial_shape;
+    const long n = shape.size();
+    float* c = &shape(0);
+    for (const Level& level : levels) {
+      dlib::impl::extract_feature_pixel_values(img, rect, shape, initial_shape, level.anchor_idx,
+                                               level.deltas, features);
+      const std::size_t trees = level.leaf_begin.size();
+      leaves.resize(trees);
+      for (std::size_t t = 0; t < trees; ++t) {
+        const Split* splits = level.splits.data() + level.split_begin[t];
+        const std::uint32_t count = level.split_begin[t + 1] - level.split_begin[t];
+        std::uint32_t i = 0;
+        while (i < count)
+          i = features[splits[i].idx1] - features[splits[i].idx2] > splits[i].thresh ? 2 * i + 1
+                                                                                      : 2 * i + 2;
+        const float* leaf =
+            level.leaves.data() + static_cast<std::size_t>(level.leaf_begin[t] + i - count) * n;
+        leaves[t] = leaf;
+        __builtin_prefetch(leaf);
+      }
+      // Sum in tree order (per element the same additions as dlib's), four floats at a time,
+      // prefetching a few leaves ahead.
+      constexpr std::size_t kAhead = 6;
+      for (std::size_t t = 0; t < trees; ++t) {
+        if (t + kAhead < trees)
+          for (long k = 0; k < n; k += 16) __builtin_prefetch(leaves[t + kAhead] + k);
+        add_into(c, leaves[t], n);
+      }
+    }
+    const dlib::point_transform_affine to_image = dlib::impl::unnormalizing_tform(rect);
+    std::vector<dlib::point> parts(static_cast<std::size_t>(n / 2));
+    for (std::size_t i = 0; i < parts.size(); ++i)
+      parts[i] = to_image(dlib::impl::location(shape, static_cast<unsigned long>(i)));
+    return dlib::full_object_detection(rect, parts);
+  }
+};
+
+}  // namespace
+
 struct LandmarkDetector::State {
   LandmarkDetectorOptions options;
   dlib::frontal_face_detector detector = dlib::get_frontal_face_detector();
-  dlib::shape_predictor predictor;
+  ShapeCascade predictor;
   dlib::array2d<unsigned char> gray;    // whole image, reused
   dlib::array2d<unsigned char> window;  // tracking window, reused
-  std::optional<dlib::rectangle> last;
+  std::optional<dlib::rectangle> last;  // the box the predictor last ran on
+  std::optional<Box> last_points;       // bounding box of the last frame's points
+  Patch last_patch{};                   // the grey image under it
+  // Detector box relative to the points' bounding box at the last real detection: centre
+  // offset in units of the points' box size, and size ratio.
+  double map_dx = 0, map_dy = 0, map_sw = 1, map_sh = 1;
+  double last_score = 0;    // HOG margin of the last real detection
+  int since_detection = 0;  // frames tracked from points since then
+
+  void forget() {
+    last.reset();
+    last_points.reset();
+    since_detection = 0;
+  }
 };
 
 LandmarkDetector::LandmarkDetector(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -27,7 +243,7 @@ Result<LandmarkDetector> LandmarkDetector::create(std::istream& shape_predictor,
   auto s = std::make_unique<State>();
   s->options = options;
   try {
-    dlib::deserialize(s->predictor, shape_predictor);
+    s->predictor.deserialize(shape_predictor);
   } catch (const std::exception& e) {
     return fail(std::string("landmarks: cannot read the shape predictor (expected dlib's "
                             "shape_predictor_68_face_landmarks.dat): ") +
@@ -40,7 +256,7 @@ Result<LandmarkDetector> LandmarkDetector::create(std::istream& shape_predictor,
 }
 
 void LandmarkDetector::reset_tracking() {
-  state_->last.reset();
+  state_->forget();
 }
 
 Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
@@ -55,9 +271,46 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
         // Rec. 601 luma in integer arithmetic.
         s.gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
       }
+    auto result = [&](const dlib::rectangle& r, const dlib::full_object_detection& shape,
+                      bool tracked, bool from_landmarks) {
+      DetectedLandmarks out;
+      out.face = {static_cast<int>(r.left()), static_cast<int>(r.top()),
+                  static_cast<int>(r.width()), static_cast<int>(r.height())};
+      out.tracked = tracked;
+      out.from_landmarks = from_landmarks;
+      out.detection_score = s.last_score;
+      out.frames_since_detection = s.since_detection;
+      for (unsigned i = 0; i < 68; ++i)
+        out.points[i] = Eigen::Vector2d(shape.part(i).x(), shape.part(i).y());
+      return out;
+    };
+    const LandmarkDetectorOptions& o = s.options;
+    if (o.track && o.track_landmarks && s.last && s.last_points &&
+        (o.redetect_every <= 0 || s.since_detection < o.redetect_every)) {
+      // Tracking from points: the previous frame's points, mapped to a detector-style box.
+      const Box& p = *s.last_points;
+      const dlib::rectangle r = rect_of({p.cx + s.map_dx * p.w, p.cy + s.map_dy * p.h,
+                                         s.map_sw * p.w, s.map_sh * p.h});
+      const dlib::full_object_detection shape = s.predictor(s.gray, r);
+      const Box b = points_box(shape);
+      const Patch patch = patch_of(s.gray, b);
+      const bool plausible =
+          correlation(patch, s.last_patch) >= o.min_appearance_correlation &&
+          inside_image(shape, w, h) && std::abs(b.w / p.w - 1) <= o.max_box_size_change &&
+          std::abs(b.h / p.h - 1) <= o.max_box_size_change &&
+          std::hypot(b.cx - p.cx, b.cy - p.cy) <= o.max_box_shift * std::max(p.w, p.h);
+      if (plausible) {
+        ++s.since_detection;
+        s.last = r;
+        s.last_points = b;
+        s.last_patch = patch;
+        return result(r, shape, true, true);
+      }
+      // Implausible: the detector runs on this frame (window around the last box first).
+    }
     std::vector<std::pair<double, dlib::rectangle>> found;
     bool tracked = false;
-    if (s.options.track && s.last) {
+    if (o.track && s.last) {
       // Face-region tracking: detect in a window around the last face only.
       const dlib::rectangle& r = *s.last;
       const double scale = s.options.track_window_scale;
@@ -93,7 +346,7 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       for (const auto& d : dets) found.emplace_back(d.detection_confidence, d.rect);
     }
     if (found.empty()) {
-      s.last.reset();
+      s.forget();
       return fail("landmarks: no face found in the colour image");
     }
     // The largest face is the subject (people behind are smaller).
@@ -101,17 +354,24 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
         found.begin(), found.end(),
         [](const auto& a, const auto& b) { return a.second.area() < b.second.area(); });
     const dlib::full_object_detection shape = s.predictor(s.gray, best->second);
-    DetectedLandmarks out;
-    out.face = {static_cast<int>(best->second.left()), static_cast<int>(best->second.top()),
-                static_cast<int>(best->second.width()), static_cast<int>(best->second.height())};
-    out.tracked = tracked;
-    out.detection_score = best->first;
-    for (unsigned i = 0; i < 68; ++i)
-      out.points[i] = Eigen::Vector2d(shape.part(i).x(), shape.part(i).y());
+    // Learn the points' box -> detector box mapping for the frames tracked from points.
+    const Box d = box_of(best->second), p = points_box(shape);
+    if (p.w >= 1 && p.h >= 1) {
+      s.map_dx = (d.cx - p.cx) / p.w;
+      s.map_dy = (d.cy - p.cy) / p.h;
+      s.map_sw = d.w / p.w;
+      s.map_sh = d.h / p.h;
+      s.last_points = p;
+      s.last_patch = patch_of(s.gray, p);
+    } else {
+      s.last_points.reset();  // degenerate shape: the next frame runs the detector again
+    }
     s.last = best->second;
-    return out;
+    s.last_score = best->first;
+    s.since_detection = 0;
+    return result(best->second, shape, tracked, false);
   } catch (const std::exception& e) {
-    s.last.reset();
+    s.forget();
     return fail(std::string("landmarks: dlib failed: ") + e.what());
   }
 }

@@ -2,6 +2,9 @@
 // (detection, tracking, no-face and bad-model errors) where Debian's model is installed.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -89,16 +92,132 @@ TEST(Landmarks, DlibDetectsTracksAndReportsNoFace) {
   std::printf("dlib on the untextured render: %.2f px mean vs projected model landmarks\n",
               err / 68);
   EXPECT_LT(err / 68, 8.0);
+  EXPECT_FALSE(found->from_landmarks);
+  EXPECT_EQ(found->frames_since_detection, 0);
   auto again = det->detect(s.frame.color);
   ASSERT_TRUE(again.ok());
   EXPECT_TRUE(again->tracked);
+  EXPECT_TRUE(again->from_landmarks);
+  EXPECT_EQ(again->frames_since_detection, 1);
+  EXPECT_EQ(again->detection_score, found->detection_score);  // the anchoring detection's
+  // The face leaves: the points from the previous frame's box no longer sit on a face, the
+  // detector re-runs and finds nothing.
   ColorImage blank;
   blank.resize(640, 480);
   auto none = det->detect(blank);
   ASSERT_FALSE(none.ok());
   EXPECT_NE(none.error().message.find("no face"), std::string::npos);
+  auto back = det->detect(s.frame.color);  // lost: a full-image detection
+  ASSERT_TRUE(back.ok());
+  EXPECT_FALSE(back->tracked);
   std::istringstream garbage("not a model");
   EXPECT_FALSE(LandmarkDetector::create(garbage).ok());
+}
+
+struct TakeFrame {
+  ColorImage color;
+  std::array<Eigen::Vector2d, 68> truth;  // projected model landmark vertices
+};
+
+std::vector<TakeFrame> head_turn_take(int frames) {
+  SyntheticOptions o;
+  o.seed = 2;
+  o.motion = SyntheticMotion::kHeadTurn;  // yaw +-30 deg, pitch +-15 deg, 3 s period
+  o.sensor.depth_noise = false;
+  o.frame_count = frames;
+  auto cam = make_synthetic_camera(o);
+  EXPECT_TRUE(cam.ok());
+  EXPECT_TRUE((*cam)->start().ok());
+  std::vector<TakeFrame> out;
+  RgbdFrame f;
+  for (int i = 0; i < frames; ++i) {
+    EXPECT_TRUE((*cam)->next_frame(f, std::chrono::milliseconds(1000)).ok());
+    TakeFrame t;
+    t.color = f.color;
+    for (int l = 0; l < 68; ++l) t.truth[l] = (*cam)->truth()->landmarks_color_px[l];
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+double mean_distance(const std::array<Eigen::Vector2d, 68>& a,
+                     const std::array<Eigen::Vector2d, 68>& b) {
+  double sum = 0;
+  for (int l = 0; l < 68; ++l) sum += (a[l] - b[l]).norm();
+  return sum / 68;
+}
+
+// Tracking from points over a head turn: the tracked frames' points stay close to a full
+// detection on the same frame and as close to the true points as the windowed detector's
+// (the previous tracking), the detector re-anchors every redetect_every frames, and the score is
+// the anchoring detection's.
+TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
+  if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
+  std::ifstream in(kPredictor, std::ios::binary);
+  std::stringstream model;
+  model << in.rdbuf();
+  const std::string bytes = model.str();
+  std::istringstream in1(bytes), in2(bytes), in3(bytes);
+  LandmarkDetectorOptions full_options, window_options;
+  full_options.track = false;
+  window_options.track_landmarks = false;
+  auto tracker = LandmarkDetector::create(in1);
+  auto full = LandmarkDetector::create(in2, full_options);
+  auto window = LandmarkDetector::create(in3, window_options);
+  ASSERT_TRUE(tracker.ok() && full.ok() && window.ok());
+  const int redetect_every = LandmarkDetectorOptions{}.redetect_every;
+  const std::vector<TakeFrame> take = head_turn_take(45);  // half a period: 0 -> +30 deg -> 0
+  const bool trace = std::getenv("FB_LANDMARK_TRACE") != nullptr;
+  int from_points = 0, compared = 0, detections = 0;
+  double vs_full = 0, worst = 0, anchor_score = 0, err_points = 0, err_window = 0, err_full = 0;
+  for (std::size_t i = 0; i < take.size(); ++i) {
+    const std::clock_t c0 = std::clock();
+    auto t = tracker->detect(take[i].color);
+    if (trace)
+      std::printf("frame %zu: %s, %.2f ms CPU\n", i,
+                  t ? (t->from_landmarks ? "points" : "detector") : "none",
+                  1000.0 * double(std::clock() - c0) / CLOCKS_PER_SEC);
+    auto f = full->detect(take[i].color);
+    auto w = window->detect(take[i].color);
+    if (!t) continue;
+    if (!t->from_landmarks) {
+      ++detections;
+      anchor_score = t->detection_score;
+      continue;
+    }
+    ++from_points;
+    EXPECT_TRUE(t->tracked);
+    EXPECT_LE(t->frames_since_detection, redetect_every) << i;
+    EXPECT_EQ(t->detection_score, anchor_score) << i;
+    if (!f || !w) continue;  // the frontal detector misses this view
+    const double d = mean_distance(t->points, f->points);
+    const double et = mean_distance(t->points, take[i].truth),
+                 ew = mean_distance(w->points, take[i].truth),
+                 ef = mean_distance(f->points, take[i].truth);
+    if (trace)
+      std::printf("frame %zu: since %d, %.2f px from full; vs truth %.2f (window %.2f, full "
+                  "%.2f)\n", i, t->frames_since_detection, d, et, ew, ef);
+    vs_full += d;
+    worst = std::max(worst, d);
+    err_points += et;
+    err_window += ew;
+    err_full += ef;
+    ++compared;
+  }
+  ASSERT_GT(compared, 10);
+  vs_full /= compared;
+  err_points /= compared;
+  err_window /= compared;
+  err_full /= compared;
+  std::printf("tracking from points: %d of %zu frames (%d detector runs); on %d of them %.2f px "
+              "mean from a full detection (worst frame %.2f px); vs the true points %.2f px "
+              "(windowed detector %.2f, full image %.2f)\n",
+              from_points, take.size(), detections, compared, vs_full, worst, err_points,
+              err_window, err_full);
+  EXPECT_GE(from_points, static_cast<int>(take.size()) / 2);
+  EXPECT_LT(vs_full, 2.0);
+  EXPECT_LT(worst, 6.0);
+  EXPECT_LT(err_points, err_window + 0.5);
 }
 
 }  // namespace

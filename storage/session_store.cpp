@@ -13,6 +13,7 @@
 #include <system_error>
 
 #include "storage/durable_file.hpp"
+#include "storage/sha256.hpp"
 #include "storage/sqlite_util.hpp"
 
 namespace fb {
@@ -173,6 +174,44 @@ class ByteReader {
  private:
   std::span<const std::uint8_t> bytes_;
   std::size_t pos_;
+};
+
+// Reads a data file front to back in one pass, hashing everything it reads, so that a caller
+// can decode part of a large file into place and still check the whole file's SHA-256.
+class VerifiedReader {
+ public:
+  explicit VerifiedReader(const fs::path& path) : in_(path, std::ios::binary) {}
+  bool is_open() const { return in_.is_open(); }
+  bool read(void* out, std::size_t n) {
+    if (n == 0) return true;
+    in_.read(static_cast<char*>(out), static_cast<std::streamsize>(n));
+    const auto got = static_cast<std::size_t>(in_.gcount());
+    sha_.update(out, got);
+    position_ += got;
+    return got == n;
+  }
+  bool skip(std::size_t n) {
+    char buffer[64 * 1024];
+    while (n > 0) {
+      const std::size_t step = std::min(n, sizeof buffer);
+      if (!read(buffer, step)) return false;
+      n -= step;
+    }
+    return true;
+  }
+  std::uint64_t position() const { return position_; }
+  // Reads what is left; true when the file had exactly `bytes` bytes with digest `sha256`.
+  bool matches(std::uint64_t bytes, const std::string& sha256) {
+    char buffer[64 * 1024];
+    while (read(buffer, sizeof buffer)) {
+    }
+    return position_ == bytes && sha_.hex_digest() == sha256;
+  }
+
+ private:
+  std::ifstream in_;
+  Sha256 sha_;
+  std::uint64_t position_ = 0;
 };
 
 constexpr char kSeqMagic[9] = "FBSEQ001";
@@ -403,8 +442,14 @@ struct SessionStore::Impl {
     }
   }
 
-  // Reads a committed data file and checks its size and SHA-256 against the database.
-  Result<std::vector<std::uint8_t>> load_file(std::int64_t file_id) const {
+  struct DataFile {
+    fs::path path;
+    std::uint64_t bytes = 0;
+    std::string sha256;
+  };
+  // Where a committed data file is, with the size and SHA-256 committed for it; a missing file
+  // or folder is an error that says what to restore.
+  Result<DataFile> data_file(std::int64_t file_id) const {
     auto stmt = sql::prepare(db.get(), "SELECT relpath, bytes, sha256 FROM files WHERE id=?");
     if (!stmt) return stmt.failure();
     stmt->bind(1, file_id);
@@ -412,26 +457,32 @@ struct SessionStore::Impl {
     if (!row) return row.failure();
     if (!*row) return fail("data file #" + std::to_string(file_id) + " is not in the database");
     const std::string rel = stmt->text(0);
-    const auto bytes = static_cast<std::uint64_t>(stmt->int64(1));
-    const std::string sha = stmt->text(2);
-    const fs::path path = root / rel;
+    DataFile f{root / rel, static_cast<std::uint64_t>(stmt->int64(1)), stmt->text(2)};
     std::error_code ec;
-    if (!fs::exists(path, ec)) {
-      const fs::path folder = path.parent_path();
+    if (!fs::exists(f.path, ec)) {
+      const fs::path folder = f.path.parent_path();
       if (!fs::is_directory(folder, ec)) {
         return fail("the data folder " + folder.string() +
                     " is missing (moved or deleted?): restore it from a backup to read " + rel +
                     "; the database entries are kept");
       }
-      return fail("data file " + path.string() +
+      return fail("data file " + f.path.string() +
                   " is missing: restore it from a backup (the database entry is kept)");
     }
-    auto data = read_file_bytes(path);
+    return f;
+  }
+  static Error damaged(const DataFile& f) {
+    return Error{"data file " + f.path.string() + " is damaged (size or SHA-256 differs from " +
+                 "what was committed): restore it from a backup"};
+  }
+
+  // Reads a committed data file and checks its size and SHA-256 against the database.
+  Result<std::vector<std::uint8_t>> load_file(std::int64_t file_id) const {
+    auto f = data_file(file_id);
+    if (!f) return f.failure();
+    auto data = read_file_bytes(f->path);
     if (!data) return data.failure();
-    if (data->size() != bytes || sha256_hex(*data) != sha) {
-      return fail("data file " + path.string() + " is damaged (size or SHA-256 differs from " +
-                  "what was committed): restore it from a backup");
-    }
+    if (data->size() != f->bytes || sha256_hex(*data) != f->sha256) return fail(damaged(*f));
     return data;
   }
 
@@ -989,7 +1040,8 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
   return success();
 }
 
-Result<CaptureData> SessionStore::read_capture(SessionId session, int index) const {
+Result<CaptureData> SessionStore::read_capture(SessionId session, int index,
+                                               const CaptureReadOptions& options) const {
   auto c = impl_->one_capture(session, index);
   if (!c) return c.failure();
   if (c->state != CaptureState::kDone) {
@@ -1006,29 +1058,53 @@ Result<CaptureData> SessionStore::read_capture(SessionId session, int index) con
 
   CaptureData out;
   out.info = *c;
-  auto bytes = impl_->load_file(frames_file);
-  if (!bytes) return bytes.failure();
-  ByteReader reader(*bytes);
-  std::uint32_t count = 0, reserved = 0;
+  auto file = impl_->data_file(frames_file);
+  if (!file) return file.failure();
+  VerifiedReader in(file->path);
+  if (!in.is_open()) return fail("cannot open " + file->path.string());
   const std::string bad = "the frame file of capture " + std::to_string(index) + " is malformed";
-  if (!reader.magic(kSeqMagic) || !reader.get(count) || !reader.get(reserved)) return fail(bad);
-  if (static_cast<int>(count) != c->frame_count) return fail(bad + " (frame count differs)");
-  out.frames.resize(count);
-  for (auto& f : out.frames) {
-    FrameRecordHeader h{};
-    if (!reader.get(h)) return fail(bad);
-    f.index = h.index;
-    f.depth_host_time_s = h.depth_host_time_s;
-    f.color_host_time_s = h.color_host_time_s;
-    f.depth_device_timestamp = h.depth_device_timestamp;
-    f.color_device_timestamp = h.color_device_timestamp;
-    if (!read_image(reader, h.depth_w, h.depth_h, f.depth_mm) ||
-        !read_image(reader, h.raw_w, h.raw_h, f.raw_disparity) ||
-        !read_image(reader, h.color_w, h.color_h, f.color)) {
+  // Decodes the sequence; on a short or inconsistent file the checksum decides whether it is
+  // damaged (changed after the commit) or malformed (written wrong).
+  auto decode = [&]() -> Result<void> {
+    char magic[8];
+    std::uint32_t count = 0, reserved = 0;
+    if (!in.read(magic, 8) || std::memcmp(magic, kSeqMagic, 8) != 0 || !in.read(&count, 4) ||
+        !in.read(&reserved, 4))
       return fail(bad);
+    if (static_cast<int>(count) != c->frame_count) return fail(bad + " (frame count differs)");
+    const std::size_t keep = std::min<std::size_t>(count, options.max_frames);
+    out.frames.resize(keep);
+    auto image = [&](int w, int h, auto& img, bool decode_it) {
+      using Pixel = typename std::decay_t<decltype(img.pixels)>::value_type;
+      if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
+      const std::size_t n = static_cast<std::size_t>(w) * h * sizeof(Pixel);
+      if (n > file->bytes - in.position()) return false;
+      if (!decode_it) return in.skip(n);
+      img.resize(w, h);
+      return in.read(img.pixels.data(), n);
+    };
+    RgbdFrame skipped;
+    for (std::uint32_t i = 0; i < count; ++i) {
+      FrameRecordHeader h{};
+      if (!in.read(&h, sizeof h)) return fail(bad);
+      const bool kept = i < keep;
+      RgbdFrame& f = kept ? out.frames[i] : skipped;
+      f.index = h.index;
+      f.depth_host_time_s = h.depth_host_time_s;
+      f.color_host_time_s = h.color_host_time_s;
+      f.depth_device_timestamp = h.depth_device_timestamp;
+      f.color_device_timestamp = h.color_device_timestamp;
+      if (!image(h.depth_w, h.depth_h, f.depth_mm, kept) ||
+          !image(h.raw_w, h.raw_h, f.raw_disparity, kept) ||
+          !image(h.color_w, h.color_h, f.color, kept))
+        return fail(bad);
     }
-  }
-  if (!reader.at_end()) return fail(bad + " (trailing bytes)");
+    if (in.position() != file->bytes) return fail(bad + " (trailing bytes)");
+    return success();
+  };
+  auto decoded = decode();
+  if (!in.matches(file->bytes, file->sha256)) return fail(Impl::damaged(*file));
+  if (!decoded) return decoded.failure();
   if (fused_file) {
     auto fused = impl_->load_file(*fused_file);
     if (!fused) return fused.failure();

@@ -105,9 +105,16 @@ struct CaptureInput {
   std::map<std::string, double> qa_scores;
 };
 
+// What read_capture decodes. The whole frame file is always read and checked against its
+// committed SHA-256; only the first `max_frames` frames are kept in memory (an export needs the
+// first colour frame, not a 45 MB sequence on a 256 MB device).
+struct CaptureReadOptions {
+  std::size_t max_frames = static_cast<std::size_t>(-1);
+};
+
 struct CaptureData {
-  CaptureInfo info;
-  std::vector<RgbdFrame> frames;
+  CaptureInfo info;               // info.frame_count is the stored count
+  std::vector<RgbdFrame> frames;  // the first min(frame_count, max_frames) frames
   DepthImage fused_depth;
   std::vector<Landmark> landmarks;  // the operator's correction when present, else automatic
   LandmarkSource landmark_source = LandmarkSource::kAutomatic;
@@ -206,7 +213,8 @@ class SessionStore {
   // A crash at any point leaves either the whole capture or none of it.
   Result<void> commit_capture(SessionId session, int index, const CaptureInput& input);
   // Reads a done capture back, verifying every data file's SHA-256.
-  Result<CaptureData> read_capture(SessionId session, int index) const;
+  Result<CaptureData> read_capture(SessionId session, int index,
+                                   const CaptureReadOptions& options = {}) const;
   // Stores (or replaces) the operator's landmark correction of a done capture.
   Result<void> set_operator_landmarks(SessionId session, int index,
                                       const std::vector<Landmark>& landmarks);

@@ -206,7 +206,7 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
     if (c.state == CaptureState::kDone) {
       char dir[96];
       std::snprintf(dir, sizeof dir, "capture-%02d-%s/", c.index, c.expression.c_str());
-      auto data = store_.read_capture(id, c.index);
+      auto data = store_.read_capture(id, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->fused_depth.empty()) {
         if (auto ok =

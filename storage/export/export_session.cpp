@@ -80,7 +80,7 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     ColorImage color;
     std::vector<Landmark> landmarks;
     if (c.state == CaptureState::kDone) {
-      auto data = store.read_capture(session, c.index);
+      auto data = store.read_capture(session, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->frames.empty()) color = std::move(data->frames.front().color);
       landmarks = std::move(data->landmarks);

@@ -171,21 +171,32 @@ TEST(BadInput, DamagedDataFileIsDetectedOthersStillRead) {
   test::ScratchDir dir;
   const SessionId session = make_store(dir.path());
   const fs::path folder = dir.path() / "sessions" / std::to_string(session);
-  for (const auto& e : fs::directory_iterator(folder)) {
-    const std::string name = e.path().filename().string();
-    if (name.rfind("c0-", 0) == 0 && name.find("frames") != std::string::npos) {
-      std::fstream io(e.path(), std::ios::binary | std::ios::in | std::ios::out);
-      io.seekp(200);
-      io.put('\x7f');
+  // Overwrites one byte of capture `index`'s frame file, `from_end` bytes before its end or at
+  // byte 200 (inside the first frame).
+  auto damage = [&](int index, std::uintmax_t from_end) {
+    for (const auto& e : fs::directory_iterator(folder)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("c" + std::to_string(index) + "-", 0) == 0 &&
+          name.find("frames") != std::string::npos) {
+        std::fstream io(e.path(), std::ios::binary | std::ios::in | std::ios::out);
+        io.seekp(static_cast<std::streamoff>(from_end ? fs::file_size(e.path()) - from_end : 200));
+        io.put('\x7f');
+      }
     }
-  }
+  };
+  damage(0, 0);
   auto store = SessionStore::open(dir.path());
   ASSERT_TRUE(store);
   auto bad = store->read_capture(session, 0);
   ASSERT_FALSE(bad);
   EXPECT_TRUE(contains(bad.error().message, "damaged")) << bad.error().message;
   EXPECT_TRUE(store->read_capture(session, 1));
-  EXPECT_EQ(store->verify()->problems.size(), 1u);
+  // Damage in a frame that is not decoded is found too (the whole file is hashed).
+  damage(1, 5);
+  auto bad_tail = store->read_capture(session, 1, {.max_frames = 1});
+  ASSERT_FALSE(bad_tail);
+  EXPECT_TRUE(contains(bad_tail.error().message, "damaged")) << bad_tail.error().message;
+  EXPECT_EQ(store->verify()->problems.size(), 2u);
 }
 
 TEST(BadInput, FullDiskDuringCaptureLosesNothing) {

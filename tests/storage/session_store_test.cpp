@@ -4,6 +4,7 @@
 #include <sqlite3.h>
 
 #include <atomic>
+#include <cstring>
 #include <fstream>
 #include <thread>
 
@@ -54,6 +55,22 @@ TEST(SessionStore, CommitReadResumeAndComplete) {
   EXPECT_EQ(data->info.attempts, 1);
   EXPECT_EQ(data->info.frame_count, kFrames);
   EXPECT_FALSE(data->info.completed_at.empty());
+
+  // Reading only the first frame (what exports need) gives that frame exactly, the stored count
+  // in info, and still verifies the whole file.
+  auto first = store->read_capture(*session, 0, {.max_frames = 1});
+  ASSERT_TRUE(first) << first.error().message;
+  ASSERT_EQ(first->frames.size(), 1u);
+  EXPECT_EQ(first->info.frame_count, kFrames);
+  EXPECT_EQ(first->frames[0].index, data->frames[0].index);
+  EXPECT_EQ(first->frames[0].depth_mm.pixels, data->frames[0].depth_mm.pixels);
+  EXPECT_EQ(first->frames[0].raw_disparity.pixels, data->frames[0].raw_disparity.pixels);
+  ASSERT_EQ(first->frames[0].color.pixels.size(), data->frames[0].color.pixels.size());
+  EXPECT_EQ(std::memcmp(first->frames[0].color.pixels.data(), data->frames[0].color.pixels.data(),
+                        data->frames[0].color.pixels.size() * sizeof(Rgb8)),
+            0);
+  EXPECT_EQ(first->fused_depth.pixels, data->fused_depth.pixels);
+  EXPECT_EQ(store->read_capture(*session, 0, {.max_frames = 0})->frames.size(), 0u);
 
   // Committing a done capture again is refused and changes nothing.
   auto again = store->commit_capture(*session, 0, make_test_capture(*session, 0, 1, 4, 4));

@@ -264,13 +264,20 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
   if (image.empty()) return fail("landmarks: the colour image is empty");
   const int w = image.width, h = image.height;
   try {
-    s.gray.set_size(h, w);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const Rgb8 p = image.at(x, y);
-        // Rec. 601 luma in integer arithmetic.
-        s.gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
-      }
+    if (s.gray.nr() != h || s.gray.nc() != w) {
+      s.forget();  // a new image size: nothing carried over
+      s.gray.set_size(h, w);
+    }
+    // Grey conversion of [x0, x1) x [y0, y1); frames tracked from points convert only a window
+    // around the face (the predictor's pixels lie within the face box).
+    auto to_gray = [&](long x0, long y0, long x1, long y1) {
+      for (long y = y0; y < y1; ++y)
+        for (long x = x0; x < x1; ++x) {
+          const Rgb8 p = image.at(static_cast<int>(x), static_cast<int>(y));
+          // Rec. 601 luma in integer arithmetic.
+          s.gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
+        }
+    };
     auto result = [&](const dlib::rectangle& r, const dlib::full_object_detection& shape,
                       bool tracked, bool from_landmarks) {
       DetectedLandmarks out;
@@ -291,11 +298,20 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       const Box& p = *s.last_points;
       const dlib::rectangle r = rect_of({p.cx + s.map_dx * p.w, p.cy + s.map_dy * p.h,
                                          s.map_sw * p.w, s.map_sh * p.h});
+      const Box g = box_of(r);
+      const double hw = g.w * o.track_window_scale / 2, hh = g.h * o.track_window_scale / 2;
+      const long gx0 = std::clamp<long>(std::lround(g.cx - hw), 0, w),
+                 gy0 = std::clamp<long>(std::lround(g.cy - hh), 0, h),
+                 gx1 = std::clamp<long>(std::lround(g.cx + hw), 0, w),
+                 gy1 = std::clamp<long>(std::lround(g.cy + hh), 0, h);
+      to_gray(gx0, gy0, gx1, gy1);
       const dlib::full_object_detection shape = s.predictor(s.gray, r);
       const Box b = points_box(shape);
+      const bool in_region = b.cx - b.w / 2 >= gx0 && b.cy - b.h / 2 >= gy0 &&
+                             b.cx + b.w / 2 < gx1 && b.cy + b.h / 2 < gy1;
       const Patch patch = patch_of(s.gray, b);
       const bool plausible =
-          correlation(patch, s.last_patch) >= o.min_appearance_correlation &&
+          in_region && correlation(patch, s.last_patch) >= o.min_appearance_correlation &&
           inside_image(shape, w, h) && std::abs(b.w / p.w - 1) <= o.max_box_size_change &&
           std::abs(b.h / p.h - 1) <= o.max_box_size_change &&
           std::hypot(b.cx - p.cx, b.cy - p.cy) <= o.max_box_shift * std::max(p.w, p.h);
@@ -308,6 +324,7 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       }
       // Implausible: the detector runs on this frame (window around the last box first).
     }
+    to_gray(0, 0, w, h);
     std::vector<std::pair<double, dlib::rectangle>> found;
     bool tracked = false;
     if (o.track && s.last) {

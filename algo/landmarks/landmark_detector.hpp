@@ -4,7 +4,9 @@
 // the face is tracked from the landmarks: the next frame's face box is the bounding box of the
 // previous frame's 68 points mapped to a detector-style box (the offset and scale between the
 // detector's box and the points' bounding box are learnt at the last real detection), and only
-// the shape predictor runs (~1-2 ms instead of a ~35-70 ms full-image HOG pass). The detector
+// the shape predictor runs, on a grey conversion of a window around the face only (~2 ms
+// instead of a ~35-70 ms full-image HOG pass; the predictor is dlib's model evaluated with its
+// trees packed and prefetched: same points, a few times faster than dlib's loop). The detector
 // re-anchors on a window around the last face (falling back to the full image) every
 // `redetect_every` tracked frames, when the new points are implausible (bounding box size or
 // position jumps, points off the image, the image under them no longer looks like the previous

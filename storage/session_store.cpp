@@ -923,7 +923,10 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
     return fail("capture " + std::to_string(index) + " (" + c->expression + ") of session " +
                 std::to_string(session) + " is already done; nothing was changed");
   }
-  if (input.frames.empty()) return fail("a capture needs at least one frame");
+  const bool from_source = input.frames.empty();
+  const std::size_t frame_count = from_source ? input.frame_count : input.frames.size();
+  if (frame_count == 0 || (from_source && !input.read_frame))
+    return fail("a capture needs at least one frame");
   auto folder = impl_->session_folder(session);
   if (!folder) return folder.failure();
   const std::string stem = "c" + std::to_string(index) + "-a" + std::to_string(c->attempts);
@@ -931,16 +934,22 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
   // 1. The frame sequence, streamed frame by frame (a capture is tens of megabytes).
   std::vector<Impl::StoredFile> written;
   std::vector<std::uint64_t> offsets;
+  std::vector<FrameRecordHeader> headers;  // for the frames table rows
   {
     const std::string rel = *folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
     auto file = DurableFile::create(impl_->root / rel, impl_->file_hooks());
     if (!file) return impl_->folder_missing_or(*folder, file.error());
     ByteWriter header;
     header.put_magic(kSeqMagic);
-    header.put(static_cast<std::uint32_t>(input.frames.size()));
+    header.put(static_cast<std::uint32_t>(frame_count));
     header.put(std::uint32_t{0});
     if (auto r = file->append(header.bytes); !r) return r;
-    for (const auto& f : input.frames) {
+    RgbdFrame scratch;
+    for (std::size_t i = 0; i < frame_count; ++i) {
+      if (from_source) {
+        if (auto r = input.read_frame(i, scratch); !r) return r;
+      }
+      const RgbdFrame& f = from_source ? scratch : input.frames[i];
       offsets.push_back(file->size());
       const FrameRecordHeader h{f.index,
                                 f.depth_host_time_s,
@@ -953,6 +962,7 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
                                 f.raw_disparity.height,
                                 f.color.width,
                                 f.color.height};
+      headers.push_back(h);
       if (auto r = file->append(&h, sizeof h); !r) return r;
       if (auto r = file->append(pixel_bytes(f.depth_mm)); !r) return r;
       if (auto r = file->append(pixel_bytes(f.raw_disparity)); !r) return r;
@@ -994,12 +1004,12 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
                      "INSERT INTO frames(capture_id, seq, depth_host_time_s, color_host_time_s, "
                      "depth_device_ts, color_device_ts, file_id, offset) VALUES(?,?,?,?,?,?,?,?)");
     if (!frame) return frame.failure();
-    for (std::size_t i = 0; i < input.frames.size(); ++i) {
-      const auto& f = input.frames[i];
+    for (std::size_t i = 0; i < frame_count; ++i) {
+      const FrameRecordHeader& h = headers[i];
       frame->reset();
-      frame->bind_all(c->id, static_cast<std::int64_t>(i), f.depth_host_time_s, f.color_host_time_s,
-                      static_cast<std::int64_t>(f.depth_device_timestamp),
-                      static_cast<std::int64_t>(f.color_device_timestamp), ids[0],
+      frame->bind_all(c->id, static_cast<std::int64_t>(i), h.depth_host_time_s, h.color_host_time_s,
+                      static_cast<std::int64_t>(h.depth_device_timestamp),
+                      static_cast<std::int64_t>(h.color_device_timestamp), ids[0],
                       static_cast<std::int64_t>(offsets[i]));
       if (auto r = frame->run(); !r) return r;
     }
@@ -1016,9 +1026,9 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
                                                "fused_file_id=?, completed_at=") +
                                        kNow + " WHERE id=?");
     if (!update) return update.failure();
-    update->bind_all(scores_to_json(input.qa_scores),
-                     static_cast<std::int64_t>(input.frames.size()), ids[0],
-                     ids.size() > 1 ? std::optional<std::int64_t>(ids[1]) : std::nullopt, c->id);
+    update->bind_all(scores_to_json(input.qa_scores), static_cast<std::int64_t>(frame_count),
+                     ids[0], ids.size() > 1 ? std::optional<std::int64_t>(ids[1]) : std::nullopt,
+                     c->id);
     if (auto r = update->run(); !r) return r;
     auto complete = sql::prepare(db,
                                  "UPDATE sessions SET state='complete' WHERE id=?1 AND NOT EXISTS "

@@ -99,7 +99,11 @@ struct CaptureInfo {
 
 // What the device hands over when a capture passed QA.
 struct CaptureInput {
-  std::vector<RgbdFrame> frames;    // the head-turn sequence as the camera delivered it
+  std::vector<RgbdFrame> frames;  // the head-turn sequence as the camera delivered it
+  // Or, when `frames` is empty, `frame_count` frames read one at a time in order from a source
+  // (the device keeps a take's frames on disk, not in memory).
+  std::size_t frame_count = 0;
+  std::function<Result<void>(std::size_t index, RgbdFrame& out)> read_frame;
   DepthImage fused_depth;           // the fused frontal depth map (may be empty)
   std::vector<Landmark> landmarks;  // automatic landmarks (may be empty)
   std::map<std::string, double> qa_scores;

@@ -107,6 +107,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (ec)
     return fail("cannot create the data directory '" + config.storage.data_dir.string() +
                 "': " + ec.message());
+  FrameSpool::remove_stale(config.storage.data_dir / "spool");  // takes of a crashed run
   auto records = open_session_records(config.storage.data_dir);
   if (!records) return fail("cannot open the session store: " + records.error().message);
   impl->records = std::move(*records);
@@ -686,6 +687,9 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     std::lock_guard lock(records_mutex);
     if (auto ok = records->begin_capture(session, index); !ok) return ok.failure();
   }
+  auto spool = FrameSpool::create(config.storage.data_dir / "spool");
+  if (!spool) return spool.failure();
+  commit.frames = std::move(*spool);
   const int n = config.camera.capture_frames;
   update_status([&](StatusData& s) {
     ++s.attempts;
@@ -763,8 +767,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
       rms_sum += report.rms_mm;
     }
     if (recorded % config.camera.stored_frame_stride == 0) {
-      commit.frames.push_back(frame);
-      commit.frames.back().raw_disparity = {};  // derivable from depth; halves the memory
+      if (auto ok = commit.frames->append(frame); !ok) return ok.failure();
     }
     ++recorded;
     if (recorded % 5 == 0 || recorded == n) {

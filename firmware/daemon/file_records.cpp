@@ -187,21 +187,19 @@ class FileRecords : public SessionRecords {
     if (!commit.fused_depth.empty())
       if (auto ok = write_durable(base.string() + "-fused.pgm", pgm16(commit.fused_depth)); !ok)
         return ok;
-    if (!commit.frames.empty()) {
-      if (auto ok = write_durable(base.string() + "-frame0-depth.pgm",
-                                  pgm16(commit.frames.front().depth_mm));
-          !ok)
+    if (commit.frame_count() > 0) {
+      RgbdFrame first;
+      if (auto ok = commit.frames->read(0, first); !ok) return ok;
+      if (auto ok = write_durable(base.string() + "-frame0-depth.pgm", pgm16(first.depth_mm)); !ok)
         return ok;
-      if (!commit.frames.front().color.empty())
-        if (auto ok = write_durable(base.string() + "-frame0-color.ppm",
-                                    ppm(commit.frames.front().color));
-            !ok)
+      if (!first.color.empty())
+        if (auto ok = write_durable(base.string() + "-frame0-color.ppm", ppm(first.color)); !ok)
           return ok;
     }
     return update(session, index, [&](json& c) {
       c["state"] = "done";
       c["qa"] = commit.qa_scores;
-      c["frame_count"] = commit.frames.size();
+      c["frame_count"] = commit.frame_count();
       c["completed_at"] = now_iso();
       return success();
     });

@@ -16,6 +16,7 @@
 
 #include "algo/core/frame.hpp"
 #include "algo/core/result.hpp"
+#include "firmware/daemon/frame_spool.hpp"
 #include "storage/stored_data.hpp"
 
 namespace fb {
@@ -45,7 +46,8 @@ struct RecordCapture {
 };
 
 struct CaptureCommit {
-  std::vector<RgbdFrame> frames;
+  std::unique_ptr<FrameSpool> frames;  // the stored frames of the take, on disk
+  std::size_t frame_count() const { return frames ? frames->size() : 0; }
   DepthImage fused_depth;
   std::map<std::string, double> qa_scores;
   std::vector<Landmark> landmarks;  // automatic landmarks (colour px + lifted 3D), may be empty

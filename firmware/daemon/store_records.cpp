@@ -164,7 +164,9 @@ class StoreRecords : public SessionRecords {
 
 Result<void> StoreRecords::commit_capture(std::int64_t session, int index, CaptureCommit commit) {
   CaptureInput input;
-  input.frames = std::move(commit.frames);
+  if (!commit.frames) return fail("capture " + std::to_string(index) + " has no frames");
+  input.frame_count = commit.frames->size();
+  input.read_frame = [&](std::size_t i, RgbdFrame& out) { return commit.frames->read(i, out); };
   input.fused_depth = std::move(commit.fused_depth);
   input.qa_scores = std::move(commit.qa_scores);
   input.landmarks = std::move(commit.landmarks);

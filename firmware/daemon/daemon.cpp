@@ -588,7 +588,8 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
         session = status.session;
       }
       std::lock_guard lock(records_mutex);
-      auto out = records->export_session(session, config.storage.data_dir / "exports");
+      auto out = records->export_session(session, config.storage.data_dir / "exports",
+                                         [this] { return stopping.load(); });
       if (!out) return failed(out.error());
       update_status([&](StatusData& s) {
         s.last_export = *out;

@@ -205,7 +205,9 @@ class FileRecords : public SessionRecords {
     });
   }
 
-  Result<fs::path> export_session(std::int64_t id, const fs::path& exports_dir) override {
+  Result<fs::path> export_session(
+      std::int64_t id, const fs::path& exports_dir,
+      const std::function<bool()>& /*cancelled: a small copy*/) override {
     auto doc = load(id);
     if (!doc) return doc.failure();
     auto s = session(id);

@@ -267,7 +267,8 @@ Result<void> Daemon::Impl::setup_http() {
     Result<std::filesystem::path> out = fail("");
     {
       std::lock_guard lock(records_mutex);
-      out = records->export_session(*id, config.storage.data_dir / "exports");
+      out = records->export_session(*id, config.storage.data_dir / "exports",
+                                    [this] { return stopping.load(); });
     }
     if (!out) return send_error(res, 404, out.error().message);
     const std::string prefix = "session-" + std::to_string(*id);
@@ -415,7 +416,8 @@ Result<void> Daemon::Impl::setup_http() {
              auto id = id_param(req, 1);
              if (!id) return send_error(res, 400, id.error().message);
              std::lock_guard lock(records_mutex);
-             auto out = records->export_session(*id, config.storage.data_dir / "exports");
+             auto out = records->export_session(*id, config.storage.data_dir / "exports",
+                                                [this] { return stopping.load(); });
              if (!out) return send_error(res, 404, out.error().message);
              send_json(res, {{"session", *id},
                              {"folder", out->string()},

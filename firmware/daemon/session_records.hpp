@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -91,9 +92,12 @@ class SessionRecords {
   virtual Result<void> reject_capture(std::int64_t session, int index,
                                       const std::map<std::string, double>& qa) = 0;
   virtual Result<void> commit_capture(std::int64_t session, int index, CaptureCommit commit) = 0;
-  // Writes (or rewrites) the session's export folder under `exports_dir` and returns it.
+  // Writes (or rewrites) the session's export folder under `exports_dir` and returns it. When
+  // `cancelled` turns true (the daemon is stopping) the export is abandoned between captures:
+  // it is written to a temporary folder and renamed at the end, so nothing half-done remains.
   virtual Result<std::filesystem::path> export_session(
-      std::int64_t id, const std::filesystem::path& exports_dir) = 0;
+      std::int64_t id, const std::filesystem::path& exports_dir,
+      const std::function<bool()>& cancelled = {}) = 0;
 
   // Fits, landmarks, takes and rigs: the SQLite store keeps them; the file store does not (its
   // answers say so, and the daemon reports the stage as unsupported).

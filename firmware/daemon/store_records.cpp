@@ -83,7 +83,8 @@ class StoreRecords : public SessionRecords {
     return store_.reject_capture(session, index, qa);
   }
   Result<void> commit_capture(std::int64_t session, int index, CaptureCommit commit) override;
-  Result<fs::path> export_session(std::int64_t id, const fs::path& exports_dir) override;
+  Result<fs::path> export_session(std::int64_t id, const fs::path& exports_dir,
+                                  const std::function<bool()>& cancelled) override;
 
   bool keeps_fits() const override { return true; }
   Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit) override {
@@ -179,7 +180,16 @@ Result<void> StoreRecords::commit_capture(std::int64_t session, int index, Captu
 // (JSON, the operator's correction when there is one) and the newest fitted mesh (OBJ, model
 // frame, mm). When the subject has a rig from this session, a FaceWarehouse folder is added
 // through storage/export's session exporter.
-Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& exports_dir) {
+Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& exports_dir,
+                                              const std::function<bool()>& cancelled) {
+  auto stop_requested = [&]() -> Result<void> {
+    if (cancelled && cancelled())
+      return fail("the export of session " + std::to_string(id) +
+                  " was abandoned because the daemon is stopping; the session is stored, export "
+                  "it again with POST /api/sessions/" +
+                  std::to_string(id) + "/export");
+    return success();
+  };
   auto s = store_.session(id);
   if (!s) return s.failure();
   auto caps = store_.captures(id);
@@ -199,6 +209,7 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
   nlohmann::json list = nlohmann::json::array();
   int fitted = 0;
   for (const auto& c : *caps) {
+    if (auto ok = stop_requested(); !ok) return ok.failure();
     nlohmann::json j = {{"index", c.index},
                         {"expression", c.expression},
                         {"state", to_string(from_store(c.state))},
@@ -285,6 +296,7 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
   // With a rig from the host: the FaceWarehouse layout next to the bundle.
   auto rigs = store_.rigs(s->subject);
   if (rigs && std::any_of(rigs->begin(), rigs->end(), [&](auto& r) { return r.session == id; })) {
+    if (auto ok = stop_requested(); !ok) return ok.failure();
     auto content = load_session_content(store_, id);
     if (!content) return content.failure();
     ExportRequest request;

@@ -398,6 +398,21 @@ TEST_F(DaemonTest, HeadlessSessionFitsStoresAndOffloads) {
                       corr.dump(), "application/json")
                 ->status,
             409);
+
+  // An export the daemon abandons because it is stopping leaves no folder, finished or not, and
+  // says how to redo it; the same export without the stop request completes.
+  d.reset();
+  auto records = open_session_records(config().storage.data_dir);
+  ASSERT_TRUE(records) << records.error().message;
+  const fs::path exports = dir_ / "exports-stop";
+  auto abandoned = (*records)->export_session(r->session_id, exports, [] { return true; });
+  ASSERT_FALSE(abandoned);
+  EXPECT_NE(abandoned.error().message.find("daemon is stopping"), std::string::npos)
+      << abandoned.error().message;
+  EXPECT_TRUE(!fs::exists(exports) || fs::is_empty(exports));
+  auto done = (*records)->export_session(r->session_id, exports, [] { return false; });
+  ASSERT_TRUE(done) << done.error().message;
+  EXPECT_TRUE(verify_export_folder(*done));
 }
 
 // Tracking mode on the synthetic camera: the tracker runs with the session's neutral identity,

@@ -1,6 +1,8 @@
 // The HTTP API and the kiosk page (cpp-httplib). JSON everywhere. Only numeric ids reach the
 // store; files are only ever served from folders the daemon wrote, by names it chose (no
 // request string becomes a path). Clients that are not on loopback need the token.
+#include <sys/socket.h>
+
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -80,6 +82,13 @@ Result<void> Daemon::Impl::setup_http() {
   const int threads = config.http.threads;
   // httplib's API takes ownership of a raw TaskQueue pointer it deletes itself.
   srv.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  // httplib's default sets SO_REUSEPORT, which lets a second process bind the same port and
+  // silently take half of the connections (two daemons, or a test's daemon and another's).
+  // SO_REUSEADDR alone still allows a quick restart; a port in use is then a clear bind error.
+  srv.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   // Short keep-alive and read timeouts so stop() finishes well within systemd's 2 s budget.
   srv.set_keep_alive_timeout(1);
   srv.set_read_timeout(1, 0);

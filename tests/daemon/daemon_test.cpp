@@ -578,6 +578,20 @@ std::string external_address() {
   return {};
 }
 
+TEST_F(DaemonTest, SecondDaemonOnTheSamePortIsAClearError) {
+  // httplib's default SO_REUSEPORT would let both bind and split the connections between them.
+  auto first = make(config());
+  ASSERT_TRUE(first);
+  DaemonConfig c = config();
+  c.http.port = first->http_port();
+  c.storage.data_dir = dir_ / "data-second";
+  DaemonOptions o;
+  o.handle_signals = false;
+  auto second = Daemon::create(c, o);
+  ASSERT_FALSE(second) << "a second daemon bound port " << c.http.port;
+  EXPECT_NE(second.error().message.find("in use"), std::string::npos) << second.error().message;
+}
+
 TEST_F(DaemonTest, NonLoopbackClientsNeedTheToken) {
   const std::string addr = external_address();
   if (addr.empty()) GTEST_SKIP() << "no non-loopback IPv4 address to test from";

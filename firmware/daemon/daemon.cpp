@@ -112,6 +112,11 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (!records) return fail("cannot open the session store: " + records.error().message);
   impl->records = std::move(*records);
 
+  // The HTTP port is bound before the seconds of model loading, so it is ours from the start (a
+  // port in use fails here); requests are served once start() listens.
+  if (config.http.enabled)
+    if (auto ok = impl->setup_http(); !ok) return ok.failure();
+
   // The landmark model and the face model, loaded once (the largest part of the daemon's memory).
   if (auto ok = impl->start_fitter(); !ok)
     return fail("landmarks and quick fit: " + ok.error().message +
@@ -130,9 +135,6 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
 
   impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
   if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
-
-  if (config.http.enabled)
-    if (auto ok = impl->setup_http(); !ok) return ok.failure();
 
   std::uint64_t usec = 0;
   if (sd_watchdog_enabled(0, &usec) > 0) impl->watchdog_usec = usec;

@@ -4,7 +4,6 @@
 //   node kiosk_session.mjs FACEBOOTHD OUT_DIR GUIDE_JSON
 import {spawn, execFileSync} from "node:child_process";
 import fs from "node:fs";
-import net from "node:net";
 import path from "node:path";
 import {createRequire} from "node:module";
 
@@ -25,12 +24,6 @@ if (!fs.existsSync(path.join(nodeDir, "node_modules", "playwright-core"))) {
 const require = createRequire(path.join(nodeDir, "package.json"));
 const {chromium} = require("playwright-core");
 
-const freePort = () => new Promise((resolve) => {
-  const s = net.createServer();
-  s.listen(0, "127.0.0.1", () => { const p = s.address().port; s.close(() => resolve(p)); });
-});
-
-const port = await freePort();
 const work = path.join(outDir, "session");
 fs.rmSync(work, {recursive: true, force: true});
 fs.mkdirSync(work, {recursive: true});
@@ -44,12 +37,29 @@ preview_fps = 2.0
 [storage]
 data_dir = "${path.join(work, "data")}"
 [http]
-port = ${port}
+port = 0
 [session]
 guide_file = "${guideFile}"
 `);
+// Port 0: the daemon binds a free port itself and names it in its "ready" line (a port chosen
+// here could be taken by a test running in parallel before the daemon binds it).
 const daemon = spawn(daemonBin, ["--config", path.join(work, "faceboothd.toml")],
-                     {stdio: ["ignore", "inherit", "inherit"]});
+                     {stdio: ["ignore", "inherit", "pipe"]});
+const port = await new Promise((resolve, reject) => {
+  let text = "";
+  daemon.stderr.on("data", (chunk) => {
+    process.stderr.write(chunk);
+    if (text === null) return;
+    text += chunk;
+    const m = text.match(/http 127\.0\.0\.1:(\d+)\)/);
+    if (m) {
+      text = null;
+      resolve(Number(m[1]));
+    }
+  });
+  daemon.on("exit", (code) => reject(new Error(`faceboothd exited (${code}) before it was ready`)));
+  setTimeout(() => reject(new Error("faceboothd named no HTTP port within 60 s")), 60000);
+});
 const base = `http://127.0.0.1:${port}`;
 let failed = null;
 // A fresh profile every run (playwright passes it to chromium as --user-data-dir).

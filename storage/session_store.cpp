@@ -1088,7 +1088,7 @@ Result<CaptureData> SessionStore::read_capture(SessionId session, int index,
       using Pixel = typename std::decay_t<decltype(img.pixels)>::value_type;
       if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
       const std::size_t n = static_cast<std::size_t>(w) * h * sizeof(Pixel);
-      if (n > file->bytes - in.position()) return false;
+      if (in.position() > file->bytes || n > file->bytes - in.position()) return false;
       if (!decode_it) return in.skip(n);
       img.resize(w, h);
       return in.read(img.pixels.data(), n);

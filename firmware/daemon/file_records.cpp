@@ -207,7 +207,8 @@ class FileRecords : public SessionRecords {
 
   Result<fs::path> export_session(
       std::int64_t id, const fs::path& exports_dir,
-      const std::function<bool()>& /*cancelled: a small copy*/) override {
+      const std::function<bool()>& /*cancelled: unused, this export is a few small files*/)
+      override {
     auto doc = load(id);
     if (!doc) return doc.failure();
     auto s = session(id);

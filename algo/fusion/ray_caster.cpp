@@ -61,6 +61,62 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
   // Raw depth (Kinect noise ~1.5 mm at face range) needs 0.75 mu; filtered depth 0.4 mu.
   const float start_margin = (hint_is_raw ? 0.75f : 0.4f) * mu;
 
+  // First zero crossing of the trilinear TSDF along g(t) = o + t d in [t, t_end], 0 if none.
+  // Every sample is trilinear: the nearest voxel's value is that of a point up to half a voxel
+  // away, and on a noisy, thin model (the first frames) stepping and bracketing by it landed
+  // beyond the first crossing often enough to put the whole model ~0.15 mm behind the surface,
+  // which the tracker then copied into every pose. Steps are 0.8 f mu in front of the surface
+  // (f is the projective distance in units of mu), at least half a voxel; the bracket
+  // [last f >= 0, first f < 0] is refined by two regula falsi steps. `behind` is set when the
+  // first sample already lies behind a surface (the hint started too deep).
+  auto march = [&](const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t, float t_end,
+                   bool detect_behind, bool& behind) -> float {
+    float prev_t = -1.0f, prev_f = 0.0f;
+    bool first = true;
+    while (t <= t_end) {
+      float f;
+      if (!volume.trilinear(o + t * d, f)) {
+        // A corner is unseen: free space outside the band, or the edge of what was observed.
+        prev_t = -1.0f;
+        first = false;
+        t += nearest(volume, o + t * d).seen ? min_step : free_step;
+        continue;
+      }
+      if (f >= 0.0f) {
+        prev_t = t;
+        prev_f = f;
+        first = false;
+        t += std::max(min_step, 0.8f * f * mu);
+        continue;
+      }
+      if (prev_t < 0.0f) {
+        if (first && detect_behind) {
+          behind = true;
+          return 0.0f;
+        }
+        // Behind a surface seen from elsewhere (back side), or entered from unseen voxels.
+        first = false;
+        t += min_step;
+        continue;
+      }
+      float ta = prev_t, fa = prev_f, tb = t, fb = f;
+      for (int i = 0; i < 2; ++i) {
+        const float tm = ta + (tb - ta) * fa / (fa - fb);
+        float fm;
+        if (!volume.trilinear(o + tm * d, fm)) return tm;
+        if (fm >= 0.0f) {
+          ta = tm;
+          fa = fm;
+        } else {
+          tb = tm;
+          fb = fm;
+        }
+      }
+      return ta + (tb - ta) * fa / (fa - fb);
+    }
+    return 0.0f;
+  };
+
   runner.run([&](int part, int parts) {
     int y0, y1;
     ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
@@ -78,15 +134,14 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
         if (h <= 0.0f && !full_search) continue;
         float t_enter, t_exit;
         if (!clip_ray(go, gd, hi, t_enter, t_exit)) continue;
-        float found = 0.0f;
         // Two passes: from the hint (cheap, a few steps), then from the volume entry if the
         // hint started behind the surface (or, for full searches, found nothing). A hint
         // outside the volume (background) means there is nothing to find for the model view.
+        float found = 0.0f;
         bool behind = false;
         for (int pass = 0; pass < 2 && found == 0.0f; ++pass) {
           float t = t_enter;
           float t_end = t_exit;
-          if (pass == 1 && !behind && !full_search) break;
           if (pass == 0) {
             if (h <= 0.0f) continue;
             // start_margin in front: beyond 3 sigma of the hint's noise, yet only one or two
@@ -94,81 +149,14 @@ void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
             t = std::max(t_enter, h - start_margin);
             t_end = std::min(t_exit, h + 3.0f * mu);
           } else if (!full_search) {
+            if (!behind) break;
             // The hint started behind the surface: the model is in front of this frame's depth
             // by more than the margin; look up to 2 mu in front (beyond that the tracker's
             // association gate would reject the pair anyway).
             t = std::max(t_enter, h - 2.0f * mu);
             t_end = std::min(t_exit, h);
           }
-          float prev_t = -1.0f, prev_f = 0.0f;
-          bool first = true;
-          while (t <= t_end) {
-            const Sample s = nearest(volume, go + t * gd);
-            if (!s.seen) {
-              prev_t = -1.0f;
-              first = false;
-              t += free_step;
-              continue;
-            }
-            if (s.f < 0.0f) {
-              if (prev_t >= 0.0f) {
-                // The nearest voxel says "behind"; the trilinear TSDF decides. The nearest
-                // voxel's centre can lie up to half a voxel beyond t, so taking its sign as the
-                // crossing would pull every surface towards the camera.
-                float fb = 0.0f;
-                const bool fb_ok = volume.trilinear(go + t * gd, fb);
-                if (fb_ok && fb >= 0.0f) {
-                  prev_t = t;
-                  prev_f = fb;
-                  t += min_step;
-                  continue;
-                }
-                float fa;
-                float ta = prev_t, tb = t;
-                bool fa_ok = volume.trilinear(go + ta * gd, fa);
-                if (fa_ok && fa <= 0.0f) {
-                  // Crossed before prev_t (its nearest voxel was positive): one step back.
-                  tb = ta;
-                  fb = fa;
-                  ta = std::max(t_enter, ta - min_step);
-                  fa_ok = volume.trilinear(go + ta * gd, fa) && fa > 0.0f;
-                }
-                if (fa_ok && fb_ok && fa > 0.0f && fb < 0.0f) {
-                  // Regula falsi on the trilinear TSDF, refined once inside the bracket.
-                  float tm = ta + (tb - ta) * fa / (fa - fb);
-                  float fm;
-                  if (volume.trilinear(go + tm * gd, fm)) {
-                    if (fm > 0.0f) {
-                      ta = tm;
-                      fa = fm;
-                    } else {
-                      tb = tm;
-                      fb = fm;
-                    }
-                    if (fa > fb) tm = ta + (tb - ta) * fa / (fa - fb);
-                  }
-                  found = tm;
-                } else {
-                  found = prev_t + (t - prev_t) * prev_f / (prev_f - s.f);
-                }
-                break;
-              }
-              if (first && pass == 0) {  // the hint started behind the surface
-                behind = true;
-                break;
-              }
-              // Behind a surface seen from elsewhere (back side): keep marching.
-              prev_t = -1.0f;
-              t += min_step;
-              first = false;
-              continue;
-            }
-            first = false;
-            prev_t = t;
-            prev_f = s.f;
-            // The TSDF is the (projective) distance to the surface in units of mu.
-            t += std::max(min_step, 0.8f * s.f * mu);
-          }
+          found = march(go, gd, t, t_end, pass == 0, behind);
         }
         if (found > 0.0f) {
           depth = found;

@@ -244,11 +244,12 @@ PoseErrors pose_errors(const Sequence& seq, const Run& run, bool verbose = false
     if (verbose) {
       const Eigen::AngleAxisd aa(err.rotation());
       const Eigen::AngleAxisd truth_aa(truth.rotation());
+      const Eigen::Vector3d face_err = err * face - face;
       std::fprintf(stderr,
-                   "  frame %zu: error %.3f mm %.3f deg (axis %.2f %.2f %.2f), face %.3f mm; "
-                   "truth motion %.2f deg\n",
+                   "  frame %zu: error %.3f mm %.3f deg (axis %.2f %.2f %.2f), face %.3f mm "
+                   "(%.3f %.3f %.3f); truth motion %.2f deg\n",
                    k, mm, deg, aa.axis().x(), aa.axis().y(), aa.axis().z(), face_mm,
-                   truth_aa.angle() * 180.0 / M_PI);
+                   face_err.x(), face_err.y(), face_err.z(), truth_aa.angle() * 180.0 / M_PI);
     }
     e.max_mm = std::max(e.max_mm, mm);
     e.max_deg = std::max(e.max_deg, deg);

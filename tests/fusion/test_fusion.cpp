@@ -128,7 +128,7 @@ TEST(Fusion, HeadTurnPoseAndDepthAccuracy) {
     EXPECT_EQ(s.fused, 90);
     EXPECT_LE(s.max_translation_mm, 3.0);
     EXPECT_LE(s.max_rotation_deg, 0.25);
-    EXPECT_LE(s.fused_mae_mm, 0.35);
+    EXPECT_LE(s.fused_mae_mm, 0.25);
     EXPECT_GE(s.raw_mae_mm, 0.8);
     EXPECT_GE(s.fill, 0.95);
   }
@@ -144,6 +144,49 @@ TEST(Fusion, NoiseFreeHeadTurnIsUnbiased) {
   EXPECT_LT(s.fused_mae_mm, s.raw_mae_mm);
   EXPECT_LE(s.max_translation_mm, 2.0);
   EXPECT_LE(s.max_rotation_deg, 0.15);
+}
+
+// A model fused from only two noisy frames (fused at their true poses, so tracking plays no
+// part) must already be unbiased: the tracker aligns the next frames to it, so a bias of the
+// thin model's ray-cast surface becomes a bias of every later pose and of the final depth. The
+// ray caster once stepped and bracketed by the nearest voxel's value, which on such a noisy
+// model landed beyond the first zero crossing: +0.15 mm here, +0.16 mm on the synthetic face.
+TEST(Fusion, TwoFrameModelIsUnbiased) {
+  const PinholeIntrinsics k = kinect_intrinsics();
+  double worst_bias = 0.0;
+  for (unsigned seed : {21u, 22u, 23u}) {
+    FaceFusion fusion;
+    ASSERT_TRUE(fusion.reset(k, head_box()).ok());
+    std::mt19937 rng(seed);
+    Image<float> truth;
+    DepthImage depth;
+    const RigidPose m0 = head_turn_pose(0, 90);
+    test::render_head(k, m0, truth);
+    for (int f = 0; f < 2; ++f) {
+      test::kinect_noise(truth, rng, depth);
+      const RigidPose identity;
+      ASSERT_TRUE(fusion.process(depth, &identity).fused);
+    }
+    const SurfaceView view = fusion.render(RigidPose{});
+    float near = 1e9f;
+    for (float z : truth.pixels)
+      if (z > 0) near = std::min(near, z);
+    double sum = 0.0;
+    int n = 0;
+    const FaceBox b = head_box();
+    for (int y = b.y; y < b.y + b.height; ++y)
+      for (int x = b.x; x < b.x + b.width; ++x) {
+        const float z = truth.at(x, y), d = view.depth_mm.at(x, y);
+        if (z <= 0 || z > near + 60 || d <= 0) continue;
+        sum += d - z;
+        ++n;
+      }
+    ASSERT_GT(n, 5000);
+    const double bias = sum / n;
+    std::printf("seed %u: two-frame model bias %.3f mm over %d pixels\n", seed, bias, n);
+    worst_bias = std::max(worst_bias, std::abs(bias));
+  }
+  EXPECT_LE(worst_bias, 0.05);
 }
 
 // The face leaves the frame for 10 frames and comes back: the pipeline must report loss, not

@@ -98,7 +98,7 @@ std::vector<OptionSpec> fusion_option_specs() {
       {"icp-iterations", "C,M,F",
        "ICP iteration caps on the coarse, middle and full-resolution levels (each level stops "
        "earlier when converged)",
-       "8,5,4"},
+       "4,3,3"},
       {"icp-level0-step", "N", "full-resolution ICP points: 1 = every pixel, 2 = a checkerboard",
        "2"},
       {"model-view-level", "L",

@@ -150,6 +150,9 @@ struct FaceTracker::State {
   std::vector<float> found_residual;  // their point-to-plane residuals (model frame)
   std::vector<float> found_target;    // n_i . (q - base_i)
   std::vector<float> abs_scratch;     // |residual| for the median
+  // Samples behind an occluder on this frame (mark_occluded()); honoured while mask_on.
+  std::vector<std::uint8_t> occluded;
+  bool mask_on = false;
   ShapeMatrix h;
   ShapeVector g;
 
@@ -199,6 +202,7 @@ struct FaceTracker::State {
     int inliers = 0;
     float rms = 0.0f;
   };
+  void mark_occluded(const Image<float>& image, const Box& b, const Pose& p);
   IcpStats icp(const Image<float>& image, const Box& b, Pose& p, int iterations, float first_gate,
                float gate) const;
   void solve_weights(const Image<float>& image, const Box& b, const Pose& p,
@@ -382,6 +386,41 @@ int FaceTracker::State::smooth(const DepthImage& depth, const Box& b) {
   return valid - (valid4[0] + valid4[1] + valid4[2] + valid4[3]);
 }
 
+void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, const Pose& p) {
+  // Visibility: a sample is hidden when the depth at its pixel, or at one of 8 pixels
+  // occluder_radius_px away, is nearer than the model point by more than occluder_margin_mm:
+  // something (a hand) is in front of the face there. The margin is above the face's own
+  // relief (the nose stands ~30 mm off the cheeks), so the face never hides itself. Hidden
+  // samples leave the pose, the weights and the robust scale: the occluder's residuals
+  // (centimetres) would otherwise inflate the MAD and so the Tukey cut-off, and the face
+  // samples along its rim (mixed depths, the projector shadow's edge) would pass the cut-off
+  // and drag both. Made once per frame from the predicted pose: 9 reads a sample.
+  const float margin = options.occluder_margin_mm;
+  mask_on = margin > 0.0f;
+  if (!mask_on) return;
+  const int r = std::max(0, options.occluder_radius_px);
+  const std::array<std::array<int, 2>, 9> offsets = {
+      {{0, 0}, {-r, 0}, {r, 0}, {0, -r}, {0, r}, {-r, -r}, {r, -r}, {-r, r}, {r, r}}};
+  for (int i = 0; i < n; ++i) {
+    auto& hidden = occluded[static_cast<std::size_t>(i)];
+    hidden = 0;
+    const Eigen::Vector3f x = p.r * sample(i) + p.t;
+    if (x.z() <= 1.0f) continue;
+    const int u = static_cast<int>(std::lround(fx * x.x() / x.z() + cx));
+    const int v = static_cast<int>(std::lround(fy * x.y() / x.z() + cy));
+    const float nearer = x.z() - margin;
+    for (const auto& [dx, dy] : offsets) {
+      const int px = u + dx, py = v + dy;
+      if (px < b.x0 || py < b.y0 || px >= b.x1 || py >= b.y1) continue;
+      const float d = image.pixels[static_cast<std::size_t>(py) * width + px];
+      if (d > 0.0f && d < nearer) {
+        hidden = 1;
+        break;
+      }
+    }
+  }
+}
+
 FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, const Box& b,
                                                      Pose& p, int iterations, float first_gate,
                                                      float gate) const {
@@ -400,6 +439,9 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
       if (x.z() <= 1.0f || nn.dot(x) > -0.2f * x.norm()) continue;  // faces away / grazing
       const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
       if (u < 0.0f || v < 0.0f || u > width - 1.0f || v > height - 1.0f) continue;
+      // Hidden samples are not expected to be seen: the inlier fraction of loss detection is of
+      // the visible ones (min_inliers still reports a face covered entirely).
+      if (mask_on && occluded[static_cast<std::size_t>(i)]) continue;
       ++s.facing;
       float z = 0.0f;
       if (!depth_at(image, b, u, v, z)) continue;
@@ -447,6 +489,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       const Eigen::Vector3f x = p.r * xm + p.t;
       const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
       if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
+      if (mask_on && occluded[static_cast<std::size_t>(i)]) continue;
       const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
       float z = 0.0f;
       if (!depth_at(image, b, u, v, z)) continue;
@@ -933,6 +976,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->found_residual.resize(static_cast<std::size_t>(n));
   s->found_target.resize(static_cast<std::size_t>(n));
   s->abs_scratch.resize(static_cast<std::size_t>(n));
+  s->occluded.assign(static_cast<std::size_t>(n), 0);
   s->current.resize(3 * n);
   s->landmark_current.resize(3 * 68);
   s->ring.resize(static_cast<std::size_t>(options.temporal_frames));
@@ -1069,6 +1113,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
             s.ring[static_cast<std::size_t>(s.ring_head)].pixels.begin());
   s.ring_count = std::min(s.ring_count + 1, static_cast<int>(s.ring.size()));
 
+  s.mask_on = false;  // acquisition and calibration start from poses no mask was made for
   const bool searching = !s.have_pose || s.lost;
   s.box = searching ? Box{0, 0, s.width, s.height} : s.predicted_box(s.pose);
   const int valid = s.smooth(depth, s.box);
@@ -1099,6 +1144,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   }
 
   start = Clock::now();
+  s.mark_occluded(s.smoothed, s.box, s.pose);
   stats = s.icp(s.smoothed, s.box, s.pose, s.options.icp_iterations, s.options.icp_first_gate_mm,
                 s.options.icp_gate_mm);
   report.times.icp_ms = ms_since(start);
@@ -1117,7 +1163,10 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   start = Clock::now();
   // While calibrating the face is assumed neutral: expression weights would absorb the
   // identity difference the calibration is about to measure.
+  // The mask of the ICP's start pose serves the weights too (ICP moves the face by a few mm,
+  // far below the mask's margin).
   if (s.calibrated) s.solve_weights(s.smoothed, s.box, s.pose, landmarks, report.landmarks_used);
+  s.mask_on = false;  // calibrate() below re-tracks stored frames: not this frame's mask
   report.times.weights_ms = ms_since(start);
   s.previous_weights = s.weights;
   s.last_good_pose = s.pose;

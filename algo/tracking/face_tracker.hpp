@@ -1,8 +1,9 @@
 // Real-time head pose + blendshape tracking on depth frames (FaceWarehouse 4.3, wrinkle paper
 // 4.1): rigid projective point-to-plane ICP of the subject's current face against the
 // temporally smoothed depth, then blendshape weights in [0, 1] by bounded least squares on the
-// same depth samples plus optional 2D landmarks, with temporal smoothness. Robust weights keep
-// an occluder (a hand) from dragging pose or weights; a lost face is reported and re-acquired.
+// same depth samples plus optional 2D landmarks, with temporal smoothness. A visibility mask
+// (samples with depth far in front of them are hidden) and robust weights keep an occluder (a
+// hand) from dragging pose or weights; a lost face is reported and re-acquired.
 //
 // Subject: the first `calibration_frames` usable frames fit identity coefficients with the
 // face model's identity PCA (Tikhonov prior, alternating with pose and expression), or
@@ -57,6 +58,11 @@ struct TrackerOptions {
   float icp_first_gate_mm = 30.0f;  // association gate of the first iteration
   float icp_gate_mm = 10.0f;        // Tukey biweight cut-off afterwards
   float huber_mm = 2.5f;            // full weight below this
+  // Occlusion mask (see mark_occluded()): samples whose pixel or a pixel within
+  // occluder_radius_px shows depth nearer than the model by occluder_margin_mm are hidden for
+  // this frame (0 = no mask).
+  float occluder_margin_mm = 40.0f;
+  int occluder_radius_px = 5;
 
   // --- Blendshape weights ---
   int weight_iterations = 2;  // IRLS rounds (re-association + robust weights)

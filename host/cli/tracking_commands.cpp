@@ -686,6 +686,10 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       o.landmark_huber_px = static_cast<float>(v);
     else if (key == "icp_iterations")
       o.icp_iterations = static_cast<int>(v);
+    else if (key == "occluder_margin_mm")
+      o.occluder_margin_mm = static_cast<float>(v);
+    else if (key == "occluder_radius_px")
+      o.occluder_radius_px = static_cast<int>(v);
     else
       return fail("--set: unknown key '" + key + "'");
   }

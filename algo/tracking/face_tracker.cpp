@@ -394,26 +394,44 @@ void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, 
   // samples leave the pose, the weights and the robust scale: the occluder's residuals
   // (centimetres) would otherwise inflate the MAD and so the Tukey cut-off, and the face
   // samples along its rim (mixed depths, the projector shadow's edge) would pass the cut-off
-  // and drag both. Made once per frame from the predicted pose: 9 reads a sample.
+  // and drag both. Made once per frame from the predicted pose.
   const float margin = options.occluder_margin_mm;
   mask_on = margin > 0.0f;
   if (!mask_on) return;
+  // Pass 1, the sample's own pixel; pass 2 (only when pass 1 found an occluder: the common
+  // unoccluded frame pays one read a sample) the 8 pixels around it.
   const int r = std::max(0, options.occluder_radius_px);
-  const std::array<std::array<int, 2>, 9> offsets = {
-      {{0, 0}, {-r, 0}, {r, 0}, {0, -r}, {0, r}, {-r, -r}, {r, -r}, {-r, r}, {r, r}}};
+  const std::array<std::array<int, 2>, 8> offsets = {
+      {{-r, 0}, {r, 0}, {0, -r}, {0, r}, {-r, -r}, {r, -r}, {-r, r}, {r, r}}};
+  auto nearer_at = [&](int px, int py, float nearer) {
+    if (px < b.x0 || py < b.y0 || px >= b.x1 || py >= b.y1) return false;
+    const float d = image.pixels[static_cast<std::size_t>(py) * width + px];
+    return d > 0.0f && d < nearer;
+  };
+  auto pixel = [&](int i, int& u, int& v, float& nearer) {
+    const Eigen::Vector3f x = p.r * sample(i) + p.t;
+    if (x.z() <= 1.0f) return false;
+    u = static_cast<int>(std::lround(fx * x.x() / x.z() + cx));
+    v = static_cast<int>(std::lround(fy * x.y() / x.z() + cy));
+    nearer = x.z() - margin;
+    return true;
+  };
+  bool any = false;
+  for (int i = 0; i < n; ++i) {
+    int u = 0, v = 0;
+    float nearer = 0.0f;
+    const bool hidden = pixel(i, u, v, nearer) && nearer_at(u, v, nearer);
+    occluded[static_cast<std::size_t>(i)] = hidden ? 1 : 0;
+    any = any || hidden;
+  }
+  if (!any || r == 0) return;
   for (int i = 0; i < n; ++i) {
     auto& hidden = occluded[static_cast<std::size_t>(i)];
-    hidden = 0;
-    const Eigen::Vector3f x = p.r * sample(i) + p.t;
-    if (x.z() <= 1.0f) continue;
-    const int u = static_cast<int>(std::lround(fx * x.x() / x.z() + cx));
-    const int v = static_cast<int>(std::lround(fy * x.y() / x.z() + cy));
-    const float nearer = x.z() - margin;
+    int u = 0, v = 0;
+    float nearer = 0.0f;
+    if (hidden || !pixel(i, u, v, nearer)) continue;
     for (const auto& [dx, dy] : offsets) {
-      const int px = u + dx, py = v + dy;
-      if (px < b.x0 || py < b.y0 || px >= b.x1 || py >= b.y1) continue;
-      const float d = image.pixels[static_cast<std::size_t>(py) * width + px];
-      if (d > 0.0f && d < nearer) {
+      if (nearer_at(u + dx, v + dy, nearer)) {
         hidden = 1;
         break;
       }

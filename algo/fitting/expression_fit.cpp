@@ -17,7 +17,7 @@ Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfe
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   RefineOptions refine = options.refine_options;
   if (!options.refine) refine.iterations = 0;
-  auto result = refine_fit(model, target, *start, *pose, refine);
+  auto result = refine_fit(model, target, *start, *pose, refine, &transfer.refine_system());
   if (!result) return result.failure();
   result->times.initial_ms = initial_ms;
   return result;

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
@@ -34,6 +35,7 @@ struct ExpressionTransfer::State {
   Eigen::MatrixXd anchor;                     // epsilon * rest positions of all unknowns
   Eigen::MatrixXd target_rest;                // S0, vertex_count x 3
   std::vector<std::uint32_t> fixed_vertices;  // where the translation is pinned
+  std::optional<RefineSystem> refine_system;
   double factor_ms = 0;
 };
 
@@ -44,10 +46,14 @@ ExpressionTransfer::~ExpressionTransfer() = default;
 double ExpressionTransfer::factorization_ms() const {
   return state_->factor_ms;
 }
+const RefineSystem& ExpressionTransfer::refine_system() const {
+  return *state_->refine_system;
+}
 
 Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
                                                       std::span<const float> neutral_fit,
-                                                      std::span<const float> guide_neutral) {
+                                                      std::span<const float> guide_neutral,
+                                                      const RefineOptions& refine) {
   const std::size_t n3 = static_cast<std::size_t>(model.vertex_count) * 3;
   if (neutral_fit.size() != n3 || guide_neutral.size() != n3)
     return fail("deformation transfer: meshes must have the model's vertex count");
@@ -100,6 +106,11 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
   s->solver.compute(ata);
   if (s->solver.info() != Eigen::Success)
     return fail("deformation transfer: factorization failed (degenerate fitted mesh?)");
+  auto system =
+      RefineSystem::create(model, RefineSystem::Points(s->target_rest),
+                           RefineSystemOptions{refine.w_pos, refine.w_lap, refine.margin_rings});
+  if (!system) return system.failure();
+  s->refine_system.emplace(std::move(*system));
   s->factor_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return ExpressionTransfer(std::move(s));

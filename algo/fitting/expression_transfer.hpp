@@ -22,9 +22,12 @@ namespace fb {
 class ExpressionTransfer {
  public:
   // `neutral_fit` is S0 and `guide_neutral` G0 (3 * vertex_count floats each, model frame).
+  // Also factorizes the subject's refinement matrix (refine_system.hpp) from S0 with the
+  // weights of `refine`, which every fit_expression() of this subject then shares.
   static Result<ExpressionTransfer> create(const FaceModel& model,
                                            std::span<const float> neutral_fit,
-                                           std::span<const float> guide_neutral);
+                                           std::span<const float> guide_neutral,
+                                           const RefineOptions& refine = {});
   ExpressionTransfer(ExpressionTransfer&&) noexcept;
   ExpressionTransfer& operator=(ExpressionTransfer&&) noexcept;
   ~ExpressionTransfer();
@@ -32,6 +35,8 @@ class ExpressionTransfer {
   // S_i: the fitted neutral deformed like G0 -> `guide_expression`.
   Result<std::vector<float>> transfer(std::span<const float> guide_expression) const;
 
+  const RefineSystem& refine_system() const;
+  // Both factorizations of create(): the transfer's and the refinement's.
   double factorization_ms() const;
 
  private:

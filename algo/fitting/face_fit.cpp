@@ -19,6 +19,7 @@ using namespace fitting_detail;
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -144,10 +145,9 @@ Eigen::Vector3d ray(const PinholeIntrinsics& k, const Eigen::Vector2d& px) {
 
 // Per-vertex residuals against the depth, and their RMS over the fitting vertices.
 void residuals(const FaceModel& model, const FitTarget& target, const Points& x,
-               std::span<const std::uint32_t> triangles, std::vector<float>& out, double& rms,
-               int& count) {
+               std::span<const std::uint32_t> triangles, const std::vector<char>& vis,
+               std::vector<float>& out, double& rms, int& count) {
   const Points vn = vertex_normals(x, triangles);
-  const std::vector<char> vis = visible_vertices(target, x, triangles);
   out.assign(static_cast<std::size_t>(x.rows()), std::numeric_limits<float>::quiet_NaN());
   const double cos_min = std::cos(70.0 * M_PI / 180.0);
   for (Eigen::Index i = 0; i < std::min<Eigen::Index>(x.rows(), model.face_vertex_count); ++i) {
@@ -376,7 +376,7 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
 
 Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
                              std::span<const float> start, const RigidPose& camera_from_model,
-                             const RefineOptions& o) {
+                             const RefineOptions& o, const RefineSystem* shared) {
   if (auto ok = check_ready(model, target); !ok) return ok.failure();
   if (start.size() != static_cast<std::size_t>(model.vertex_count) * 3)
     return fail("refine: the start mesh has the wrong vertex count");
@@ -389,97 +389,101 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
   FitResult res;
   res.camera_from_model = camera_from_model;
   res.initial_vertices.assign(start.begin(), start.end());
-  residuals(model, target, x0, model.triangles, res.initial_vertex_residual_mm,
+  const std::vector<char> vis0 = visible_vertices(target, x0, model.triangles);
+  residuals(model, target, x0, model.triangles, vis0, res.initial_vertex_residual_mm,
             res.rms_to_depth_mm_initial, res.depth_correspondences);
 
-  // Elap: cotangent Laplacian of the start mesh, target lengths |L x0|.
-  const Eigen::SparseMatrix<double> lap = cotangent_laplacian(x0, model.triangles);
+  // The normal matrix: the subject's shared one when its weights are these, else this fit's
+  // own, from the start mesh's Laplacian.
+  const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
+  const RefineSystemOptions matrix_options{o.w_pos, o.w_lap, o.margin_rings};
+  std::optional<RefineSystem> own;
+  const RefineSystem* system = shared;
+  if (!system || system->options().w_pos != o.w_pos || system->options().w_lap != o.w_lap ||
+      system->options().margin_rings != o.margin_rings) {
+    auto made = RefineSystem::create(model, x0, matrix_options);
+    if (!made) return made.failure();
+    own.emplace(std::move(*made));
+    system = &*own;
+  }
+  const Eigen::SparseMatrix<double>& lap = system->laplacian();
+  const std::vector<int>& free = system->free_vertices();
+  const Eigen::Index nf = static_cast<Eigen::Index>(free.size());
+  const double anchor = system->options().anchor;
+
+  // Elap: target lengths |L x0| of the start mesh, directions of the current one.
   const Points lx0 = lap * x0;
   const Eigen::VectorXd delta = lx0.rowwise().norm();
-
-  // Constraint sets are fixed for the whole refinement so the matrix stays the same:
-  // depth vertices (those with a correspondence at the start), landmark vertices.
-  const Points vn0 = vertex_normals(x0, model.triangles);
-  const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
-  std::vector<int> depth_vertices;
-  const std::vector<char> vis0 = visible_vertices(target, x0, model.triangles);
-  for (std::uint32_t v : model.fitting_vertices) {
-    if (!vis0[v]) continue;
-    Correspondence c;
-    if (correspond(target, x0.row(v).transpose(), vn0.row(v).transpose(), o.max_distance_mm,
-                   cos_min, c))
-      depth_vertices.push_back(static_cast<int>(v));
-  }
   const auto lm_verts = landmark_vertices(model, target, x0);
-  Eigen::VectorXd diag = Eigen::VectorXd::Constant(n, 1e-4);  // soft anchor: no null space
-  for (int v : depth_vertices) diag[v] += o.w_pos;
-  for (int l = 0; l < kFitLandmarkCount; ++l)
-    if (target.landmarks[static_cast<std::size_t>(l)].valid)
-      diag[lm_verts[static_cast<std::size_t>(l)]] += o.w_fea;
-
-  // A = w_lap L^T L + D, factorized once and reused by every Gauss-Newton step.
-  Eigen::SparseMatrix<double> a = o.w_lap * Eigen::SparseMatrix<double>(lap.transpose() * lap);
-  for (Eigen::Index i = 0; i < n; ++i) a.coeffRef(i, i) += diag[i];
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
-  solver.compute(a);
-  if (solver.info() != Eigen::Success) return fail("refine: sparse factorization failed");
-  const Eigen::SparseMatrix<double> lap_t = lap.transpose();
 
   Points x = x0;
-  std::vector<Eigen::Vector3d> depth_target(depth_vertices.size());
+  Points lt(n, 3), rhs(nf, 3);
+  std::vector<Eigen::Vector3d> depth_target(static_cast<std::size_t>(nf));
+  std::vector<char> has_target(static_cast<std::size_t>(nf), 0);
   for (int it = 0; it < o.iterations; ++it) {
     const Points vn = vertex_normals(x, model.triangles);
-    // Epos: closest point on the depth surface's tangent plane (foot of the perpendicular),
-    // re-found from the current mesh; a vertex that lost its correspondence stays put.
-    if (it % std::max(1, o.reassociate_every) == 0)
-      for (std::size_t k = 0; k < depth_vertices.size(); ++k) {
-        const int v = depth_vertices[k];
-        const Eigen::Vector3d p = x.row(v).transpose();
-        Correspondence c;
-        depth_target[k] =
-            correspond(target, p, vn.row(v).transpose(), o.max_distance_mm, cos_min, c)
-                ? Eigen::Vector3d(p - c.n * c.n.dot(p - c.q))
-                : p;
-      }
-    // Elap target: current Laplacian direction, original length.
     const Points lx = lap * x;
-    Points lt(n, 3);
     for (Eigen::Index i = 0; i < n; ++i) {
       const double len = lx.row(i).norm();
       lt.row(i) = len > 1e-9 ? Eigen::RowVector3d(lx.row(i) * (delta[i] / len))
                              : Eigen::RowVector3d(lx0.row(i));
     }
-    Points rhs = o.w_lap * (lap_t * lt);
-    rhs += 1e-4 * x0;
-    for (std::size_t k = 0; k < depth_vertices.size(); ++k)
-      rhs.row(depth_vertices[k]) += o.w_pos * depth_target[k].transpose();
+    system->laplacian_rhs(lt, x0, rhs);
+    // Epos: closest point on the depth surface's tangent plane (foot of the perpendicular),
+    // re-found from the current mesh every reassociate_every steps; a vertex without one is
+    // pulled to where it is.
+    const bool reassociate = it % std::max(1, o.reassociate_every) == 0;
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const int v = free[static_cast<std::size_t>(f)];
+      const Eigen::Vector3d p = x.row(v).transpose();
+      rhs.row(f) += anchor * x0.row(v);
+      if (!system->has_position_term(v)) continue;
+      if (reassociate) {
+        Correspondence c;
+        has_target[static_cast<std::size_t>(f)] =
+            vis0[static_cast<std::size_t>(v)] &&
+            correspond(target, p, vn.row(v).transpose(), o.max_distance_mm, cos_min, c);
+        if (has_target[static_cast<std::size_t>(f)])
+          depth_target[static_cast<std::size_t>(f)] = p - c.n * c.n.dot(p - c.q);
+      }
+      rhs.row(f) +=
+          o.w_pos *
+          (has_target[static_cast<std::size_t>(f)] ? depth_target[static_cast<std::size_t>(f)] : p)
+              .transpose();
+    }
+    // Efea, lagged (see refine_system.hpp): w_fea (goal - x), the pull capped at
+    // landmark_huber_mm (Huber with a fixed matrix).
     for (int l = 0; l < kFitLandmarkCount; ++l) {
       const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
       if (!lm.valid) continue;
       const int v = lm_verts[static_cast<std::size_t>(l)];
+      // Only where A has a position term: elsewhere A^-1 barely damps smooth fields (eps), and
+      // a lagged pull would be amplified instead of contracted.
+      const int f = system->free_index(v);
+      if (f < 0 || !system->has_position_term(v)) continue;
+      const Eigen::Vector3d cur = x.row(v).transpose();
       Eigen::Vector3d goal;
       if (lm.point && !is_contour_landmark(l)) {
         goal = *lm.point;
       } else {  // 2D: closest point on the viewing ray
         const Eigen::Vector3d d = ray(target.intrinsics, lm.pixel).normalized();
-        goal = d * d.dot(x.row(v).transpose());
+        goal = d * d.dot(cur);
       }
-      // Huber with a fixed matrix: the pull is capped at landmark_huber_mm.
-      const Eigen::Vector3d cur = x.row(v).transpose();
       Eigen::Vector3d step = goal - cur;
       if (o.landmark_huber_mm > 0 && step.norm() > o.landmark_huber_mm)
         step *= o.landmark_huber_mm / step.norm();
-      rhs.row(v) += o.w_fea * (cur + step).transpose();
+      rhs.row(f) += o.w_fea * step.transpose();
     }
-    x = solver.solve(rhs);
-    if (!x.allFinite()) return fail("refine: the solve diverged");
+    system->solve(rhs);
+    if (!rhs.allFinite()) return fail("refine: the solve diverged");
+    for (Eigen::Index f = 0; f < nf; ++f) x.row(free[static_cast<std::size_t>(f)]) = rhs.row(f);
   }
 
   // Back to the model frame.
   const Points v_model = (x.rowwise() - t.transpose()) * r;
   from_points(v_model, res.vertices);
-  residuals(model, target, x, model.triangles, res.vertex_residual_mm, res.rms_to_depth_mm,
-            res.depth_correspondences);
+  residuals(model, target, x, model.triangles, visible_vertices(target, x, model.triangles),
+            res.vertex_residual_mm, res.rms_to_depth_mm, res.depth_correspondences);
   res.landmark_vertex = lm_verts;
   landmark_residuals(target, x, lm_verts, res.landmark_residual_mm);
   res.times.refine_ms = ms_since(t0);
@@ -523,6 +527,17 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
                                                     static_cast<std::size_t>(3 * v + d)]);
   };
   const int unknowns = 6 + m;
+  // The identity basis of the depth vertices, gathered per vertex (rows 3s..3s+2 for
+  // depth_set[s]): the model stores it mode by mode, which the per-row products would stride.
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth_basis(
+      3 * static_cast<Eigen::Index>(depth_set.size()), m);
+  for (int mode = 0; mode < m; ++mode) {
+    const float* block = model.identity_basis.data() + static_cast<std::size_t>(mode) * stride;
+    for (std::size_t slot = 0; slot < depth_set.size(); ++slot)
+      for (int d = 0; d < 3; ++d)
+        depth_basis(3 * static_cast<Eigen::Index>(slot) + d, mode) =
+            block[3 * static_cast<std::size_t>(depth_set[slot]) + d];
+  }
   std::array<int, kFitLandmarkCount> lm_verts{};
   for (int round = 0; round < o.rounds; ++round) {
     for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
@@ -537,14 +552,16 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     // Rows: 3 per interior landmark, 2 per contour landmark, 1 per depth correspondence; each
     // scaled by sqrt(2 w) so that J^T J + w_coef I is the Gauss-Newton matrix of E1.
     std::vector<Correspondence> corr;
-    std::vector<int> corr_v;
+    std::vector<int> corr_v, corr_slot;
     const std::vector<char> vis = visible_vertices(target, x, model.triangles);
-    for (int vtx : depth_set) {
+    for (std::size_t slot = 0; slot < depth_set.size(); ++slot) {
+      const int vtx = depth_set[slot];
       if (!vis[static_cast<std::size_t>(vtx)]) continue;
       Correspondence cc;
       if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc)) {
         corr.push_back(cc);
         corr_v.push_back(vtx);
+        corr_slot.push_back(static_cast<int>(slot));
       }
     }
     // 2D rows: the contour, and interior points without depth (rims of eyes and mouth).
@@ -555,29 +572,31 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     }
     const Eigen::Index rows =
         static_cast<Eigen::Index>(3 * interior.size() + 2 * contour.size() + corr.size());
-    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(rows, unknowns);
+    // Row-major: every row is written whole, and J^T J reads it row by row.
+    RowMatrix j(rows, unknowns);
     Eigen::VectorXd res(rows);
     Eigen::Index row = 0;
     const double sf = std::sqrt(2.0 * o.w_fea), sp = std::sqrt(2.0 * o.w_pos);
-    // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v].
+    // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v]; a row of a projection
+    // p (1 x 3) is [(Rv x p)^T, p, (R^T p)^T B_v].
     auto point_rows = [&](int vtx, const Eigen::MatrixXd& proj, const Eigen::VectorXd& r0, double s,
-                          double huber_mm = 0) {
+                          double huber_mm) {
       // Huber (IRLS): residuals beyond huber_mm get weight huber_mm / |r|, so one wrong
       // landmark cannot drag the whole face.
       if (huber_mm > 0 && r0.norm() > huber_mm) s *= std::sqrt(huber_mm / r0.norm());
       const Eigen::Vector3d a = r * v.row(vtx).transpose();
-      const Eigen::Index k = proj.rows();
-      Eigen::MatrixXd jx(3, unknowns);
-      jx.leftCols<3>() = -skew(a);
-      jx.block<3, 3>(0, 3).setIdentity();
-      for (int mode = 0; mode < m; ++mode) {
-        const Eigen::Vector3d b(basis_row(vtx, 0, mode), basis_row(vtx, 1, mode),
-                                basis_row(vtx, 2, mode));
-        jx.col(6 + mode) = r * b;
+      for (Eigen::Index k = 0; k < proj.rows(); ++k) {
+        const Eigen::Vector3d p = proj.row(k).transpose();
+        const Eigen::Vector3d rp = r.transpose() * p;
+        j.row(row).head<3>() = s * a.cross(p).transpose();
+        j.row(row).segment<3>(3) = s * p.transpose();
+        for (int mode = 0; mode < m; ++mode)
+          j(row, 6 + mode) =
+              s * (rp.x() * basis_row(vtx, 0, mode) + rp.y() * basis_row(vtx, 1, mode) +
+                   rp.z() * basis_row(vtx, 2, mode));
+        res[row] = s * r0[k];
+        ++row;
       }
-      j.middleRows(row, k) = s * proj * jx;
-      res.segment(row, k) = s * r0;
-      row += k;
     };
     for (int l : interior) {
       const int vtx = lm_verts[static_cast<std::size_t>(l)];
@@ -595,11 +614,20 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
       p << 1, 0, -d.x(), 0, 1, -d.y();
       point_rows(vtx, p, p * x.row(vtx).transpose(), sf, o.landmark_huber_mm);
     }
+    // Depth rows from the gathered basis (contiguous per vertex).
     for (std::size_t k = 0; k < corr.size(); ++k) {
       const int vtx = corr_v[k];
-      Eigen::VectorXd r0(1);
-      r0[0] = corr[k].n.dot(x.row(vtx).transpose() - corr[k].q);
-      point_rows(vtx, corr[k].n.transpose(), r0, sp);
+      const Eigen::Vector3d& n = corr[k].n;
+      const Eigen::Vector3d a = r * v.row(vtx).transpose();
+      const Eigen::Vector3d rn = sp * (r.transpose() * n);
+      j.row(row).head<3>() = sp * a.cross(n).transpose();
+      j.row(row).segment<3>(3) = sp * n.transpose();
+      const Eigen::Index g = 3 * static_cast<Eigen::Index>(corr_slot[k]);
+      j.row(row).tail(m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
+                            rn.z() * depth_basis.row(g + 2))
+                               .cast<double>();
+      res[row] = sp * n.dot(x.row(vtx).transpose() - corr[k].q);
+      ++row;
     }
     Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
     h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
@@ -632,8 +660,8 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     out.initial_vertices = mesh;
     out.camera_from_model = pose;
     const Points x = posed(to_points(mesh), r, t);
-    residuals(model, target, x, model.triangles, out.vertex_residual_mm, out.rms_to_depth_mm,
-              out.depth_correspondences);
+    residuals(model, target, x, model.triangles, visible_vertices(target, x, model.triangles),
+              out.vertex_residual_mm, out.rms_to_depth_mm, out.depth_correspondences);
     out.initial_vertex_residual_mm = out.vertex_residual_mm;
     out.rms_to_depth_mm_initial = out.rms_to_depth_mm;
     out.landmark_vertex = landmark_vertices(model, target, x);

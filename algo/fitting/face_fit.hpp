@@ -4,10 +4,11 @@
 //   neutral, step 1: PCA morphable fit + rigid pose, E1 = 2 Efea + 0.5 Epos + 1 Ecoef, a few
 //                    rounds of least squares with contour and closest-point updates;
 //   neutral, step 2: Laplacian refinement E2 = 0.5 Efea + Epos + Elap (cotangent Laplacian,
-//                    length-preserving target), inexact Gauss-Newton with one factorization;
+//                    length-preserving target), inexact Gauss-Newton with one factorization
+//                    (refine_system.hpp);
 //   expressions:     deformation transfer G0 -> Gi onto the fitted neutral
-//   (expression_transfer.hpp),
-//                    rigid alignment, then the same refinement with that capture's landmarks.
+//                    (expression_transfer.hpp), rigid alignment, then the same refinement
+//                    with that capture's landmarks and the subject's shared factorization.
 //
 // Units mm, camera frame = the depth camera (OpenCV axes). Landmarks are given in the depth
 // image (algo/landmarks converts colour-image detections and lifts interior points).
@@ -24,6 +25,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/fitting/refine_system.hpp"
 
 namespace fb {
 
@@ -73,6 +75,7 @@ struct RefineOptions {
   double w_lap = 1.0;
   double landmark_huber_mm = 3.0;    // landmark pulls are capped at this distance
   int iterations = 12;               // inexact Gauss-Newton steps, one factorization
+  int margin_rings = 2;              // free vertices around the fitting region (refine_system.hpp)
   int reassociate_every = 1;         // closest points are re-found every k steps
   double max_distance_mm = 6.0;      // depth correspondence gate
   double max_normal_angle_deg = 70;  // between the vertex normal and the depth normal
@@ -140,9 +143,12 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
 
 // Step 2 alone: refines `start` (model frame, with `camera_from_model`) against the target.
 // The result's initial_* fields describe `start`.
+// `system` (optional) is a subject's shared normal matrix (see refine_system.hpp); it is used
+// when its weights are the options' ones, otherwise the fit factorizes its own.
 Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
                              std::span<const float> start, const RigidPose& camera_from_model,
-                             const RefineOptions& options = {});
+                             const RefineOptions& options = {},
+                             const RefineSystem* system = nullptr);
 
 // Rigid pose of a fixed-shape mesh (model frame) against the target: Procrustes on the
 // interior landmarks, then point-to-plane ICP on the model's rigid vertices.

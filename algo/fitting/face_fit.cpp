@@ -490,8 +490,16 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
   return res;
 }
 
+Result<RefineSystem> model_refine_system(const FaceModel& model, const RefineOptions& o) {
+  std::vector<float> mean(static_cast<std::size_t>(model.vertex_count) * 3);
+  model.evaluate({}, {}, mean);
+  return RefineSystem::create(model, to_points(mean),
+                              RefineSystemOptions{o.w_pos, o.w_lap, o.margin_rings});
+}
+
 Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
-                              const NeutralFitOptions& o, const FitResult* initial) {
+                              const NeutralFitOptions& o, const FitResult* initial,
+                              const RefineSystem* model_system) {
   if (auto ok = check_ready(model, target); !ok) return ok.failure();
   const auto t0 = Clock::now();
   const int m = std::clamp(o.identity_modes, 0, model.identity_count);
@@ -652,7 +660,7 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
 
   FitResult out;
   if (o.refine) {
-    auto refined = refine_fit(model, target, mesh, pose, o.refine_options);
+    auto refined = refine_fit(model, target, mesh, pose, o.refine_options, model_system);
     if (!refined) return refined.failure();
     out = std::move(*refined);
   } else {

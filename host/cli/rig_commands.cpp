@@ -483,6 +483,8 @@ int run_eval_rig(const ParsedOptions& options) {
   if (!model) return report_failure(model.error());
   auto guide = load_guide(*model, options.get("guide"));
   if (!guide) return report_failure(guide.error());
+  auto model_system = model_refine_system(*model);
+  if (!model_system) return report_failure(model_system.error());
   auto rig_opts = rig_options(options, *model);
   if (!rig_opts) return report_failure(rig_opts.error());
   const int n = model->fitting_expression_count;
@@ -535,7 +537,7 @@ int run_eval_rig(const ParsedOptions& options) {
         auto target = make_fit_target(*cap, noisy(cap->truth_color_px, *noise, rng), false);
         if (!target) return report_failure(target.error());
         if (ge.id == 0) {
-          auto fit = fit_neutral(*model, *target);
+          auto fit = fit_neutral(*model, *target, {}, nullptr, &*model_system);
           if (!fit) return report_failure(fit.error());
           fitted_to_truth.rotation =
               cap->truth_pose.rotation.conjugate() * fit->camera_from_model.rotation;

@@ -6,15 +6,6 @@
 
 namespace fb {
 
-namespace {
-
-double median(std::vector<float>& v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-}  // namespace
-
 Image<float> depth_to_float(const DepthImage& depth_mm) {
   Image<float> out;
   out.resize(depth_mm.width, depth_mm.height);
@@ -76,7 +67,7 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
   if (color_px.size() != static_cast<std::size_t>(kFitLandmarkCount))
     return fail("landmarks: expected 68 points, got " + std::to_string(color_px.size()));
   if (depth_mm.empty()) return fail("landmarks: the depth map is empty");
-  // Reference depth: the median over the landmarks' bounding box (the face).
+  // Reference depth over the landmarks' bounding box (the face).
   double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
   for (const auto& p : color_px) {
     if (!p.allFinite()) return fail("landmarks: a point is not finite");

@@ -75,12 +75,6 @@ Result<LandmarkDetector> load_detector(const std::string& option) {
   return LandmarkDetector::create(in);
 }
 
-bool g_noiseless_depth = false;  // set by --depth noiseless (diagnostics only)
-
-Result<FitTarget> make_target(const Capture& c, std::span<const Eigen::Vector2d> color_px) {
-  return make_fit_target(c, color_px, g_noiseless_depth);
-}
-
 // ---------------------------------------------------------------------------------------------
 // Error maps (paper Fig. 2 style): |mesh depth - fused depth| per pixel over the face.
 
@@ -195,7 +189,7 @@ int run_eval_fit(const ParsedOptions& options) {
   if (!guide) return report_failure(guide.error());
   auto model_system = model_refine_system(*model);
   if (!model_system) return report_failure(model_system.error());
-  g_noiseless_depth = options.get("depth") == "noiseless";
+  const bool noiseless_depth = options.get("depth") == "noiseless";  // diagnostics only
   auto expressions = parse_expression_list(options.get("expressions"), *guide);
   if (!expressions) return report_failure(expressions.error());
   std::optional<LandmarkDetector> detector;
@@ -232,7 +226,7 @@ int run_eval_fit(const ParsedOptions& options) {
       auto cap = capture(*model, identity, *weights, seed * 1000 + static_cast<std::uint64_t>(e),
                          static_cast<int>(*frames), detector.has_value() && e == 0 && s == 0);
       if (!cap) return report_failure(cap.error());
-      auto target = make_target(*cap, noisy(cap->truth_color_px, *noise, rng));
+      auto target = make_fit_target(*cap, noisy(cap->truth_color_px, *noise, rng), noiseless_depth);
       if (!target) return report_failure(target.error());
       nlohmann::json j;
       j["expression"] = ge.name;
@@ -277,7 +271,8 @@ int run_eval_fit(const ParsedOptions& options) {
             neutral.times.total_ms());
         // Robustness: the same capture with stronger landmark noise.
         if (*robust_noise > 0) {
-          auto t2 = make_target(*cap, noisy(cap->truth_color_px, *robust_noise, rng));
+          auto t2 = make_fit_target(*cap, noisy(cap->truth_color_px, *robust_noise, rng),
+                                    noiseless_depth);
           if (!t2) return report_failure(t2.error());
           auto f2 = fit_neutral(*model, *t2, {}, nullptr, &*model_system);
           if (!f2) return report_failure(f2.error());
@@ -380,7 +375,7 @@ int run_eval_fit(const ParsedOptions& options) {
   out["landmark_noise_px"] = *noise;
   out["lifted_landmark_error_px"] = lift_err.mean();
   out["depth_used"] =
-      g_noiseless_depth ? "noiseless rendering (diagnostic, not the figure)" : "fused";
+      noiseless_depth ? "noiseless rendering (diagnostic, not the figure)" : "fused";
   out["depth_source"] =
       "KinectFusion (algo/fusion) over the synthetic head-turn take, ray-cast at frame 0";
   out["vertex_error_region"] =
@@ -472,7 +467,7 @@ int run_bench_fit(const ParsedOptions& options) {
     out["landmark_ms_full_image"] = full.mean();
     out["landmark_tracked_frames"] = tracked.v.size();
   }
-  auto target = make_target(*neutral_cap, neutral_cap->truth_color_px);
+  auto target = make_fit_target(*neutral_cap, neutral_cap->truth_color_px, false);
   if (!target) return report_failure(target.error());
   double best_neutral = 1e30, best_step1 = 0, best_refine = 0;
   // Once per model (the daemon would do it at start): the mean face's refinement matrix.
@@ -509,7 +504,7 @@ int run_bench_fit(const ParsedOptions& options) {
     auto gi = guide_mesh(guide->expressions[static_cast<std::size_t>(e)], *model);
     auto cap = capture(*model, identity, *w, 100 + e, 30, false);
     if (!cap) return report_failure(cap.error());
-    auto t = make_target(*cap, cap->truth_color_px);
+    auto t = make_fit_target(*cap, cap->truth_color_px, false);
     if (!t) return report_failure(t.error());
     double best = 1e30;
     for (long long r = 0; r < *repeats; ++r) {

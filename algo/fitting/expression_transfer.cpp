@@ -106,9 +106,8 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
   s->solver.compute(ata);
   if (s->solver.info() != Eigen::Success)
     return fail("deformation transfer: factorization failed (degenerate fitted mesh?)");
-  auto system =
-      RefineSystem::create(model, RefineSystem::Points(s->target_rest),
-                           RefineSystemOptions{refine.w_pos, refine.w_lap, refine.margin_rings});
+  auto system = RefineSystem::create(model, RefineSystem::Points(s->target_rest),
+                                     refine_system_options(refine));
   if (!system) return system.failure();
   s->refine_system.emplace(std::move(*system));
   s->factor_ms =

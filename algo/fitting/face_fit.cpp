@@ -396,11 +396,10 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
   // The normal matrix: the subject's shared one when its weights are these, else this fit's
   // own, from the start mesh's Laplacian.
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
-  const RefineSystemOptions matrix_options{o.w_pos, o.w_lap, o.margin_rings};
+  const RefineSystemOptions matrix_options = refine_system_options(o);
   std::optional<RefineSystem> own;
   const RefineSystem* system = shared;
-  if (!system || system->options().w_pos != o.w_pos || system->options().w_lap != o.w_lap ||
-      system->options().margin_rings != o.margin_rings) {
+  if (!system || !(system->options() == matrix_options)) {
     auto made = RefineSystem::create(model, x0, matrix_options);
     if (!made) return made.failure();
     own.emplace(std::move(*made));
@@ -490,11 +489,18 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
   return res;
 }
 
+RefineSystemOptions refine_system_options(const RefineOptions& o) {
+  RefineSystemOptions m;
+  m.w_pos = o.w_pos;
+  m.w_lap = o.w_lap;
+  m.margin_rings = o.margin_rings;
+  return m;
+}
+
 Result<RefineSystem> model_refine_system(const FaceModel& model, const RefineOptions& o) {
   std::vector<float> mean(static_cast<std::size_t>(model.vertex_count) * 3);
   model.evaluate({}, {}, mean);
-  return RefineSystem::create(model, to_points(mean),
-                              RefineSystemOptions{o.w_pos, o.w_lap, o.margin_rings});
+  return RefineSystem::create(model, to_points(mean), refine_system_options(o));
 }
 
 Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,

@@ -144,6 +144,9 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
                               const FitResult* initial = nullptr,
                               const RefineSystem* model_system = nullptr);
 
+// The matrix part of the refinement weights (what a RefineSystem is built with).
+RefineSystemOptions refine_system_options(const RefineOptions& options);
+
 // The refinement matrix of the model's mean face (refine_system.hpp), built once per model so
 // that a neutral fit costs back-substitutions, not a factorization (~110 ms here).
 Result<RefineSystem> model_refine_system(const FaceModel& model, const RefineOptions& options = {});

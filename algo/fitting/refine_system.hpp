@@ -34,6 +34,7 @@ struct RefineSystemOptions {
   double w_lap = 1.0;
   int margin_rings = 2;  // free vertices around the fitting region
   double anchor = 1e-4;  // eps: pull towards the start mesh of each fit
+  bool operator==(const RefineSystemOptions&) const = default;
 };
 
 class RefineSystem {

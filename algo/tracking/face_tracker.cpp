@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <unordered_map>
 
 #include <Eigen/Cholesky>
@@ -110,11 +111,14 @@ struct FaceTracker::State {
   bool custom_rig = false;
 
   // The subject's rig (rebuilt by build_rig()).
-  std::vector<float> identity;                         // m coefficients
-  Eigen::VectorXf base;                                // 3n: neutral + identity at the samples
-  std::vector<Eigen::Vector3f> normals;                // n, model frame, of the identity neutral
-  RowMatrix normal_rows;                               // n x k: n_i^T B_i (point-to-plane rows)
-  Eigen::VectorXf landmark_base;                       // 3*68
+  std::vector<float> identity;           // m coefficients
+  Eigen::VectorXf base;                  // 3n: neutral + identity at the samples
+  std::vector<Eigen::Vector3f> normals;  // n, model frame, of the identity neutral
+  RowMatrix normal_rows;                 // n x k: n_i^T B_i (point-to-plane rows)
+  Eigen::VectorXf landmark_base;         // 3*68, with landmark_offset
+  // The subject's landmark offsets (model frame, 3*68), measured while calibrating: where the
+  // detector puts each point on this face relative to the model's landmark vertex.
+  Eigen::VectorXf landmark_offset;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  // of the samples, model frame
   ShapeVector shape_ridge;  // per-shape Tikhonov weight (mm^2), see build_rig()
   std::vector<int> weak_shapes;
@@ -152,6 +156,8 @@ struct FaceTracker::State {
   std::vector<float> abs_scratch;     // |residual| for the median
   // Samples behind an occluder on this frame (mark_occluded()); honoured while mask_on.
   std::vector<std::uint8_t> occluded;
+  // The same for the 68 landmarks: a detector's points under a hand sit on the hand.
+  std::array<std::uint8_t, 68> landmark_occluded{};
   bool mask_on = false;
   ShapeMatrix h;
   ShapeVector g;
@@ -161,6 +167,8 @@ struct FaceTracker::State {
   std::vector<Box> calib_box;
   std::vector<Pose> calib_pose;
   std::vector<ShapeVector> calib_weights;
+  std::vector<Eigen::Vector2f> calib_landmarks;    // calibration_frames x 68
+  std::vector<std::uint8_t> calib_landmark_valid;  // calibration_frames x 68
   int calib_count = 0;
   std::vector<float> mesh_scratch;
   std::vector<Eigen::Vector3f> mesh_normals;
@@ -202,7 +210,8 @@ struct FaceTracker::State {
     int inliers = 0;
     float rms = 0.0f;
   };
-  void mark_occluded(const Image<float>& image, const Box& b, const Pose& p);
+  void mark_occluded(const Image<float>& image, const Box& b, const Pose& p,
+                     const TrackLandmarks* landmarks);
   IcpStats icp(const Image<float>& image, const Box& b, Pose& p, int iterations, float first_gate,
                float gate) const;
   void solve_weights(const Image<float>& image, const Box& b, const Pose& p,
@@ -210,6 +219,7 @@ struct FaceTracker::State {
   bool acceptable(const IcpStats& s, bool acquiring) const;
   bool acquire(const TrackLandmarks* landmarks, IcpStats& stats);
   void calibrate();
+  void calibrate_landmark_offsets();
   void output(TrackReport& report, double time_s);
 };
 
@@ -269,6 +279,7 @@ void FaceTracker::State::finish_rig() {
   }
   landmark_base.resize(3 * 68);
   for (int l = 0; l < 68; ++l) landmark_base.segment<3>(3 * l) = vertex(m.landmark_vertices[l]);
+  landmark_base += landmark_offset;
   // Depth signal of each shape: H0_jj = sum_i (n_i . B_ij)^2. Shapes far below the median
   // (eyeLook*: they rotate eyeballs the skin model does not have) are nearly invisible in
   // depth; opposing pairs of them would wander on noise, so they get a strong prior to 0.
@@ -386,7 +397,8 @@ int FaceTracker::State::smooth(const DepthImage& depth, const Box& b) {
   return valid - (valid4[0] + valid4[1] + valid4[2] + valid4[3]);
 }
 
-void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, const Pose& p) {
+void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, const Pose& p,
+                                       const TrackLandmarks* landmarks) {
   // Visibility: a sample is hidden when the depth at its pixel, or at one of 8 pixels
   // occluder_radius_px away, is nearer than the model point by more than occluder_margin_mm:
   // something (a hand) is in front of the face there. The margin is above the face's own
@@ -424,7 +436,36 @@ void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, 
     occluded[static_cast<std::size_t>(i)] = hidden ? 1 : 0;
     any = any || hidden;
   }
-  if (!any || r == 0) return;
+  landmark_occluded.fill(0);
+  if (!any) return;
+  // A landmark is hidden by the same test at its model point or at the detected point (a
+  // detector's point on the hand has the hand's depth): own pixel and the 8 around it.
+  const bool detected = landmarks != nullptr && landmarks->points.size() >= 68;
+  auto hidden_around = [&](int u, int v, float nearer) {
+    if (nearer_at(u, v, nearer)) return true;
+    for (std::size_t o = 0; o < offsets.size() && r > 0; ++o)
+      if (nearer_at(u + offsets[o][0], v + offsets[o][1], nearer)) return true;
+    return false;
+  };
+  for (int l = 0; l < 68; ++l) {
+    const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+    if (x.z() <= 1.0f) continue;
+    const float nearer = x.z() - margin;
+    bool hidden = hidden_around(static_cast<int>(std::lround(fx * x.x() / x.z() + cx)),
+                                static_cast<int>(std::lround(fy * x.y() / x.z() + cy)), nearer);
+    if (!hidden && detected) {
+      const Eigen::Vector2f& q = landmarks->points[static_cast<std::size_t>(l)];
+      hidden = hidden_around(static_cast<int>(std::lround(q.x())),
+                             static_cast<int>(std::lround(q.y())), nearer);
+    }
+    landmark_occluded[static_cast<std::size_t>(l)] = hidden ? 1 : 0;
+  }
+  // A shape predictor places its points jointly: with most of the inner face covered, the
+  // points that look free are placed by the covered ones too, so none is used.
+  const int hidden_inner =
+      std::accumulate(landmark_occluded.begin() + 17, landmark_occluded.end(), 0);
+  if (hidden_inner > options.max_hidden_landmark_fraction * 51.0f) landmark_occluded.fill(1);
+  if (r == 0) return;
   for (int i = 0; i < n; ++i) {
     auto& hidden = occluded[static_cast<std::size_t>(i)];
     int u = 0, v = 0;
@@ -548,6 +589,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       const float lw = options.landmark_weight;
       for (int l = 17; l < 68; ++l) {
         if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
+        if (mask_on && landmark_occluded[static_cast<std::size_t>(l)]) continue;
         const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
         if (x.z() <= 1.0f) continue;
         const float iz = 1.0f / x.z();
@@ -805,12 +847,45 @@ void FaceTracker::State::calibrate() {
           options.icp_iterations, options.icp_gate_mm, options.icp_gate_mm);
     }
   }
+  if (options.calibrate_landmark_offsets) calibrate_landmark_offsets();
   // Continue from the last calibration frame.
   pose = calib_pose[static_cast<std::size_t>(calib_count - 1)];
   weights.setZero();
   previous_weights = weights;
   update_current();
   calibrated = true;
+}
+
+void FaceTracker::State::calibrate_landmark_offsets() {
+  // Mean over the calibration frames (neutral face, final poses) of the detected point's ray at
+  // the model landmark's depth minus the model landmark, rotated into the model frame:
+  //   d_l = mean_f R_f^T ([(u - cx) z / fx, (v - cy) z / fy, z] - x),  x = R_f m_l + t_f.
+  // The identity fit sees depth only, so a detector's consistent placement on this face (and
+  // the identity's error at the landmark vertices) would otherwise pull the expression weights
+  // on every frame. Points seen on fewer than half the frames, or further off than
+  // max_landmark_offset_mm, keep no offset.
+  landmark_offset.setZero();
+  weights.setZero();
+  finish_rig();  // landmark_base without offsets; update_current() is called inside
+  for (int l = 17; l < 68; ++l) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    int seen = 0;
+    for (int f = 0; f < calib_count; ++f) {
+      const std::size_t at = static_cast<std::size_t>(f) * 68 + static_cast<std::size_t>(l);
+      if (!calib_landmark_valid[at]) continue;
+      const Pose& p = calib_pose[static_cast<std::size_t>(f)];
+      const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+      if (x.z() <= 1.0f) continue;
+      const Eigen::Vector2f& px = calib_landmarks[at];
+      const Eigen::Vector3f ray((px.x() - cx) * x.z() / fx, (px.y() - cy) * x.z() / fy, x.z());
+      sum += p.r.transpose() * (ray - x);
+      ++seen;
+    }
+    if (2 * seen < calib_count || seen == 0) continue;
+    const Eigen::Vector3f d = sum / static_cast<float>(seen);
+    if (d.norm() <= options.max_landmark_offset_mm) landmark_offset.segment<3>(3 * l) = d;
+  }
+  finish_rig();
 }
 
 void FaceTracker::State::output(TrackReport& report, double time_s) {
@@ -1003,6 +1078,10 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->calib_depth.resize(static_cast<std::size_t>(options.calibration_frames));
   for (auto& f : s->calib_depth) f.resize(s->width, s->height);
   s->calib_box.resize(static_cast<std::size_t>(options.calibration_frames));
+  s->calib_landmarks.assign(static_cast<std::size_t>(options.calibration_frames) * 68,
+                            Eigen::Vector2f::Zero());
+  s->calib_landmark_valid.assign(static_cast<std::size_t>(options.calibration_frames) * 68, 0);
+  s->landmark_offset = Eigen::VectorXf::Zero(3 * 68);
   s->calib_pose.resize(static_cast<std::size_t>(options.calibration_frames));
   s->calib_weights.assign(static_cast<std::size_t>(options.calibration_frames),
                           ShapeVector::Zero(s->k));
@@ -1018,6 +1097,7 @@ Result<void> FaceTracker::set_identity(std::span<const float> coefficients) {
                 std::to_string(s.model->identity_count));
   }
   s.use_model_expressions();
+  s.landmark_offset.setZero();  // measured by calibration only
   s.build_rig(coefficients);
   s.calibrated = true;
   s.calib_count = 0;
@@ -1061,6 +1141,7 @@ Result<void> FaceTracker::set_rig(const TrackerRig& rig) {
   s.custom_rig = true;
   s.identity.assign(static_cast<std::size_t>(s.modes), 0.0f);
   s.mesh_scratch.assign(rig.neutral.begin(), rig.neutral.end());
+  s.landmark_offset.setZero();
   s.finish_rig();
   s.calibrated = true;
   s.calib_count = 0;
@@ -1076,6 +1157,7 @@ void FaceTracker::reset() {
   s.weights.setZero();
   s.previous_weights.setZero();
   s.filter.reset();
+  s.landmark_offset.setZero();
   s.use_model_expressions();
   s.build_rig({});
 }
@@ -1162,7 +1244,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   }
 
   start = Clock::now();
-  s.mark_occluded(s.smoothed, s.box, s.pose);
+  s.mark_occluded(s.smoothed, s.box, s.pose, landmarks);
   stats = s.icp(s.smoothed, s.box, s.pose, s.options.icp_iterations, s.options.icp_first_gate_mm,
                 s.options.icp_gate_mm);
   report.times.icp_ms = ms_since(start);
@@ -1197,6 +1279,12 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
     s.calib_box[f] = s.box;
     s.calib_pose[f] = s.pose;
     s.calib_weights[f] = s.weights;
+    const bool have_landmarks = landmarks != nullptr && landmarks->points.size() >= 68;
+    for (std::size_t l = 0; l < 68; ++l) {
+      const bool valid = have_landmarks && (landmarks->valid.empty() || landmarks->valid[l] != 0);
+      s.calib_landmark_valid[f * 68 + l] = valid ? 1 : 0;
+      if (valid) s.calib_landmarks[f * 68 + l] = landmarks->points[l];
+    }
     ++s.calib_count;
     report.calibration_frames_left = s.options.calibration_frames - s.calib_count;
     if (s.calib_count >= s.options.calibration_frames) {

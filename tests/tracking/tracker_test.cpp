@@ -429,8 +429,8 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
 // A detector that places this subject's brows 4 px low and the mouth corners 3 px out on every
 // frame (dlib's point conventions differ from the model's landmark vertices, and the
 // identity from depth is not exact at them): with the offsets measured while calibrating
-// (neutral face) the bias does not reach the weights; without, it reads as browDown and
-// expression on every frame.
+// (neutral face) the bias does not reach the weights; without, it reads as expression on every
+// frame.
 TEST(Tracker, CalibratedLandmarkOffsetsAbsorbADetectorBias) {
   SyntheticOptions o;
   o.seed = 12;

@@ -1075,6 +1075,8 @@ class SinkSocket {
 int run_bench_track(const ParsedOptions& options) {
   auto frames = options.get_int("frames");
   if (!frames || *frames < 60) return report_failure({"--frames must be an integer >= 60"});
+  auto overrides = tracker_overrides(options.get("set"));
+  if (!overrides) return report_failure(overrides.error());
   auto model_result = shared_model();
   if (!model_result) return report_failure(model_result.error());
   const FaceModel& model = **model_result;
@@ -1106,6 +1108,7 @@ int run_bench_track(const ParsedOptions& options) {
   // then the solve: the real per-frame cost with landmarks).
   for (const std::string mode : {"none", "truth", "dlib"}) {
     RunOptions run;
+    run.tracker = *overrides;
     run.landmarks = mode == "truth";
     run.dlib = mode == "dlib" ? &dlib : nullptr;
     run.sender = sender->get();
@@ -1158,8 +1161,9 @@ int run_bench_track(const ParsedOptions& options) {
       result["latency_ms_p95"] = stats_of(latency).p95;
     }
   }
-  auto tracker = FaceTracker::create(model, take->intrinsics);
+  auto tracker = FaceTracker::create(model, take->intrinsics, *overrides);
   result["samples"] = tracker ? (*tracker)->sample_count() : 0;
+  result["tracker_overrides"] = options.get("set");
   result["shapes"] = model.fitting_expression_count;
   result["frames"] = spec.frames;
   result["threads"] = 1;
@@ -1556,6 +1560,7 @@ std::vector<Command> tracking_commands() {
         "sent on loopback) and the stage split.",
         {{"frames", "N", "frames of the synthetic take", "150"},
          {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
+         {"set", "K=V,...", "tracker option overrides, as eval track takes them", ""},
          {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
        run_bench_track},
       {{"track",

@@ -864,9 +864,10 @@ void FaceTracker::State::calibrate_landmark_offsets() {
   // the identity's error at the landmark vertices) would otherwise pull the expression weights
   // on every frame. Points seen on fewer than half the frames, or further off than
   // max_landmark_offset_mm, keep no offset.
+  landmark_base -= landmark_offset;  // the model's landmark vertices on this face
   landmark_offset.setZero();
   weights.setZero();
-  finish_rig();  // landmark_base without offsets; update_current() is called inside
+  update_current();
   for (int l = 17; l < 68; ++l) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     int seen = 0;
@@ -885,7 +886,8 @@ void FaceTracker::State::calibrate_landmark_offsets() {
     const Eigen::Vector3f d = sum / static_cast<float>(seen);
     if (d.norm() <= options.max_landmark_offset_mm) landmark_offset.segment<3>(3 * l) = d;
   }
-  finish_rig();
+  landmark_base += landmark_offset;
+  update_current();
 }
 
 void FaceTracker::State::output(TrackReport& report, double time_s) {

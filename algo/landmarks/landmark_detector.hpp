@@ -6,7 +6,8 @@
 // detector's box and the points' bounding box are learnt at the last real detection), and only
 // the shape predictor runs, on a grey conversion of a window around the face only (~2 ms
 // instead of a ~35-70 ms full-image HOG pass; the predictor is dlib's model evaluated with its
-// trees packed and prefetched: same points, a few times faster than dlib's loop). The detector
+// trees packed into 16-bit leaves and prefetched: dlib's points to within a rounding step, half
+// the memory and a few times faster than dlib's loop). The detector
 // re-anchors on a window around the last face (falling back to the full image) every
 // `redetect_every` tracked frames, when the new points are implausible (bounding box size or
 // position jumps, points off the image, the image under them no longer looks like the previous

@@ -1,5 +1,6 @@
 // Landmarks: colour -> depth lifting against the synthetic camera's truth, and the dlib path
-// (detection, tracking, no-face and bad-model errors) where Debian's model is installed.
+// (detection, tracking, no-face and bad-model errors, the packed 16-bit predictor against dlib's
+// own) where Debian's model is installed.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -8,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+
+#include <dlib/image_processing.h>
 
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
@@ -218,6 +221,54 @@ TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
   EXPECT_LT(vs_full, 2.0);
   EXPECT_LT(worst, 6.0);
   EXPECT_LT(err_points, err_window + 0.5);
+}
+
+// The packed predictor (16-bit leaves, one scale per leaf vector) against dlib's own shape_predictor on
+// the same grey image and face box, over a head turn: dlib's points are whole pixels, so the
+// quantisation may only show as an occasional 1 px rounding step.
+TEST(Landmarks, PackedPredictorMatchesDlibsShapePredictor) {
+  if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
+  std::ifstream in(kPredictor, std::ios::binary);
+  std::stringstream model;
+  model << in.rdbuf();
+  const std::string bytes = model.str();
+  std::istringstream ours_in(bytes), dlibs_in(bytes);
+  LandmarkDetectorOptions full_only;
+  full_only.track = false;
+  auto ours = LandmarkDetector::create(ours_in, full_only);
+  ASSERT_TRUE(ours.ok()) << ours.error().message;
+  dlib::shape_predictor dlibs;
+  dlib::deserialize(dlibs, dlibs_in);
+  int compared = 0, differing = 0;
+  double sum = 0, worst = 0;
+  for (const TakeFrame& f : head_turn_take(30)) {
+    auto found = ours->detect(f.color);
+    if (!found) continue;
+    dlib::array2d<unsigned char> gray(f.color.height, f.color.width);
+    for (int y = 0; y < f.color.height; ++y)
+      for (int x = 0; x < f.color.width; ++x) {
+        const Rgb8& p = f.color.at(x, y);
+        gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
+      }
+    const PixelBox& b = found->face;
+    const dlib::full_object_detection theirs =
+        dlibs(gray, dlib::rectangle(b.x, b.y, b.x + b.width - 1, b.y + b.height - 1));
+    ASSERT_EQ(theirs.num_parts(), 68u);
+    for (int l = 0; l < 68; ++l) {
+      const double d = (found->points[l] - Eigen::Vector2d(theirs.part(l).x(), theirs.part(l).y()))
+                           .norm();
+      sum += d;
+      worst = std::max(worst, d);
+      differing += d > 0;
+      ++compared;
+    }
+  }
+  std::printf("packed vs dlib: %d points, %d differ, mean %.4f px, worst %.2f px\n", compared,
+              differing, sum / std::max(compared, 1), worst);
+  ASSERT_GE(compared, 68 * 20);
+  EXPECT_LT(sum / compared, 0.05);
+  EXPECT_LE(worst, 1.5);  // one rounding step, possibly in both coordinates
+  EXPECT_LT(differing, compared / 20);
 }
 
 }  // namespace

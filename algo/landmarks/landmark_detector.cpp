@@ -104,10 +104,10 @@ struct ShapeCascade {
   };
   struct Level {
     std::vector<Split> splits;
-    std::vector<std::int16_t> leaves;         // leaf vectors, initial_shape.size() values each
-    std::vector<float> leaf_scale;            // per leaf vector: value = leaf_scale * q
-    std::vector<std::uint32_t> split_begin;   // per tree (+1 end): first split
-    std::vector<std::uint32_t> leaf_begin;    // per tree: first leaf (in leaf vectors)
+    std::vector<std::int16_t> leaves;        // leaf vectors, initial_shape.size() values each
+    std::vector<float> leaf_scale;           // per leaf vector: value = leaf_scale * q
+    std::vector<std::uint32_t> split_begin;  // per tree (+1 end): first split
+    std::vector<std::uint32_t> leaf_begin;   // per tree: first leaf (in leaf vectors)
     std::vector<unsigned long> anchor_idx;
     std::vector<dlib::vector<float, 2>> deltas;
   };
@@ -124,8 +124,7 @@ struct ShapeCascade {
   unsigned long num_parts() const { return initial_shape.size() / 2; }
 
   // c += scale * q, eight values at a time.
-  static void add_into(float* __restrict c, const std::int16_t* __restrict q, float scale,
-                       long n) {
+  static void add_into(float* __restrict c, const std::int16_t* __restrict q, float scale, long n) {
     using V8f = float __attribute__((vector_size(32)));
     using V8s = std::int16_t __attribute__((vector_size(16)));
     long k = 0;
@@ -210,7 +209,7 @@ struct ShapeCascade {
         std::uint32_t i = 0;
         while (i < count)
           i = features[splits[i].idx1] - features[splits[i].idx2] > splits[i].thresh ? 2 * i + 1
-                                                                                      : 2 * i + 2;
+                                                                                     : 2 * i + 2;
         const std::int16_t* leaf =
             level.leaves.data() + static_cast<std::size_t>(level.leaf_begin[t] + i - count) * n;
         leaves[t] = {leaf, level.leaf_scale[level.leaf_begin[t] + i - count]};
@@ -319,8 +318,8 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
         (o.redetect_every <= 0 || s.since_detection < o.redetect_every)) {
       // Tracking from points: the previous frame's points, mapped to a detector-style box.
       const Box& p = *s.last_points;
-      const dlib::rectangle r = rect_of({p.cx + s.map_dx * p.w, p.cy + s.map_dy * p.h,
-                                         s.map_sw * p.w, s.map_sh * p.h});
+      const dlib::rectangle r =
+          rect_of({p.cx + s.map_dx * p.w, p.cy + s.map_dy * p.h, s.map_sw * p.w, s.map_sh * p.h});
       const Box g = box_of(r);
       const double hw = g.w * o.track_window_scale / 2, hh = g.h * o.track_window_scale / 2;
       const long gx0 = std::clamp<long>(std::lround(g.cx - hw), 0, w),

@@ -198,8 +198,10 @@ TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
                  ew = mean_distance(w->points, take[i].truth),
                  ef = mean_distance(f->points, take[i].truth);
     if (trace)
-      std::printf("frame %zu: since %d, %.2f px from full; vs truth %.2f (window %.2f, full "
-                  "%.2f)\n", i, t->frames_since_detection, d, et, ew, ef);
+      std::printf(
+          "frame %zu: since %d, %.2f px from full; vs truth %.2f (window %.2f, full "
+          "%.2f)\n",
+          i, t->frames_since_detection, d, et, ew, ef);
     vs_full += d;
     worst = std::max(worst, d);
     err_points += et;
@@ -212,20 +214,21 @@ TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
   err_points /= compared;
   err_window /= compared;
   err_full /= compared;
-  std::printf("tracking from points: %d of %zu frames (%d detector runs); on %d of them %.2f px "
-              "mean from a full detection (worst frame %.2f px); vs the true points %.2f px "
-              "(windowed detector %.2f, full image %.2f)\n",
-              from_points, take.size(), detections, compared, vs_full, worst, err_points,
-              err_window, err_full);
+  std::printf(
+      "tracking from points: %d of %zu frames (%d detector runs); on %d of them %.2f px "
+      "mean from a full detection (worst frame %.2f px); vs the true points %.2f px "
+      "(windowed detector %.2f, full image %.2f)\n",
+      from_points, take.size(), detections, compared, vs_full, worst, err_points, err_window,
+      err_full);
   EXPECT_GE(from_points, static_cast<int>(take.size()) / 2);
   EXPECT_LT(vs_full, 2.0);
   EXPECT_LT(worst, 6.0);
   EXPECT_LT(err_points, err_window + 0.5);
 }
 
-// The packed predictor (16-bit leaves, one scale per leaf vector) against dlib's own shape_predictor on
-// the same grey image and face box, over a head turn: dlib's points are whole pixels, so the
-// quantisation may only show as an occasional 1 px rounding step.
+// The packed predictor (16-bit leaves, one scale per leaf vector) against dlib's own
+// shape_predictor on the same grey image and face box, over a head turn: dlib's points are whole
+// pixels, so the quantisation may only show as an occasional 1 px rounding step.
 TEST(Landmarks, PackedPredictorMatchesDlibsShapePredictor) {
   if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
   std::ifstream in(kPredictor, std::ios::binary);
@@ -255,8 +258,8 @@ TEST(Landmarks, PackedPredictorMatchesDlibsShapePredictor) {
         dlibs(gray, dlib::rectangle(b.x, b.y, b.x + b.width - 1, b.y + b.height - 1));
     ASSERT_EQ(theirs.num_parts(), 68u);
     for (int l = 0; l < 68; ++l) {
-      const double d = (found->points[l] - Eigen::Vector2d(theirs.part(l).x(), theirs.part(l).y()))
-                           .norm();
+      const double d =
+          (found->points[l] - Eigen::Vector2d(theirs.part(l).x(), theirs.part(l).y())).norm();
       sum += d;
       worst = std::max(worst, d);
       differing += d > 0;

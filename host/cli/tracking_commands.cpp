@@ -753,6 +753,18 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
   orun.landmarks = true;
   auto ores = run_take(model, mapping, *otake, orun);
   if (!ores) return ores.failure();
+  // The control: the same take (motion, weights, landmark noise) without the plate, so the
+  // plate's own effect on the shapes it does not cover can be told from how well those shapes
+  // are tracked at all (a brow that moves while every landmark is dropped lags either way).
+  TakeSpec cspec = ospec;
+  cspec.occluder = false;
+  std::cerr << "eval track: occluder take " << seed
+            << ": rendering the control without the plate\n";
+  auto ctake = render_take(model, cspec);
+  if (!ctake) return ctake.failure();
+  auto cres = run_take(model, mapping, *ctake, orun);
+  if (!cres) return cres.failure();
+  std::vector<double> added;  // per frame: unaffected error minus the control's on those shapes
   std::vector<double> occluded_err;
   const std::size_t first_frame = unaffected.size();
   nlohmann::json worst_unaffected = nlohmann::json::array();
@@ -763,7 +775,8 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
     if (!tracked(r.state)) ++lost_during;
     misdetected += tf.landmarks_misdetected;
     used_during += r.landmarks_used;
-    double sum = 0, osum = 0;
+    const auto& control = (*cres)[static_cast<std::size_t>(f)];
+    double sum = 0, osum = 0, csum = 0;
     int n = 0, on = 0;
     for (int j = 0; j < k; ++j) {
       if (tf.occluded_shapes[static_cast<std::size_t>(j)]) {
@@ -771,10 +784,12 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
         ++on;
       } else {
         sum += r.abs_error[static_cast<std::size_t>(j)];
+        csum += control.abs_error[static_cast<std::size_t>(j)];
         ++n;
       }
     }
     if (n) unaffected.push_back(sum / n);  // the caller's, over all occluder takes
+    if (n) added.push_back((sum - csum) / n);
     // The unoccluded shape with the largest error on this frame (diagnostics).
     int worst = -1;
     for (int j = 0; j < k; ++j) {
@@ -838,6 +853,8 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
       {"landmarks_misdetected", misdetected},
       {"landmarks_used_during_occlusion", used_during},
       {"occluded_unaffected_weight_error", stats_of(mine).max},
+      {"unaffected_error_added_by_plate", stats_of(added).max},
+      {"unaffected_error_added_by_plate_per_frame", to_json(stats_of(added))},
       {"unaffected_weight_error_per_frame", to_json(stats_of(mine))},
       {"occluded_shapes_weight_error_per_frame", to_json(stats_of(occluded_err))},
       {"occlusion_recovery_frames", recovery},
@@ -974,6 +991,12 @@ int run_eval_track(const ParsedOptions& options) {
   result["pose_error_mm"] = wl["pose_error_mm"];
   result["occluded_unaffected_weight_error"] = stats_of(unaffected).max;
   result["occluded_unaffected_weight_error_mean"] = stats_of(unaffected).mean;
+  // The plate's own effect: the same error minus the control take's (no plate) on the same
+  // shapes and frames, the worst frame of all takes.
+  double added_max = -1.0;
+  for (const auto& t : occluder_takes)
+    added_max = std::max(added_max, t["unaffected_error_added_by_plate"].get<double>());
+  result["occluded_unaffected_error_added_by_plate"] = added_max;
   result["occlusion_recovery_frames"] = recovery;
   result["absolute_pose_error_deg"] = wl["absolute_pose_error_deg"];
   result["absolute_pose_error_mm"] = wl["absolute_pose_error_mm"];
@@ -1030,6 +1053,9 @@ int run_eval_track(const ParsedOptions& options) {
        "max over the frames of all occluder takes with the plate over the face of the mean "
        "abs error of the shapes whose region it does not cover (landmarks on, those under the "
        "plate misdetected)"},
+      {"occluded_unaffected_error_added_by_plate",
+       "the same, minus the error of the same shapes on the same frame of a control take "
+       "(same seed, motion, weights, no plate): what the plate itself adds"},
       {"occlusion_recovery_frames",
        "frames after the plate leaves until tracking with every "
        "weight within 0.1 and pose within 1 deg / 2 mm (-1 = never)"}};

@@ -31,6 +31,8 @@
 #include <optional>
 #include <random>
 #include <set>
+#include <string_view>
+#include <utility>
 
 #include "algo/render/kinect_sensor.hpp"
 #include "algo/tracking/arkit.hpp"
@@ -653,7 +655,64 @@ Result<const FaceModel*> shared_model() {
 // eval track
 
 // `--set key=value,...` overrides of TrackerOptions for tuning runs (reported in the JSON).
+// --set key=value[,key=value...]: tracker options by their TrackerOptions names (booleans as
+// 0 / 1), for side-by-side runs of two option sets.
 Result<TrackerOptions> tracker_overrides(const std::string& text) {
+  using Setter = void (*)(TrackerOptions&, double);
+  static constexpr std::pair<std::string_view, Setter> kSetters[] = {
+      {"temporal_frames",
+       [](TrackerOptions& o, double v) { o.temporal_frames = static_cast<int>(v); }},
+      {"temporal_range_mm",
+       [](TrackerOptions& o, double v) { o.temporal_range_mm = static_cast<float>(v); }},
+      {"temporal_decay",
+       [](TrackerOptions& o, double v) { o.temporal_decay = static_cast<float>(v); }},
+      {"temporal_weight",
+       [](TrackerOptions& o, double v) { o.temporal_weight = static_cast<float>(v); }},
+      {"sparsity", [](TrackerOptions& o, double v) { o.sparsity = static_cast<float>(v); }},
+      {"ridge", [](TrackerOptions& o, double v) { o.ridge = static_cast<float>(v); }},
+      {"landmark_weight",
+       [](TrackerOptions& o, double v) { o.landmark_weight = static_cast<float>(v); }},
+      {"weight_iterations",
+       [](TrackerOptions& o, double v) { o.weight_iterations = static_cast<int>(v); }},
+      {"icp_gate_mm", [](TrackerOptions& o, double v) { o.icp_gate_mm = static_cast<float>(v); }},
+      {"identity_prior",
+       [](TrackerOptions& o, double v) { o.identity_prior = static_cast<float>(v); }},
+      {"calibration_rounds",
+       [](TrackerOptions& o, double v) { o.calibration_rounds = static_cast<int>(v); }},
+      {"level_gain", [](TrackerOptions& o, double v) { o.pose_filter.level_gain = v; }},
+      {"trend_gain", [](TrackerOptions& o, double v) { o.pose_filter.trend_gain = v; }},
+      {"rest_level_gain", [](TrackerOptions& o, double v) { o.pose_filter.rest_level_gain = v; }},
+      {"sample_spacing_mm",
+       [](TrackerOptions& o, double v) { o.sample_spacing_mm = static_cast<float>(v); }},
+      {"extra_samples_per_shape",
+       [](TrackerOptions& o, double v) { o.extra_samples_per_shape = static_cast<int>(v); }},
+      {"hole_margin_mm",
+       [](TrackerOptions& o, double v) { o.hole_margin_mm = static_cast<float>(v); }},
+      {"weak_shape_fraction",
+       [](TrackerOptions& o, double v) { o.weak_shape_fraction = static_cast<float>(v); }},
+      {"weak_shape_ridge",
+       [](TrackerOptions& o, double v) { o.weak_shape_ridge = static_cast<float>(v); }},
+      {"keep_identity_rigid",
+       [](TrackerOptions& o, double v) { o.keep_identity_rigid = v != 0.0; }},
+      {"weight_tukey_k",
+       [](TrackerOptions& o, double v) { o.weight_tukey_k = static_cast<float>(v); }},
+      {"weight_min_gate_mm",
+       [](TrackerOptions& o, double v) { o.weight_min_gate_mm = static_cast<float>(v); }},
+      {"calibrate_landmark_offsets",
+       [](TrackerOptions& o, double v) { o.calibrate_landmark_offsets = v != 0.0; }},
+      {"max_landmark_offset_mm",
+       [](TrackerOptions& o, double v) { o.max_landmark_offset_mm = static_cast<float>(v); }},
+      {"max_hidden_landmark_fraction",
+       [](TrackerOptions& o, double v) { o.max_hidden_landmark_fraction = static_cast<float>(v); }},
+      {"landmark_huber_px",
+       [](TrackerOptions& o, double v) { o.landmark_huber_px = static_cast<float>(v); }},
+      {"icp_iterations",
+       [](TrackerOptions& o, double v) { o.icp_iterations = static_cast<int>(v); }},
+      {"occluder_margin_mm",
+       [](TrackerOptions& o, double v) { o.occluder_margin_mm = static_cast<float>(v); }},
+      {"occluder_radius_px",
+       [](TrackerOptions& o, double v) { o.occluder_radius_px = static_cast<int>(v); }},
+  };
   TrackerOptions o;
   std::size_t start = 0;
   while (start < text.size()) {
@@ -663,68 +722,19 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
     start = comma == std::string::npos ? text.size() : comma + 1;
     const auto eq = item.find('=');
     if (eq == std::string::npos) return fail("--set: expected key=value, got '" + item + "'");
-    const std::string key = item.substr(0, eq);
-    const double v = std::atof(item.c_str() + eq + 1);
-    if (key == "temporal_frames")
-      o.temporal_frames = static_cast<int>(v);
-    else if (key == "temporal_range_mm")
-      o.temporal_range_mm = static_cast<float>(v);
-    else if (key == "temporal_decay")
-      o.temporal_decay = static_cast<float>(v);
-    else if (key == "temporal_weight")
-      o.temporal_weight = static_cast<float>(v);
-    else if (key == "sparsity")
-      o.sparsity = static_cast<float>(v);
-    else if (key == "ridge")
-      o.ridge = static_cast<float>(v);
-    else if (key == "landmark_weight")
-      o.landmark_weight = static_cast<float>(v);
-    else if (key == "weight_iterations")
-      o.weight_iterations = static_cast<int>(v);
-    else if (key == "icp_gate_mm")
-      o.icp_gate_mm = static_cast<float>(v);
-    else if (key == "identity_prior")
-      o.identity_prior = static_cast<float>(v);
-    else if (key == "calibration_rounds")
-      o.calibration_rounds = static_cast<int>(v);
-    else if (key == "level_gain")
-      o.pose_filter.level_gain = v;
-    else if (key == "trend_gain")
-      o.pose_filter.trend_gain = v;
-    else if (key == "rest_level_gain")
-      o.pose_filter.rest_level_gain = v;
-    else if (key == "sample_spacing_mm")
-      o.sample_spacing_mm = static_cast<float>(v);
-    else if (key == "extra_samples_per_shape")
-      o.extra_samples_per_shape = static_cast<int>(v);
-    else if (key == "hole_margin_mm")
-      o.hole_margin_mm = static_cast<float>(v);
-    else if (key == "weak_shape_fraction")
-      o.weak_shape_fraction = static_cast<float>(v);
-    else if (key == "weak_shape_ridge")
-      o.weak_shape_ridge = static_cast<float>(v);
-    else if (key == "keep_identity_rigid")
-      o.keep_identity_rigid = v != 0.0;
-    else if (key == "weight_tukey_k")
-      o.weight_tukey_k = static_cast<float>(v);
-    else if (key == "weight_min_gate_mm")
-      o.weight_min_gate_mm = static_cast<float>(v);
-    else if (key == "calibrate_landmark_offsets")
-      o.calibrate_landmark_offsets = v != 0.0;
-    else if (key == "max_landmark_offset_mm")
-      o.max_landmark_offset_mm = static_cast<float>(v);
-    else if (key == "max_hidden_landmark_fraction")
-      o.max_hidden_landmark_fraction = static_cast<float>(v);
-    else if (key == "landmark_huber_px")
-      o.landmark_huber_px = static_cast<float>(v);
-    else if (key == "icp_iterations")
-      o.icp_iterations = static_cast<int>(v);
-    else if (key == "occluder_margin_mm")
-      o.occluder_margin_mm = static_cast<float>(v);
-    else if (key == "occluder_radius_px")
-      o.occluder_radius_px = static_cast<int>(v);
-    else
-      return fail("--set: unknown key '" + key + "'");
+    const std::string_view key = std::string_view(item).substr(0, eq);
+    char* parsed_end = nullptr;
+    const double v = std::strtod(item.c_str() + eq + 1, &parsed_end);
+    if (parsed_end == item.c_str() + eq + 1 || *parsed_end != '\0')
+      return fail("--set: '" + item + "' needs a number after '='");
+    const auto* setter = std::find_if(std::begin(kSetters), std::end(kSetters),
+                                      [&](const auto& s) { return s.first == key; });
+    if (setter == std::end(kSetters)) {
+      std::string known;
+      for (const auto& s : kSetters) known += (known.empty() ? "" : ", ") + std::string(s.first);
+      return fail("--set: unknown key '" + std::string(key) + "' (known: " + known + ")");
+    }
+    setter->second(o, v);
   }
   return o;
 }

@@ -21,6 +21,14 @@ namespace {
 
 constexpr const char* kPredictor = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
 
+// The model file's bytes, for tests that load several detectors from it.
+std::string predictor_bytes() {
+  std::ifstream in(kPredictor, std::ios::binary);
+  std::stringstream model;
+  model << in.rdbuf();
+  return model.str();
+}
+
 struct Shot {
   RgbdFrame frame;
   FrameTruth truth;
@@ -156,10 +164,7 @@ double mean_distance(const std::array<Eigen::Vector2d, 68>& a,
 // the anchoring detection's.
 TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
   if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
-  std::ifstream in(kPredictor, std::ios::binary);
-  std::stringstream model;
-  model << in.rdbuf();
-  const std::string bytes = model.str();
+  const std::string bytes = predictor_bytes();
   std::istringstream in1(bytes), in2(bytes), in3(bytes);
   LandmarkDetectorOptions full_options, window_options;
   full_options.track = false;
@@ -231,10 +236,7 @@ TEST(Landmarks, DlibTrackingFromPointsStaysCloseToFullDetections) {
 // pixels, so the quantisation may only show as an occasional 1 px rounding step.
 TEST(Landmarks, PackedPredictorMatchesDlibsShapePredictor) {
   if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
-  std::ifstream in(kPredictor, std::ios::binary);
-  std::stringstream model;
-  model << in.rdbuf();
-  const std::string bytes = model.str();
+  const std::string bytes = predictor_bytes();
   std::istringstream ours_in(bytes), dlibs_in(bytes);
   LandmarkDetectorOptions full_only;
   full_only.track = false;

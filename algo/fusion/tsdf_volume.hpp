@@ -5,10 +5,15 @@
 // bytes instead of four halve the memory traffic, which is what the ray caster waits on; a
 // weight cap of 31 is a running average with alpha = 1/32, whose noise reduction equals a
 // 63-frame mean.
+// The voxels live in anonymous zero pages mapped for the volume: a page is resident only once a
+// brick in it is written, so the 32 MB cube costs the memory of the bricks a take integrates
+// (the face's band), not the whole cube (reads of untouched bricks see the shared zero page).
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -30,6 +35,12 @@ struct Voxel {
   }
 };
 
+// munmap of a TsdfVolume's voxel pages.
+struct VoxelPagesDeleter {
+  std::size_t bytes = 0;
+  void operator()(Voxel* pages) const;
+};
+
 class TsdfVolume {
  public:
   static constexpr int kBrickShift = 3;
@@ -47,7 +58,7 @@ class TsdfVolume {
   float voxel_size() const { return voxel_size_; }
   float size_mm() const { return voxel_size_ * static_cast<float>(resolution_); }
   const Eigen::Vector3f& origin() const { return origin_; }
-  std::size_t memory_bytes() const { return voxels_.size() * sizeof(Voxel); }
+  std::size_t memory_bytes() const { return voxel_count_ * sizeof(Voxel); }
 
   // Index of voxel (x, y, z) in the bricked layout.
   std::size_t index(int x, int y, int z) const {
@@ -58,11 +69,11 @@ class TsdfVolume {
            static_cast<std::size_t>(((z & (kBrick - 1)) << (2 * kBrickShift)) |
                                     ((y & (kBrick - 1)) << kBrickShift) | (x & (kBrick - 1)));
   }
-  Voxel& at(int x, int y, int z) { return voxels_[index(x, y, z)]; }
-  const Voxel& at(int x, int y, int z) const { return voxels_[index(x, y, z)]; }
-  Voxel* brick_data(int brick) { return voxels_.data() + (static_cast<std::size_t>(brick) << 9); }
+  Voxel& at(int x, int y, int z) { return voxels_.get()[index(x, y, z)]; }
+  const Voxel& at(int x, int y, int z) const { return voxels_.get()[index(x, y, z)]; }
+  Voxel* brick_data(int brick) { return voxels_.get() + (static_cast<std::size_t>(brick) << 9); }
   const Voxel* brick_data(int brick) const {
-    return voxels_.data() + (static_cast<std::size_t>(brick) << 9);
+    return voxels_.get() + (static_cast<std::size_t>(brick) << 9);
   }
 
   // Bricks that have ever been integrated (for meshing and statistics).
@@ -82,7 +93,7 @@ class TsdfVolume {
     if ((x & (kBrick - 1)) != kBrick - 1 && (y & (kBrick - 1)) != kBrick - 1 &&
         (z & (kBrick - 1)) != kBrick - 1) {
       // All 8 corners in one brick (2 in 3 cells): fixed offsets from the first corner.
-      const Voxel* base = voxels_.data() + index(x, y, z);
+      const Voxel* base = voxels_.get() + index(x, y, z);
       constexpr int kOffsets[8] = {0, 1, 8, 9, 64, 65, 72, 73};
       for (int i = 0; i < 8; ++i) {
         const Voxel& v = base[kOffsets[i]];
@@ -108,7 +119,8 @@ class TsdfVolume {
   int bricks_ = 0;
   float voxel_size_ = 0.0f;
   Eigen::Vector3f origin_ = Eigen::Vector3f::Zero();
-  std::vector<Voxel> voxels_;
+  std::unique_ptr<Voxel, VoxelPagesDeleter> voxels_;
+  std::size_t voxel_count_ = 0;
   std::vector<std::uint8_t> touched_;
 };
 

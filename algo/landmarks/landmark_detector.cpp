@@ -210,9 +210,9 @@ struct ShapeCascade {
         while (i < count)
           i = features[splits[i].idx1] - features[splits[i].idx2] > splits[i].thresh ? 2 * i + 1
                                                                                      : 2 * i + 2;
-        const std::int16_t* leaf =
-            level.leaves.data() + static_cast<std::size_t>(level.leaf_begin[t] + i - count) * n;
-        leaves[t] = {leaf, level.leaf_scale[level.leaf_begin[t] + i - count]};
+        const std::uint32_t leaf_index = level.leaf_begin[t] + i - count;
+        const std::int16_t* leaf = level.leaves.data() + static_cast<std::size_t>(leaf_index) * n;
+        leaves[t] = {leaf, level.leaf_scale[leaf_index]};
         __builtin_prefetch(leaf);
       }
       // Sum in tree order, prefetching a few leaves ahead.

@@ -50,8 +50,9 @@ struct FitTarget {
   std::array<FitLandmark, kFitLandmarkCount> landmarks;
 };
 
-// Fills target.normals from target.depth_mm (central differences, unit, towards the camera)
-// and checks the target: sizes, enough depth in the landmarks' region, enough landmarks.
+// Fills target.normals from target.depth_mm (central differences, unit, towards the camera),
+// or keeps the given ones but clears them on silhouettes and the rims of holes, and checks the
+// target: sizes, enough depth in the landmarks' region, enough landmarks.
 // Errors say what is missing ("no face landmarks", "no depth in the face region").
 Result<void> prepare_fit_target(FitTarget& target);
 

@@ -258,5 +258,36 @@ TEST(Fitting, BadInputGivesClearErrors) {
   ASSERT_FALSE(f.ok());
 }
 
+// A ray-cast view comes with its own normals, one-sided on its rims; the fit keeps them only
+// inside one surface, so the rims of holes and the silhouette never enter Epos.
+TEST(Fitting, GivenNormalsAreClearedOnRimsOfHolesAndSilhouettes) {
+  const auto truth = face({});
+  FitTarget t = render_target(truth, truth_pose(truth));
+  const Eigen::Vector3d nose = t.landmarks[30].point.value();
+  const Eigen::Vector2d nose_px = t.intrinsics.project(nose);
+  const int hx = static_cast<int>(nose_px.x()) + 30, hy = static_cast<int>(nose_px.y());
+  for (int y = hy; y < hy + 10; ++y)
+    for (int x = hx; x < hx + 10; ++x) t.depth_mm.at(x, y) = 0.0f;  // a hole on the cheek
+  ASSERT_GT(t.depth_mm.at(hx - 5, hy + 5), 0.0f);
+  const Eigen::Vector3f marker(0.0f, 0.0f, -1.0f);
+  std::fill(t.normals.pixels.begin(), t.normals.pixels.end(), marker);
+  ASSERT_TRUE(prepare_fit_target(t).ok());
+  EXPECT_EQ(t.normals.at(hx + 5, hy + 5), Eigen::Vector3f::Zero());  // in the hole
+  EXPECT_EQ(t.normals.at(hx - 1, hy + 5), Eigen::Vector3f::Zero());  // its rim
+  EXPECT_EQ(t.normals.at(hx + 10, hy + 5), Eigen::Vector3f::Zero());
+  EXPECT_EQ(t.normals.at(hx + 5, hy - 1), Eigen::Vector3f::Zero());
+  EXPECT_EQ(t.normals.at(hx - 5, hy + 5), marker);  // the surface beside it keeps its normal
+  EXPECT_EQ(t.normals.at(2, 2), Eigen::Vector3f::Zero());  // background
+  int kept = 0, silhouette_kept = 0;
+  for (int y = 1; y + 1 < t.depth_mm.height; ++y)
+    for (int x = 1; x + 1 < t.depth_mm.width; ++x) {
+      if (t.normals.at(x, y) != marker) continue;
+      ++kept;
+      if (t.depth_mm.at(x - 1, y) <= 0.0f || t.depth_mm.at(x + 1, y) <= 0.0f) ++silhouette_kept;
+    }
+  EXPECT_GT(kept, 20000);
+  EXPECT_EQ(silhouette_kept, 0);
+}
+
 }  // namespace
 }  // namespace fb

@@ -276,7 +276,7 @@ TEST(Fitting, GivenNormalsAreClearedOnRimsOfHolesAndSilhouettes) {
   EXPECT_EQ(t.normals.at(hx - 1, hy + 5), Eigen::Vector3f::Zero());  // its rim
   EXPECT_EQ(t.normals.at(hx + 10, hy + 5), Eigen::Vector3f::Zero());
   EXPECT_EQ(t.normals.at(hx + 5, hy - 1), Eigen::Vector3f::Zero());
-  EXPECT_EQ(t.normals.at(hx - 5, hy + 5), marker);  // the surface beside it keeps its normal
+  EXPECT_EQ(t.normals.at(hx - 5, hy + 5), marker);         // the surface beside it keeps its normal
   EXPECT_EQ(t.normals.at(2, 2), Eigen::Vector3f::Zero());  // background
   int kept = 0, silhouette_kept = 0;
   for (int y = 1; y + 1 < t.depth_mm.height; ++y)

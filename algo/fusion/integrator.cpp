@@ -5,14 +5,141 @@
 #include <cstdint>
 #include <cstring>
 
+#include "algo/fusion/multiversion.hpp"
+
 namespace fb {
 namespace {
 
-using V4f = float __attribute__((vector_size(16)));
-using V4i = int __attribute__((vector_size(16)));
-using V4u16 = std::uint16_t __attribute__((vector_size(8)));
-constexpr V4f kLane = {0.0f, 1.0f, 2.0f, 3.0f};
-constexpr V4f kHalf = {0.5f, 0.5f, 0.5f, 0.5f};
+// GCC vector extension types of 4 and 8 lanes (a dependent vector_size is not accepted).
+template <int kLanes>
+struct Lanes;
+template <>
+struct Lanes<4> {
+  using F = float __attribute__((vector_size(16)));
+  using I = int __attribute__((vector_size(16)));
+  using U16 = std::uint16_t __attribute__((vector_size(8)));
+};
+template <>
+struct Lanes<8> {
+  using F = float __attribute__((vector_size(32)));
+  using I = int __attribute__((vector_size(32)));
+  using U16 = std::uint16_t __attribute__((vector_size(16)));
+};
+
+// Everything the voxel loop reads, in the camera frame of the frame being fused.
+struct BrickUpdate {
+  TsdfVolume* volume = nullptr;
+  const int* bricks = nullptr;
+  const float* depth_lo = nullptr;  // per brick: depth range of the rays that marked it
+  const float* depth_hi = nullptr;
+  const Image<float>* depth = nullptr;
+  LevelIntrinsics k;
+  FaceBox box;
+  Eigen::Vector3f step_x, step_y, step_z;  // one voxel along the volume's axes
+  Eigen::Vector3f origin_c;                // centre of voxel (0, 0, 0)
+  float mu = 8.0f;
+  int max_weight = 31;
+};
+
+// Updates every voxel of bricks[i0, i1): project its centre, read the pixel's depth,
+// sdf = d - z (projective, along the optical axis), tsdf = min(1, sdf / mu); voxels more than
+// mu behind the surface are occluded and stay as they are.
+// A brick row of 8 voxels is processed as 8 / kLanes vectors of kLanes lanes (GCC/Clang vector
+// extensions); only the depth gather is scalar. Branch-free within a vector: voxels outside the
+// band are rewritten unchanged.
+template <int kLanes>
+__attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate& a, int i0,
+                                                              int i1) {
+  using VF = typename Lanes<kLanes>::F;
+  using VI = typename Lanes<kLanes>::I;
+  using VU16 = typename Lanes<kLanes>::U16;
+  VF lane{};
+  for (int i = 0; i < kLanes; ++i) lane[i] = static_cast<float>(i);
+  const int nb = a.volume->bricks_per_side();
+  const LevelIntrinsics& k = a.k;
+  const Eigen::Vector3f &step_x = a.step_x, &step_y = a.step_y, &step_z = a.step_z;
+  const float mu = a.mu;
+  const float inv_mu = 1.0f / mu;
+  const int max_w = a.max_weight;
+  const int bx0 = a.box.x, bx1 = a.box.x + a.box.width, by0 = a.box.y,
+            by1 = a.box.y + a.box.height;
+  const int stride = a.depth->width;
+  const float* dpix = a.depth->pixels.data();
+  const float part_dz = static_cast<float>(kLanes - 1) * step_x.z();
+  for (int i = i0; i < i1; ++i) {
+    const int b = a.bricks[i];
+    const int bx = b % nb, by = (b / nb) % nb, bz = b / (nb * nb);
+    Voxel* vox = a.volume->brick_data(b);
+    const Eigen::Vector3f base = a.origin_c + step_x * static_cast<float>(bx * 8) +
+                                 step_y * static_cast<float>(by * 8) +
+                                 step_z * static_cast<float>(bz * 8);
+    // Camera depth of the brick's voxel rows is linear in (y, z) and along the row; vectors
+    // entirely outside [d_lo - mu, d_hi + mu] are skipped.
+    const float keep_lo = a.depth_lo[b] - mu, keep_hi = a.depth_hi[b] + mu;
+    for (int z = 0; z < 8; ++z) {
+      for (int y = 0; y < 8; ++y) {
+        const Eigen::Vector3f p0 =
+            base + step_z * static_cast<float>(z) + step_y * static_cast<float>(y);
+        Voxel* row = vox + (z << 6) + (y << 3);
+        for (int first = 0; first < 8; first += kLanes) {
+          const float za = p0.z() + static_cast<float>(first) * step_x.z();
+          const float zb = za + part_dz;
+          if (std::max(za, zb) < keep_lo || std::min(za, zb) > keep_hi) continue;
+          const VF xs = lane + static_cast<float>(first);
+          const VF px = p0.x() + xs * step_x.x();
+          const VF py = p0.y() + xs * step_x.y();
+          const VF pz = p0.z() + xs * step_x.z();
+          const VF iz = 1.0f / (pz > 1e-3f ? pz : VF{} + 1e-3f);
+          const VI u = __builtin_convertvector(k.fx * px * iz + (k.cx + 0.5f), VI);
+          const VI w = __builtin_convertvector(k.fy * py * iz + (k.cy + 0.5f), VI);
+          const VI in_box = (u >= bx0) & (u < bx1) & (w >= by0) & (w < by1) & (pz > 0.0f);
+          // Out-of-box lanes read pixel 0 (always in the image) and are masked afterwards.
+          const VI idx = (w * stride + u) & in_box;
+          VF d_read;
+          for (int l = 0; l < kLanes; ++l) d_read[l] = dpix[idx[l]];
+          const VF d = in_box ? d_read : VF{};
+          const VF sdf = d - pz;
+          const VI update = in_box & (d > 0.0f) & (sdf >= -mu);
+          VF f = sdf * inv_mu;
+          f = f < 1.0f ? f : VF{} + 1.0f;
+          Voxel* cell = row + first;
+          VU16 packed;
+          std::memcpy(&packed, cell, sizeof packed);
+          const VI word = __builtin_convertvector(packed, VI);
+          const VI wo = word & Voxel::kMaxWeight;
+          const VI to = (word << 16) >> (16 + Voxel::kWeightBits);  // sign-extended TSDF
+          // Running average in TSDF units: t' = t + (f * scale - t) / (w + 1).
+          const VF tof = __builtin_convertvector(to, VF);
+          const VF inv = 1.0f / (__builtin_convertvector(wo, VF) + 1.0f);
+          const VF tn = tof + (f * TsdfVolume::kTsdfScale - tof) * inv;
+          const VI tq = __builtin_convertvector(tn + (tn >= 0.0f ? VF{} + 0.5f : VF{} - 0.5f), VI);
+          const VI wn = wo + 1 < max_w ? wo + 1 : VI{} + max_w;
+          const VI out = ((update ? tq : to) << Voxel::kWeightBits) | (update ? wn : wo);
+          packed = __builtin_convertvector(out & 0xffff, VU16);
+          std::memcpy(static_cast<void*>(cell), &packed, sizeof packed);
+        }
+      }
+    }
+  }
+}
+
+// 4 lanes: SSE2 on any x86-64, NEON on the device.
+void update_bricks_4(const BrickUpdate& a, int i0, int i1) { update_bricks_impl<4>(a, i0, i1); }
+
+#if FB_HAVE_X86_64_V3
+// 8 lanes, a whole brick row at once, where the CPU has AVX2 and FMA (chosen at run time).
+FB_TARGET_X86_64_V3 void update_bricks_8(const BrickUpdate& a, int i0, int i1) {
+  update_bricks_impl<8>(a, i0, i1);
+}
+#endif
+
+using UpdateBricksFn = void (*)(const BrickUpdate&, int, int);
+UpdateBricksFn choose_update_bricks() {
+#if FB_HAVE_X86_64_V3
+  if (cpu_has_x86_64_v3()) return &update_bricks_8;
+#endif
+  return &update_bricks_4;
+}
 
 }  // namespace
 
@@ -107,80 +234,26 @@ int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& 
     touched[b] = 1;
   }
 
-  // 2. Update every voxel of the marked bricks: project its centre, read the pixel's depth,
-  // sdf = d - z (projective, along the optical axis), tsdf = min(1, sdf / mu); voxels more than
-  // mu behind the surface are occluded and stay as they are.
+  // 2. Update every voxel of the marked bricks.
   const PoseF cam = world_from_camera.inverse();
-  const Eigen::Vector3f step_x = cam.r.col(0) * vs, step_y = cam.r.col(1) * vs,
-                        step_z = cam.r.col(2) * vs;
-  const Eigen::Vector3f origin_c =
-      cam.apply(volume.origin() + Eigen::Vector3f::Constant(0.5f * vs));
-  const float inv_mu = 1.0f / mu;
-  const int max_w = max_weight_;
-  const int bx0 = box.x, bx1 = box.x + box.width, by0 = box.y, by1 = box.y + box.height;
-  const int stride = depth.width;
-  const float* dpix = depth.pixels.data();
+  BrickUpdate update;
+  update.volume = &volume;
+  update.bricks = bricks_.data();
+  update.depth_lo = depth_lo_.data();
+  update.depth_hi = depth_hi_.data();
+  update.depth = &depth;
+  update.k = k;
+  update.box = box;
+  update.step_x = cam.r.col(0) * vs;
+  update.step_y = cam.r.col(1) * vs;
+  update.step_z = cam.r.col(2) * vs;
+  update.origin_c = cam.apply(volume.origin() + Eigen::Vector3f::Constant(0.5f * vs));
+  update.mu = mu;
+  update.max_weight = max_weight_;
   runner.run([&](int part, int parts) {
     int i0, i1;
     ParallelRunner::split(0, static_cast<int>(bricks_.size()), part, parts, i0, i1);
-    for (int i = i0; i < i1; ++i) {
-      const int b = bricks_[i];
-      const int bx = b % nb, by = (b / nb) % nb, bz = b / (nb * nb);
-      Voxel* vox = volume.brick_data(b);
-      const Eigen::Vector3f base = origin_c + step_x * static_cast<float>(bx * 8) +
-                                   step_y * static_cast<float>(by * 8) +
-                                   step_z * static_cast<float>(bz * 8);
-      // Camera depth of the brick's voxel rows is linear in (y, z) and along the row; rows
-      // (as 4-voxel halves) entirely outside [d_lo - mu, d_hi + mu] are skipped.
-      const float keep_lo = depth_lo_[b] - mu, keep_hi = depth_hi_[b] + mu;
-      const float half_dz = 3.0f * step_x.z();
-      for (int z = 0; z < 8; ++z) {
-        for (int y = 0; y < 8; ++y) {
-          const Eigen::Vector3f p0 =
-              base + step_z * static_cast<float>(z) + step_y * static_cast<float>(y);
-          Voxel* v = vox + (z << 6) + (y << 3);
-          // One row of 8 voxels as two 4-lane vectors (GCC/Clang vector extensions: SSE2 here,
-          // NEON on the device); only the depth gather is scalar. Branch-free: voxels outside
-          // the band are rewritten unchanged.
-          for (int half = 0; half < 2; ++half) {
-            const float za = p0.z() + static_cast<float>(4 * half) * step_x.z();
-            const float zb = za + half_dz;
-            if (std::max(za, zb) < keep_lo || std::min(za, zb) > keep_hi) continue;
-            const V4f xs = kLane + static_cast<float>(4 * half);
-            const V4f px = p0.x() + xs * step_x.x();
-            const V4f py = p0.y() + xs * step_x.y();
-            const V4f pz = za + kLane * step_x.z();
-            const V4f iz = 1.0f / (pz > 1e-3f ? pz : V4f{1e-3f, 1e-3f, 1e-3f, 1e-3f});
-            const V4i u = __builtin_convertvector(k.fx * px * iz + (k.cx + 0.5f), V4i);
-            const V4i w = __builtin_convertvector(k.fy * py * iz + (k.cy + 0.5f), V4i);
-            const V4i in_box = (u >= bx0) & (u < bx1) & (w >= by0) & (w < by1) & (pz > 0.0f);
-            // Out-of-box lanes read pixel 0 (always in the image) and are masked afterwards.
-            const V4i idx = (w * stride + u) & in_box;
-            const V4f d_read = {dpix[idx[0]], dpix[idx[1]], dpix[idx[2]], dpix[idx[3]]};
-            const V4f d = in_box ? d_read : V4f{0.0f, 0.0f, 0.0f, 0.0f};
-            const V4f sdf = d - pz;
-            const V4i update = in_box & (d > 0.0f) & (sdf >= -mu);
-            V4f f = sdf * inv_mu;
-            f = f < 1.0f ? f : V4f{1.0f, 1.0f, 1.0f, 1.0f};
-            Voxel* cell = v + 4 * half;
-            V4u16 packed;
-            std::memcpy(&packed, cell, sizeof packed);
-            const V4i word = __builtin_convertvector(packed, V4i);
-            const V4i wo = word & Voxel::kMaxWeight;
-            const V4i to = (word << 16) >> (16 + Voxel::kWeightBits);  // sign-extended TSDF
-            // Running average in TSDF units: t' = t + (f * scale - t) / (w + 1).
-            const V4f tof = __builtin_convertvector(to, V4f);
-            const V4f inv = 1.0f / (__builtin_convertvector(wo, V4f) + 1.0f);
-            const V4f tn = tof + (f * TsdfVolume::kTsdfScale - tof) * inv;
-            const V4i tq = __builtin_convertvector(tn + (tn >= 0.0f ? kHalf : -kHalf), V4i);
-            const V4i wn = wo + 1 < max_w ? wo + 1 : V4i{max_w, max_w, max_w, max_w};
-            const V4i out = ((update ? tq : to) << Voxel::kWeightBits) | (update ? wn : wo);
-            packed = __builtin_convertvector(out & 0xffff, V4u16);
-            std::memcpy(static_cast<void*>(cell), &packed, sizeof packed);
-          }
-        }
-      }
-    }
+    choose_update_bricks()(update, i0, i1);
   });
   return static_cast<int>(bricks_.size());
 }

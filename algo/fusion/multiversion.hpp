@@ -1,0 +1,26 @@
+// The few per-voxel loops of fusion that are worth a second build for wider vectors: on x86-64
+// with GCC or Clang, FB_TARGET_X86_64_V3 compiles a function for x86-64-v3 (AVX2, FMA) and
+// cpu_has_x86_64_v3() tells at run time whether this CPU may call it. Elsewhere (arm64: NEON is
+// the baseline) FB_HAVE_X86_64_V3 is 0 and only the baseline build exists. Only the marked
+// functions change instruction set, so inline code they share with the rest of the program
+// (Eigen) keeps one instruction set per emitted symbol.
+#pragma once
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define FB_HAVE_X86_64_V3 1
+#define FB_TARGET_X86_64_V3 __attribute__((target("arch=x86-64-v3")))
+#else
+#define FB_HAVE_X86_64_V3 0
+#define FB_TARGET_X86_64_V3
+#endif
+
+namespace fb {
+
+#if FB_HAVE_X86_64_V3
+inline bool cpu_has_x86_64_v3() {
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+         __builtin_cpu_supports("bmi2");
+}
+#endif
+
+}  // namespace fb

@@ -91,6 +91,10 @@ struct FusionOptions {
   float max_frame_rotation_deg = 20.0f;
   int min_valid_pixels_to_start = 2000;
 
+  // Vector width of the voxel update: 0 = the widest this CPU runs (8 lanes, a whole brick row,
+  // on x86-64 with AVX2; 4 lanes elsewhere: SSE2, the device's NEON), or 4 / 8 to choose.
+  int integrate_lanes = 0;
+
   // --- Threads: 1 = the device's single-core figure; 2 uses a second worker ---
   int threads = 1;
 };

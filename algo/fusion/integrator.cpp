@@ -99,7 +99,9 @@ __attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate&
           for (int l = 0; l < kLanes; ++l) d_read[l] = dpix[idx[l]];
           const VF d = in_box ? d_read : VF{};
           const VF sdf = d - pz;
-          const VI update = in_box & (d > 0.0f) & (sdf >= -mu);
+          // Per voxel the same band as per vector above, so that 4 and 8 lanes agree.
+          const VI update =
+              in_box & (d > 0.0f) & (sdf >= -mu) & (pz >= keep_lo) & (pz <= keep_hi);
           VF f = sdf * inv_mu;
           f = f < 1.0f ? f : VF{} + 1.0f;
           Voxel* cell = row + first;
@@ -133,17 +135,23 @@ FB_TARGET_X86_64_V3 void update_bricks_8(const BrickUpdate& a, int i0, int i1) {
 }
 #endif
 
-using UpdateBricksFn = void (*)(const BrickUpdate&, int, int);
-UpdateBricksFn choose_update_bricks() {
-#if FB_HAVE_X86_64_V3
-  if (cpu_has_x86_64_v3()) return &update_bricks_8;
-#endif
-  return &update_bricks_4;
-}
-
 }  // namespace
 
+int TsdfIntegrator::widest_lanes() {
+#if FB_HAVE_X86_64_V3
+  if (cpu_has_x86_64_v3()) return 8;
+#endif
+  return 4;
+}
+
+bool TsdfIntegrator::lanes_supported(int lanes) {
+  return lanes == 0 || lanes == 4 || (lanes == 8 && widest_lanes() == 8);
+}
+
 void TsdfIntegrator::configure(const FusionOptions& options, const TsdfVolume& volume) {
+  lanes_ = options.integrate_lanes == 0 || !lanes_supported(options.integrate_lanes)
+               ? widest_lanes()
+               : options.integrate_lanes;
   truncation_ = options.truncation_mm;
   max_weight_ = std::clamp(options.max_weight, 1, Voxel::kMaxWeight);
   const std::size_t n = static_cast<std::size_t>(volume.bricks_per_side()) *
@@ -253,7 +261,13 @@ int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& 
   runner.run([&](int part, int parts) {
     int i0, i1;
     ParallelRunner::split(0, static_cast<int>(bricks_.size()), part, parts, i0, i1);
-    choose_update_bricks()(update, i0, i1);
+#if FB_HAVE_X86_64_V3
+    if (lanes_ == 8) {
+      update_bricks_8(update, i0, i1);
+      return;
+    }
+#endif
+    update_bricks_4(update, i0, i1);
   });
   return static_cast<int>(bricks_.size());
 }

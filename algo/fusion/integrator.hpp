@@ -22,9 +22,16 @@ class TsdfIntegrator {
   int integrate(const Image<float>& depth, const LevelIntrinsics& k, const FaceBox& box,
                 const PoseF& world_from_camera, TsdfVolume& volume, ParallelRunner& runner);
 
+  // The widest voxel-update vector this CPU runs (8 or 4 lanes), and whether `lanes` (0 = that
+  // widest) is one it runs.
+  static int widest_lanes();
+  static bool lanes_supported(int lanes);
+  int lanes() const { return lanes_; }
+
  private:
   float truncation_ = 8.0f;
   int max_weight_ = 64;
+  int lanes_ = 4;
   std::vector<std::uint8_t> marks_;
   std::vector<int> bricks_;
   std::vector<float> depth_lo_, depth_hi_;  // per marked brick: depth range of its rays

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <new>
+#include <random>
 
 #include "algo/fusion/face_fusion.hpp"
 #include "tests/common/allocation_counter.hpp"
@@ -243,6 +244,69 @@ TEST(Fusion, FaceLeavingTheFrameReportsLossAndRecovers) {
 
 // Steady state: tracking, integrating and ray-casting a frame allocates nothing (one and two
 // threads).
+// The 8-lane voxel update (AVX2 CPUs) and the 4-lane one (SSE2, the device's NEON) compute the
+// same running average: fused at the true poses, their volumes agree voxel for voxel up to a
+// rounding step of the 11-bit TSDF (FMA contraction differs between the two builds).
+TEST(Fusion, FourAndEightLaneVoxelUpdatesAgree) {
+  if (TsdfIntegrator::widest_lanes() < 8)
+    GTEST_SKIP() << "this CPU has no AVX2: only the 4-lane voxel update runs here";
+  const PinholeIntrinsics k = kinect_intrinsics();
+  FaceFusion fusions[2];
+  for (int i = 0; i < 2; ++i) {
+    FusionOptions options;
+    options.integrate_lanes = i == 0 ? 4 : 8;
+    ASSERT_TRUE(fusions[i].reset(k, head_box(), options).ok());
+  }
+  std::mt19937 rng(5);
+  Image<float> truth;
+  DepthImage depth;
+  const int frames = 30;
+  const RigidPose m0 = head_turn_pose(0, frames);
+  for (int f = 0; f < frames; ++f) {
+    const RigidPose mk = head_turn_pose(f, frames);
+    test::render_head(k, mk, truth);
+    test::kinect_noise(truth, rng, depth);
+    const Eigen::Isometry3d rel = m0.isometry() * mk.isometry().inverse();
+    RigidPose pose;
+    pose.rotation = Eigen::Quaterniond(rel.rotation());
+    pose.translation = rel.translation();
+    for (FaceFusion& fusion : fusions) ASSERT_TRUE(fusion.process(depth, &pose).fused);
+  }
+  const TsdfVolume& a = fusions[0].volume();
+  const TsdfVolume& b = fusions[1].volume();
+  ASSERT_EQ(a.touched(), b.touched());
+  long seen = 0, weight_differs = 0, tsdf_differs = 0, diff_sum = 0;
+  int worst = 0;
+  for (std::size_t brick = 0; brick < a.touched().size(); ++brick) {
+    if (!a.touched()[brick]) continue;
+    const Voxel* va = a.brick_data(static_cast<int>(brick));
+    const Voxel* vb = b.brick_data(static_cast<int>(brick));
+    for (int i = 0; i < 512; ++i) {
+      if (va[i].weight() == 0 && vb[i].weight() == 0) continue;
+      ++seen;
+      if (va[i].weight() != vb[i].weight()) {
+        ++weight_differs;  // one sample more or less: the averages differ by that sample
+        continue;
+      }
+      const int diff = std::abs(va[i].tsdf() - vb[i].tsdf());
+      tsdf_differs += diff != 0;
+      diff_sum += diff;
+      worst = std::max(worst, diff);
+    }
+  }
+  std::printf(
+      "%ld seen voxels: weight differs %ld; of the others tsdf differs %ld (mean %.4f, worst %d "
+      "steps of %.4f mm)\n",
+      seen, weight_differs, tsdf_differs, static_cast<double>(diff_sum) / std::max(seen, 1L),
+      worst, 8.0 / TsdfVolume::kTsdfScale);
+  EXPECT_GT(seen, 200000);
+  // A voxel at the edge of the band may be updated by one build and not the other, and a voxel
+  // centre that projects onto a pixel border may read the neighbouring pixel in one of them.
+  EXPECT_LE(weight_differs, seen / 10000);
+  EXPECT_LE(tsdf_differs, seen / 1000);
+  EXPECT_LE(static_cast<double>(diff_sum) / seen, 0.05);  // in TSDF steps
+}
+
 TEST(Fusion, ProcessDoesNotAllocateInSteadyState) {
   for (int threads : {1, 2}) {
     const PinholeIntrinsics k = kinect_intrinsics();

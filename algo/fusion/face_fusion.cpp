@@ -59,8 +59,10 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   if (options.icp_level0_step < 1 || options.icp_level0_step > 2)
     return fail("icp_level0_step must be 1 or 2");
   if (!TsdfIntegrator::lanes_supported(options.integrate_lanes))
-    return fail("integrate_lanes must be 0 (automatic), 4, or 8 where the CPU has AVX2 (this one "
-                "runs at most " + std::to_string(TsdfIntegrator::widest_lanes()) + ")");
+    return fail(
+        "integrate_lanes must be 0 (automatic), 4, or 8 where the CPU has AVX2 (this one "
+        "runs at most " +
+        std::to_string(TsdfIntegrator::widest_lanes()) + ")");
   if (options.truncation_mm < 2.0f * options.volume_size_mm / options.volume_resolution)
     return fail("truncation must span at least 2 voxels (raise it or the resolution)");
   if (auto ok =

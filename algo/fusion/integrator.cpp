@@ -61,8 +61,7 @@ __attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate&
   const float mu = a.mu;
   const float inv_mu = 1.0f / mu;
   const int max_w = a.max_weight;
-  const int bx0 = a.box.x, bx1 = a.box.x + a.box.width, by0 = a.box.y,
-            by1 = a.box.y + a.box.height;
+  const int bx0 = a.box.x, bx1 = a.box.x + a.box.width, by0 = a.box.y, by1 = a.box.y + a.box.height;
   const int stride = a.depth->width;
   const float* dpix = a.depth->pixels.data();
   const float part_dz = static_cast<float>(kLanes - 1) * step_x.z();
@@ -100,8 +99,7 @@ __attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate&
           const VF d = in_box ? d_read : VF{};
           const VF sdf = d - pz;
           // Per voxel the same band as per vector above, so that 4 and 8 lanes agree.
-          const VI update =
-              in_box & (d > 0.0f) & (sdf >= -mu) & (pz >= keep_lo) & (pz <= keep_hi);
+          const VI update = in_box & (d > 0.0f) & (sdf >= -mu) & (pz >= keep_lo) & (pz <= keep_hi);
           VF f = sdf * inv_mu;
           f = f < 1.0f ? f : VF{} + 1.0f;
           Voxel* cell = row + first;
@@ -126,7 +124,9 @@ __attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate&
 }
 
 // 4 lanes: SSE2 on any x86-64, NEON on the device.
-void update_bricks_4(const BrickUpdate& a, int i0, int i1) { update_bricks_impl<4>(a, i0, i1); }
+void update_bricks_4(const BrickUpdate& a, int i0, int i1) {
+  update_bricks_impl<4>(a, i0, i1);
+}
 
 #if FB_HAVE_X86_64_V3
 // 8 lanes, a whole brick row at once, where the CPU has AVX2 and FMA (chosen at run time).

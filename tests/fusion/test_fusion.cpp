@@ -297,8 +297,8 @@ TEST(Fusion, FourAndEightLaneVoxelUpdatesAgree) {
   std::printf(
       "%ld seen voxels: weight differs %ld; of the others tsdf differs %ld (mean %.4f, worst %d "
       "steps of %.4f mm)\n",
-      seen, weight_differs, tsdf_differs, static_cast<double>(diff_sum) / std::max(seen, 1L),
-      worst, 8.0 / TsdfVolume::kTsdfScale);
+      seen, weight_differs, tsdf_differs, static_cast<double>(diff_sum) / std::max(seen, 1L), worst,
+      8.0 / TsdfVolume::kTsdfScale);
   EXPECT_GT(seen, 200000);
   // A voxel at the edge of the band may be updated by one build and not the other, and a voxel
   // centre that projects onto a pixel border may read the neighbouring pixel in one of them.

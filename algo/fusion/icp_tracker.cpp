@@ -5,6 +5,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
+#include "algo/fusion/multiversion.hpp"
+
 namespace fb {
 namespace {
 
@@ -66,8 +68,8 @@ void IcpTracker::configure(const FusionOptions& options) {
   cos_normal_ = std::cos(options.icp_normal_angle_deg * static_cast<float>(M_PI) / 180.0f);
 }
 
-IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, const PoseF& initial,
-                            ParallelRunner& runner) const {
+FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model,
+                                               const PoseF& initial, ParallelRunner& runner) const {
   IcpResult result;
   result.world_from_camera = initial;
   result.solved = true;
@@ -92,7 +94,7 @@ IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model, c
       const int nparts = std::min(runner.parts(), 2);
       for (auto& acc : parts_acc) acc = Normal6{};
       int candidates[2] = {0, 0};
-      auto body = [&](int part, int parts) {
+      auto body = [&](int part, int parts) FB_INLINE {
         if (part >= 2) return;
         int y0, y1;
         ParallelRunner::split(box.y, box.y + box.height, part, std::min(parts, 2), y0, y1);

@@ -163,9 +163,10 @@ void TsdfIntegrator::configure(const FusionOptions& options, const TsdfVolume& v
   depth_hi_.assign(n, 0.0f);
 }
 
-int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& k,
-                              const FaceBox& box, const PoseF& world_from_camera,
-                              TsdfVolume& volume, ParallelRunner& runner) {
+FB_CLONE_X86_64_V3 int TsdfIntegrator::integrate(const Image<float>& depth,
+                                                 const LevelIntrinsics& k, const FaceBox& box,
+                                                 const PoseF& world_from_camera, TsdfVolume& volume,
+                                                 ParallelRunner& runner) {
   const float vs = volume.voxel_size();
   const float inv_vs = 1.0f / vs;
   const int nb = volume.bricks_per_side();
@@ -184,7 +185,7 @@ int TsdfIntegrator::integrate(const Image<float>& depth, const LevelIntrinsics& 
   // space further than the truncation in front of every surface seen through the brick, which
   // is not carved (bricks elsewhere in front of the band are not visited either).
   auto mark_band = [&](const Eigen::Vector3f& gdir, float band_lo, float band_hi, float lo,
-                       float hi) {
+                       float hi) FB_INLINE {
     const float z0 = band_lo - mu, z1 = band_hi + mu;
     const int samples = std::max(2, static_cast<int>(std::ceil((z1 - z0) / (0.5f * brick_mm)))) + 1;
     const float dz = (z1 - z0) / static_cast<float>(samples - 1);

@@ -14,6 +14,16 @@
 #define FB_TARGET_X86_64_V3
 #endif
 
+// FB_CLONE_X86_64_V3 builds a whole function twice, for the baseline and for x86-64-v3, and the
+// loader picks the one this CPU runs (an ifunc; GCC only, not under the sanitizers). Lambdas in
+// it are only in the clone when inlined (mark them FB_INLINE).
+#if FB_HAVE_X86_64_V3 && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+#define FB_CLONE_X86_64_V3 __attribute__((target_clones("default", "arch=x86-64-v3")))
+#else
+#define FB_CLONE_X86_64_V3
+#endif
+#define FB_INLINE __attribute__((always_inline))
+
 namespace fb {
 
 #if FB_HAVE_X86_64_V3

@@ -123,8 +123,8 @@ __attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate&
   }
 }
 
-// 4 lanes: SSE2 on any x86-64, NEON on the device.
-void update_bricks_4(const BrickUpdate& a, int i0, int i1) {
+// 4 lanes: SSE4.1 or SSE2 on x86-64, NEON on the device.
+FB_CLONE_X86_64_V2 void update_bricks_4(const BrickUpdate& a, int i0, int i1) {
   update_bricks_impl<4>(a, i0, i1);
 }
 

@@ -17,10 +17,14 @@
 // FB_CLONE_X86_64_V3 builds a whole function twice, for the baseline and for x86-64-v3, and the
 // loader picks the one this CPU runs (an ifunc; GCC only, not under the sanitizers). Lambdas in
 // it are only in the clone when inlined (mark them FB_INLINE).
+// FB_CLONE_X86_64_V2 does the same for x86-64-v2 (SSE4.1: the 32-bit multiplies, blends and
+// narrowing conversions that 4-lane code needs and that NEON has too).
 #if FB_HAVE_X86_64_V3 && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define FB_CLONE_X86_64_V3 __attribute__((target_clones("default", "arch=x86-64-v3")))
+#define FB_CLONE_X86_64_V2 __attribute__((target_clones("default", "arch=x86-64-v2")))
 #else
 #define FB_CLONE_X86_64_V3
+#define FB_CLONE_X86_64_V2
 #endif
 #define FB_INLINE __attribute__((always_inline))
 

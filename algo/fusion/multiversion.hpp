@@ -6,7 +6,9 @@
 // (Eigen) keeps one instruction set per emitted symbol.
 #pragma once
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// -DFB_NO_X86_MULTIVERSION builds only the baseline paths (the device's: 4 lanes, no clones).
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(FB_NO_X86_MULTIVERSION)
 #define FB_HAVE_X86_64_V3 1
 #define FB_TARGET_X86_64_V3 __attribute__((target("arch=x86-64-v3")))
 #else

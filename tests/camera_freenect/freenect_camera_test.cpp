@@ -315,8 +315,9 @@ TEST_F(FakenectPlayback, RealDumpPlaysToTheEndWithItsOwnRegistration) {
   const double arrival_fps = (frames - 1) / (last_arrival - first_arrival);
   std::cout << "freenect+fakenect: " << frames << " frames, arriving at " << arrival_fps
             << " fps; test loop " << elapsed << " s = " << frames / elapsed << " fps\n";
+  // Reported, not asserted: the rate depends on the machine's load (tests run in parallel), and
+  // timing is measured in benchmarks; that no frame is dropped is asserted per frame above.
   RecordProperty("arrival_fps", std::to_string(arrival_fps));
-  EXPECT_GT(arrival_fps, 20.0);
 
   // The end is sticky.
   const auto again = camera.next_frame(frame, 10ms);

@@ -447,8 +447,8 @@ TEST(Openni2Camera, PlaybackThroughput) {
       "openni2 .oni playback: %d frames 640x480 depth+colour in %.3f s = %.1f fps "
       "(open+start %.1f ms)\n",
       frames, read_s, fps, open_ms);
+  // Reported, not asserted: timing belongs to benchmarks (about 2,000 fps on an idle machine).
   RecordProperty("playback_fps", std::to_string(fps));
-  EXPECT_GT(fps, 30.0) << "playback slower than the sensor's frame rate";
 }
 
 }  // namespace

@@ -48,8 +48,7 @@ struct BrickUpdate {
 // extensions); only the depth gather is scalar. Branch-free within a vector: voxels outside the
 // band are rewritten unchanged.
 template <int kLanes>
-__attribute__((always_inline)) inline void update_bricks_impl(const BrickUpdate& a, int i0,
-                                                              int i1) {
+FB_INLINE inline void update_bricks_impl(const BrickUpdate& a, int i0, int i1) {
   using VF = typename Lanes<kLanes>::F;
   using VI = typename Lanes<kLanes>::I;
   using VU16 = typename Lanes<kLanes>::U16;

@@ -26,7 +26,6 @@ class TsdfIntegrator {
   // widest) is one it runs.
   static int widest_lanes();
   static bool lanes_supported(int lanes);
-  int lanes() const { return lanes_; }
 
  private:
   float truncation_ = 8.0f;

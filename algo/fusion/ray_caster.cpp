@@ -10,9 +10,8 @@
 namespace fb {
 namespace {
 
-// Marching: steps of 0.8 f mu in front of the surface (f = projective distance in units of mu),
-// then one regula falsi step inside the bracket (at most half a voxel wide) before the final
-// secant; a second step changed neither the fused error nor the bias (5 seeds).
+// The marcher's step (a fraction of the distance f mu to the surface) and its regula falsi
+// steps inside the bracket; a second step changed neither the fused error nor the bias (5 seeds).
 constexpr float kStepFraction = 0.8f;
 constexpr int kRefinements = 1;
 

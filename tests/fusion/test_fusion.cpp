@@ -242,11 +242,9 @@ TEST(Fusion, FaceLeavingTheFrameReportsLossAndRecovers) {
   EXPECT_LE(final_error_deg, 0.4);
 }
 
-// Steady state: tracking, integrating and ray-casting a frame allocates nothing (one and two
-// threads).
-// The 8-lane voxel update (AVX2 CPUs) and the 4-lane one (SSE2, the device's NEON) compute the
-// same running average: fused at the true poses, their volumes agree voxel for voxel up to a
-// rounding step of the 11-bit TSDF (FMA contraction differs between the two builds).
+// The 8-lane voxel update (AVX2 CPUs) and the 4-lane one (SSE4.1/SSE2, the device's NEON)
+// compute the same running average: fused at the true poses, their volumes agree voxel for voxel
+// but for rounding (FMA contraction differs between the two builds).
 TEST(Fusion, FourAndEightLaneVoxelUpdatesAgree) {
   if (TsdfIntegrator::widest_lanes() < 8)
     GTEST_SKIP() << "this CPU has no AVX2: only the 4-lane voxel update runs here";
@@ -307,6 +305,8 @@ TEST(Fusion, FourAndEightLaneVoxelUpdatesAgree) {
   EXPECT_LE(static_cast<double>(diff_sum) / seen, 0.05);  // in TSDF steps
 }
 
+// Steady state: tracking, integrating and ray-casting a frame allocates nothing (one and two
+// threads).
 TEST(Fusion, ProcessDoesNotAllocateInSteadyState) {
   for (int threads : {1, 2}) {
     const PinholeIntrinsics k = kinect_intrinsics();

@@ -63,6 +63,22 @@ double mean_distance(std::span<const float> a, std::span<const float> b,
   return subset.empty() ? NAN : s / static_cast<double>(subset.size());
 }
 
+// Mean |R (a - a0) - (b - b0)| over `subset`: the expression part of two faces alone, without
+// the error their neutrals share (R: a's model frame -> b's, rotation only).
+double mean_delta_distance(std::span<const float> a, std::span<const float> a0,
+                           std::span<const float> b, std::span<const float> b0,
+                           std::span<const std::uint32_t> subset, const Eigen::Quaterniond& r) {
+  double s = 0;
+  for (auto v : subset) {
+    const Eigen::Vector3d da(a[3 * v] - a0[3 * v], a[3 * v + 1] - a0[3 * v + 1],
+                             a[3 * v + 2] - a0[3 * v + 2]);
+    const Eigen::Vector3d db(b[3 * v] - b0[3 * v], b[3 * v + 1] - b0[3 * v + 1],
+                             b[3 * v + 2] - b0[3 * v + 2]);
+    s += (r * da - db).norm();
+  }
+  return subset.empty() ? NAN : s / static_cast<double>(subset.size());
+}
+
 std::vector<float> face(const FaceModel& model, std::span<const float> identity,
                         std::span<const float> weights) {
   std::vector<float> m(static_cast<std::size_t>(model.vertex_count) * 3);
@@ -446,8 +462,69 @@ int run_model_build(const ParsedOptions& options) {
 // ---------------------------------------------------------------------------------------------
 // facebooth eval rig
 
+// A synthetic subject's true personal rig (eval rig --truth): its neutral face(identity) and
+// expression shapes, amplitude_j * basis_j, where basis is the model's generic deltas (linear,
+// amplitude) or those deltas deformation-transferred onto the subject's neutral (transfer).
+struct SubjectTruth {
+  std::vector<float> neutral;
+  std::vector<float> expression_basis;  // empty = the model's (generic) expression basis
+  std::vector<float> amplitude;         // per model expression
+
+  // neutral + sum_j amplitude_j w_j basis_j
+  std::vector<float> mesh(const FaceModel& model, std::span<const float> weights) const {
+    std::vector<float> w(amplitude.size(), 0.0f);
+    for (std::size_t j = 0; j < w.size() && j < weights.size(); ++j)
+      w[j] = amplitude[j] * weights[j];
+    std::vector<float> out(neutral.size());
+    if (expression_basis.empty()) {
+      model.evaluate_expressions(neutral, w, out);
+      return out;
+    }
+    out = neutral;
+    for (std::size_t j = 0; j < w.size(); ++j) {
+      if (w[j] == 0.0f) continue;
+      const float* shape = expression_basis.data() + j * neutral.size();
+      for (std::size_t i = 0; i < out.size(); ++i) out[i] += w[j] * shape[i];
+    }
+    return out;
+  }
+};
+
+Result<SubjectTruth> subject_truth(const FaceModel& model, const std::vector<float>& identity,
+                                   const std::string& kind, std::uint64_t seed) {
+  SubjectTruth t;
+  t.neutral = face(model, identity, {});
+  t.amplitude.assign(static_cast<std::size_t>(model.expression_count), 1.0f);
+  if (kind == "amplitude") {
+    std::mt19937_64 krng(seed * 104729 + 3);
+    std::uniform_real_distribution<float> k(0.6f, 1.4f);
+    for (int j = 0; j < model.fitting_expression_count; ++j)
+      t.amplitude[static_cast<std::size_t>(j)] = k(krng);
+  }
+  if (kind == "transfer") {
+    // Sumner-Popovic deformation transfer G0 -> G_j onto this subject's neutral: each triangle
+    // deforms as the generic one does, so a wide mouth opens wider than the generic delta.
+    const std::vector<float> g0 = face(model, {}, {});
+    auto transfer = ExpressionTransfer::create(model, t.neutral, g0);
+    if (!transfer) return transfer.failure();
+    const std::size_t n3 = t.neutral.size();
+    t.expression_basis.assign(model.expression_basis.size(), 0.0f);
+    std::vector<float> unit(static_cast<std::size_t>(model.expression_count), 0.0f);
+    for (int j = 0; j < model.expression_count; ++j) {
+      unit[static_cast<std::size_t>(j)] = 1.0f;
+      auto shape = transfer->transfer(face(model, {}, unit));
+      unit[static_cast<std::size_t>(j)] = 0.0f;
+      if (!shape) return shape.failure();
+      float* out = t.expression_basis.data() + static_cast<std::size_t>(j) * n3;
+      for (std::size_t i = 0; i < n3; ++i) out[i] = (*shape)[i] - t.neutral[i];
+    }
+  }
+  return t;
+}
+
 struct RigScore {
-  Stats train, train_guide, train_truth, heldout, baseline, input_error, seconds;
+  Stats train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
+      input_error, input_delta, guide_delta, seconds;
 };
 
 nlohmann::json score_json(const RigScore& s) {
@@ -457,7 +534,11 @@ nlohmann::json score_json(const RigScore& s) {
           {"heldout_vertex_error_mm", s.heldout.mean()},
           {"heldout_vertex_error_mm_worst_subject", s.heldout.max()},
           {"baseline_heldout_vertex_error_mm", s.baseline.mean()},
+          {"heldout_expression_error_mm", s.heldout_delta.mean()},
+          {"baseline_heldout_expression_error_mm", s.baseline_delta.mean()},
           {"input_vertex_error_mm", s.input_error.mean()},
+          {"input_expression_error_mm", s.input_delta.mean()},
+          {"baseline_train_expression_error_mm", s.guide_delta.mean()},
           {"rig_s_mean", s.seconds.mean()}};
 }
 
@@ -477,8 +558,8 @@ int run_eval_rig(const ParsedOptions& options) {
     return report_failure({"--examples must be fitted, truth or both"});
   const bool use_fitted = which != "truth", use_truth = which != "fitted";
   const std::string truth_kind = options.get("truth");
-  if (truth_kind != "linear" && truth_kind != "amplitude")
-    return report_failure({"--truth must be linear or amplitude"});
+  if (truth_kind != "linear" && truth_kind != "amplitude" && truth_kind != "transfer")
+    return report_failure({"--truth must be linear, amplitude or transfer"});
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
   auto guide = load_guide(*model, options.get("guide"));
@@ -498,16 +579,11 @@ int run_eval_rig(const ParsedOptions& options) {
     const std::uint64_t seed = static_cast<std::uint64_t>(*first_seed + s);
     const auto identity = identity_draw(seed, model->identity_count);
     std::mt19937_64 rng(seed * 7919 + 17);
-    // --truth amplitude: this subject's shape j is k_j times the generic one, k_j ~ U(0.6, 1.4)
-    // (face(c, k o w) is still the face model, so the synthetic camera renders it).
-    std::vector<float> amplitude(static_cast<std::size_t>(model->expression_count), 1.0f);
-    if (truth_kind == "amplitude") {
-      std::mt19937_64 krng(seed * 104729 + 3);
-      std::uniform_real_distribution<float> k(0.6f, 1.4f);
-      for (int j = 0; j < n; ++j) amplitude[static_cast<std::size_t>(j)] = k(krng);
-    }
+    auto truth = subject_truth(*model, identity, truth_kind, seed);
+    if (!truth) return report_failure(truth.error());
     auto personal = [&](std::vector<float> w) {
-      for (std::size_t j = 0; j < w.size() && j < amplitude.size(); ++j) w[j] *= amplitude[j];
+      for (std::size_t j = 0; j < w.size() && j < truth->amplitude.size(); ++j)
+        w[j] *= truth->amplitude[j];
       return w;
     };
     std::vector<std::vector<float>> weights, truth_meshes, fitted_meshes;
@@ -516,7 +592,7 @@ int run_eval_rig(const ParsedOptions& options) {
       if (!w) return report_failure(w.error());
       w->resize(static_cast<std::size_t>(n));
       weights.push_back(*w);
-      truth_meshes.push_back(face(*model, identity, personal(*w)));
+      truth_meshes.push_back(truth->mesh(*model, *w));
     }
     nlohmann::json subject{{"seed", seed}};
     RigidPose fitted_to_truth;  // fitted neutral's model frame -> the true model frame
@@ -532,7 +608,7 @@ int run_eval_rig(const ParsedOptions& options) {
         if (!full) return report_failure(full.error());
         auto cap = capture(*model, identity, personal(*full),
                            seed * 1000 + static_cast<std::uint64_t>(ge.id),
-                           static_cast<int>(*frames), false);
+                           static_cast<int>(*frames), false, truth->expression_basis);
         if (!cap) return report_failure(cap.error());
         auto target = make_fit_target(*cap, noisy(cap->truth_color_px, *noise, rng), false);
         if (!target) return report_failure(target.error());
@@ -570,7 +646,8 @@ int run_eval_rig(const ParsedOptions& options) {
       auto rig = rig_subject(input, o);
       bar.reset();
       if (!rig) return rig.failure();
-      Stats train, train_guide, train_truth, heldout, baseline, input_err;
+      Stats train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
+          input_err, input_delta, guide_delta;
       for (std::size_t i = 1; i < examples.size(); ++i) {
         train.add(mean_distance(evaluate_rig(rig->neutral, rig->shapes, rig->weights[i]),
                                 examples[i], subset));
@@ -580,33 +657,57 @@ int run_eval_rig(const ParsedOptions& options) {
       }
       for (std::size_t i = 0; i < examples.size(); ++i)
         input_err.add(mean_distance(examples[i], truth_meshes[i], subset, to_truth));
+      // How much personal signal the examples carry: their expression parts against the truth's,
+      // beside the generic deltas' error on the same expressions.
+      for (std::size_t i = 1; i < examples.size(); ++i) {
+        input_delta.add(mean_delta_distance(examples[i], examples[0], truth_meshes[i],
+                                            truth_meshes[0], subset, to_truth.rotation));
+        const auto generic_i = face(*model, {}, weights[i]);
+        guide_delta.add(mean_delta_distance(generic_i, generic[0], truth_meshes[i], truth_meshes[0],
+                                            subset, to_truth.rotation));
+      }
       for (const auto& w : random_mixes(static_cast<int>(*mixes), n, seed * 31 + 7)) {
-        const auto truth = face(*model, identity, personal(w));
-        heldout.add(
-            mean_distance(evaluate_rig(rig->neutral, rig->shapes, w), truth, subset, to_truth));
+        const auto true_mesh = truth->mesh(*model, w);
+        const auto rig_mesh = evaluate_rig(rig->neutral, rig->shapes, w);
+        heldout.add(mean_distance(rig_mesh, true_mesh, subset, to_truth));
         // Naive baseline: the generic rig's deltas added to the subject's neutral example.
         std::vector<float> naive = examples[0];
         const auto generic_mix = face(*model, {}, w);
         for (std::size_t k = 0; k < naive.size(); ++k) naive[k] += generic_mix[k] - generic[0][k];
-        baseline.add(mean_distance(naive, truth, subset, to_truth));
+        baseline.add(mean_distance(naive, true_mesh, subset, to_truth));
+        // Both share the neutral example, so compare their expression parts alone as well.
+        heldout_delta.add(mean_delta_distance(rig_mesh, rig->neutral, true_mesh, truth->neutral,
+                                              subset, to_truth.rotation));
+        baseline_delta.add(mean_delta_distance(generic_mix, generic[0], true_mesh, truth->neutral,
+                                               subset, to_truth.rotation));
       }
       score.train.add(train.mean());
       score.train_guide.add(train_guide.mean());
       score.train_truth.add(train_truth.mean());
       score.heldout.add(heldout.mean());
       score.baseline.add(baseline.mean());
+      score.heldout_delta.add(heldout_delta.mean());
+      score.baseline_delta.add(baseline_delta.mean());
       score.input_error.add(input_err.mean());
+      score.input_delta.add(input_delta.mean());
+      score.guide_delta.add(guide_delta.mean());
       score.seconds.add(rig->seconds);
       std::fprintf(stderr,
-                   "  %s examples: train %.3f mm, held-out %.3f mm (baseline %.3f mm), input "
-                   "error %.3f mm, rig %.2f s\n",
-                   label, train.mean(), heldout.mean(), baseline.mean(), input_err.mean(),
+                   "  %s examples: train %.3f mm, held-out %.3f mm (baseline %.3f mm), "
+                   "expression part %.3f mm (baseline %.3f mm), input error %.3f mm (expression "
+                   "part %.3f mm; generic deltas there %.3f mm), rig %.2f s\n",
+                   label, train.mean(), heldout.mean(), baseline.mean(), heldout_delta.mean(),
+                   baseline_delta.mean(), input_err.mean(), input_delta.mean(), guide_delta.mean(),
                    rig->seconds);
       return nlohmann::json{{"train_vertex_error_mm", train.mean()},
                             {"train_vs_truth_vertex_error_mm", train_truth.mean()},
                             {"heldout_vertex_error_mm", heldout.mean()},
                             {"baseline_heldout_vertex_error_mm", baseline.mean()},
+                            {"heldout_expression_error_mm", heldout_delta.mean()},
+                            {"baseline_heldout_expression_error_mm", baseline_delta.mean()},
                             {"input_vertex_error_mm", input_err.mean()},
+                            {"input_expression_error_mm", input_delta.mean()},
+                            {"baseline_train_expression_error_mm", guide_delta.mean()},
                             {"round_mean_residual_mm", rig->round_residual_mm},
                             {"rig_s", rig->seconds}};
     };
@@ -633,8 +734,14 @@ int run_eval_rig(const ParsedOptions& options) {
   out["truth"] = truth_kind;
   out["definitions"] = {
       {"truth",
-       "personal rig B_j = face(identity, e_j): the model's expression shapes on the "
-       "subject's identity; examples = the 20 guide recipes on that subject"},
+       truth_kind == "transfer"
+           ? "personal rig B_j = the generic expression j deformation-transferred onto "
+             "face(identity); examples = the 20 guide recipes on that subject"
+       : truth_kind == "amplitude"
+           ? "personal rig B_j = face(identity, k_j e_j), k_j ~ U(0.6, 1.4) per subject; "
+             "examples = the 20 guide recipes on that subject"
+           : "personal rig B_j = face(identity, e_j): the model's expression shapes on the "
+             "subject's identity; examples = the 20 guide recipes on that subject"},
       {"train_vertex_error_mm",
        "rig at its re-estimated example weights vs the training meshes it was given"},
       {"train_vertex_error_mm_guide_weights", "the same at the guide recipes' weights"},
@@ -643,7 +750,16 @@ int run_eval_rig(const ParsedOptions& options) {
        "random mixes (each shape on with p = 0.2, weight U(0,1)) vs the true mesh"},
       {"baseline_heldout_vertex_error_mm",
        "naive rig: generic deltas added to the subject's neutral example, same mixes"},
+      {"heldout_expression_error_mm",
+       "the expression part alone, |R (rig(w) - B_0) - (truth(w) - truth neutral)|: the rig and "
+       "the baseline share the neutral example, whose fitting error otherwise dominates both"},
+      {"baseline_heldout_expression_error_mm", "the same for the generic deltas"},
       {"input_vertex_error_mm", "the training meshes themselves vs the truth (fitting error)"},
+      {"input_expression_error_mm",
+       "the training meshes' expression parts (S_i - S_0) vs the truth's: the personal signal "
+       "the examples carry is usable only where this is below the next figure"},
+      {"baseline_train_expression_error_mm",
+       "the generic deltas' expression parts vs the truth's, on the 19 training expressions"},
       {"region",
        "mean over the model's 7801 fitting vertices; fitted meshes are compared in "
        "the true model frame through the neutral fit's pose (as eval fit does)"}};
@@ -1072,10 +1188,12 @@ std::vector<Command> rig_commands() {
       {"frames", "N", "frames per head-turn take fused", "45"},
       {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
       {"mixes", "N", "held-out random expression mixes per subject", "20"},
-      {"truth", "linear|amplitude",
+      {"truth", "linear|amplitude|transfer",
        "true personal rig: linear = the model's expression shapes on the subject's identity (the "
        "naive baseline is then exact up to the neutral's error); amplitude = each shape also "
-       "scaled by a per-subject factor in [0.6, 1.4], so personal deltas differ from the generic",
+       "scaled by a per-subject factor in [0.6, 1.4]; transfer = the generic expressions "
+       "deformation-transferred onto the subject's neutral, so personal deltas follow the "
+       "subject's geometry",
        "linear"},
       {"examples", "fitted|truth|both",
        "train on fitted meshes from the fitting stage, on the exact meshes, or both (the "

@@ -32,8 +32,10 @@ Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
 
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
-                        bool keep_colors) {
+                        bool keep_colors, std::span<const float> personal_expression_basis) {
   SyntheticOptions so;
+  so.personal_expression_basis.assign(personal_expression_basis.begin(),
+                                      personal_expression_basis.end());
   so.seed = seed;
   so.identity_coeffs = identity;
   so.expression_weights = weights;
@@ -67,8 +69,11 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
       c.truth_depth_px = t->landmarks_depth_px;
       c.noiseless = t->noiseless_depth_mm;
       c.truth_pose = t->camera_from_model;
+      // The rendered skin itself (it holds a personal expression basis when one is given).
       c.truth_mesh.resize(static_cast<std::size_t>(model.vertex_count) * 3);
-      model.evaluate(t->identity_coeffs, t->expression_weights, c.truth_mesh);
+      const auto rendered = (*camera)->model_vertices();
+      for (int v = 0; v < model.vertex_count; ++v)
+        for (int a = 0; a < 3; ++a) c.truth_mesh[3 * v + a] = rendered[v][a];
       if (r.state != TrackingState::kStarted)
         return fail("fusion did not start on the frontal frame");
       first = r.world_from_camera;

@@ -44,9 +44,11 @@ struct Capture {
   double fusion_ms = 0;
 };
 
+// `personal_expression_basis`: the subject's own expression shapes (SyntheticOptions), or empty
+// for the model's generic ones.
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
-                        bool keep_colors);
+                        bool keep_colors, std::span<const float> personal_expression_basis = {});
 
 // The fit target of a capture: colour-image landmarks lifted with the registration and the
 // fused depth (or, for diagnostics, the noiseless rendering).

@@ -273,6 +273,49 @@ TEST(SyntheticCamera, TruthIsConsistentWithRenderedDepth) {
   EXPECT_GT(measured, 200000);
 }
 
+// A personal expression basis replaces the generic one: twice the generic shapes at weight 0.5
+// render the generic face at weight 1, and the truth landmarks follow the personal shapes.
+TEST(SyntheticCamera, PersonalExpressionBasisIsRendered) {
+  const int jaw = model().expression_index("jawOpen");
+  ASSERT_GE(jaw, 0);
+  auto first_frame = [&](const SyntheticOptions& options, std::vector<Eigen::Vector3f>& mesh) {
+    auto camera = make(options);
+    RgbdFrame frame;
+    EXPECT_EQ(*camera->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
+    mesh.assign(camera->model_vertices().begin(), camera->model_vertices().end());
+    return camera->truth()->landmarks_3d;
+  };
+  SyntheticOptions generic;
+  generic.motion = SyntheticMotion::kStatic;
+  generic.frame_count = 1;
+  generic.expression_weights.assign(static_cast<std::size_t>(model().expression_count), 0.0f);
+  generic.expression_weights[static_cast<std::size_t>(jaw)] = 1.0f;
+  SyntheticOptions personal = generic;
+  personal.expression_weights[static_cast<std::size_t>(jaw)] = 0.5f;
+  personal.personal_expression_basis = model().expression_basis;
+  for (float& v : personal.personal_expression_basis) v *= 2.0f;
+  std::vector<Eigen::Vector3f> generic_mesh, personal_mesh;
+  const auto generic_lm = first_frame(generic, generic_mesh);
+  const auto personal_lm = first_frame(personal, personal_mesh);
+  ASSERT_EQ(generic_mesh.size(), personal_mesh.size());
+  double worst = 0;
+  for (std::size_t v = 0; v < generic_mesh.size(); ++v)
+    worst = std::max(worst, static_cast<double>((generic_mesh[v] - personal_mesh[v]).norm()));
+  EXPECT_LT(worst, 1e-3);
+  EXPECT_LT((generic_lm[57] - personal_lm[57]).norm(), 1e-3);  // lower lip, moved by jawOpen
+  // The lower lip did move (so the comparison above is not of two neutral faces).
+  SyntheticOptions neutral = generic;
+  neutral.expression_weights.clear();
+  std::vector<Eigen::Vector3f> neutral_mesh;
+  EXPECT_GT((first_frame(neutral, neutral_mesh)[57] - generic_lm[57]).norm(), 5.0);
+
+  SyntheticOptions wrong = personal;
+  wrong.personal_expression_basis.resize(12);
+  auto bad = make_synthetic_camera(model(), wrong);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("personal_expression_basis"), std::string::npos);
+}
+
 TEST(SyntheticCamera, EveryDepthIsRawToMmOfItsRaw) {
   SyntheticOptions options;
   options.frame_count = 2;

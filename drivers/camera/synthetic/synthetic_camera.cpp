@@ -587,6 +587,13 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   auto too_many = [&](const std::vector<float>& w) {
     return w.size() > static_cast<std::size_t>(model.expression_count);
   };
+  if (!options.personal_expression_basis.empty() &&
+      options.personal_expression_basis.size() != model.expression_basis.size()) {
+    return fail("synthetic: personal_expression_basis has " +
+                std::to_string(options.personal_expression_basis.size()) +
+                " floats; the model's expression basis has " +
+                std::to_string(model.expression_basis.size()));
+  }
   if (too_many(options.expression_weights) ||
       std::any_of(options.expression_track.begin(), options.expression_track.end(), too_many)) {
     return fail("synthetic: more expression weights than the model's " +
@@ -618,7 +625,10 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   s.current_weights.assign(static_cast<std::size_t>(model.expression_count), 0.0f);
   std::copy_n(options.expression_weights.begin(), options.expression_weights.size(),
               s.current_weights.begin());
-  if (!options.expression_track.empty()) s.expression_basis = model.expression_basis;
+  const std::vector<float>& basis = options.personal_expression_basis.empty()
+                                        ? model.expression_basis
+                                        : options.personal_expression_basis;
+  if (!options.expression_track.empty()) s.expression_basis = basis;
 
   for (int l = 0; l < 68; ++l) {
     const auto v = s.landmarks[l];
@@ -684,10 +694,9 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   }
 
   // The static expression (or the first frame's) so model_vertices() is meaningful at once.
-  s.set_expression(model.expression_basis,
-                   options.expression_track.empty()
-                       ? std::span<const float>(s.current_weights)
-                       : std::span<const float>(options.expression_track.front()));
+  s.set_expression(basis, options.expression_track.empty()
+                              ? std::span<const float>(s.current_weights)
+                              : std::span<const float>(options.expression_track.front()));
 
   // Albedo painted on the rest pose (identity, no expression), so it moves with expressions.
   const float skin_tone =

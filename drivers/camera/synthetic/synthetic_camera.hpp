@@ -67,6 +67,11 @@ struct SyntheticOptions {
   // Optional per-frame expression weights; when non-empty, frame i uses
   // expression_track[min(i, size - 1)] instead of `expression_weights`.
   std::vector<std::vector<float>> expression_track;
+  // This subject's own expression shapes, same layout as FaceModel::expression_basis (deltas from
+  // the neutral, expression_count blocks of 3 * vertex_count); empty = the model's generic ones.
+  // A subject whose expressions are not the generic deltas (e.g. the generic ones deformation-
+  // transferred onto its identity) gives the rigging a personal signal to recover.
+  std::vector<float> personal_expression_basis;
 
   SyntheticMotion motion = SyntheticMotion::kHeadTurn;
   double yaw_amplitude_deg = 30.0;

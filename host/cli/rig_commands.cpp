@@ -113,7 +113,7 @@ std::vector<OptionSpec> rig_option_specs() {
   const RigOptions d;
   return {{"rounds", "N", "alternations of blendshape solve and example-weight update",
            std::to_string(d.rounds)},
-          {"prior-weight", "BETA", "weight of the generic-rig prior (Li et al.'s beta)", "0.05"},
+          {"prior-weight", "BETA", "weight of the generic-rig prior (Li et al.'s beta)", "0.2"},
           {"weight-regularization", "GAMMA",
            "pull of the re-estimated example weights towards the guide recipes (mm^2)", "0.05"}};
 }
@@ -1194,7 +1194,7 @@ std::vector<Command> rig_commands() {
        "scaled by a per-subject factor in [0.6, 1.4]; transfer = the generic expressions "
        "deformation-transferred onto the subject's neutral, so personal deltas follow the "
        "subject's geometry",
-       "linear"},
+       "transfer"},
       {"examples", "fitted|truth|both",
        "train on fitted meshes from the fitting stage, on the exact meshes, or both (the "
        "headline keys are from the fitted run unless truth alone is asked)",
@@ -1231,10 +1231,12 @@ std::vector<Command> rig_commands() {
       {{"eval rig", "score rigging on synthetic subjects with known personal rigs (JSON on stdout)",
         "Per subject: the 20 guide expressions are captured (synthetic take -> fusion) and fitted "
         "as `eval fit` does, the fitted meshes are rigged, and the rig is compared with the true "
-        "personal rig (the model's expression shapes on the subject's identity) on the training "
-        "expressions and on random held-out mixes, next to the naive baseline (generic deltas on "
-        "the subject's neutral). With --examples both the rig is also trained on the exact "
-        "meshes, which separates the rig's own error from the fitting's. About 40 s per subject.",
+        "personal rig (see --truth) on the training expressions and on random held-out mixes, next "
+        "to the naive baseline (generic deltas on the subject's neutral), over whole faces and "
+        "over "
+        "their expression parts alone (the two share the neutral example). With --examples both "
+        "the rig is also trained on the exact meshes, which separates the rig's own error from "
+        "the fitting's. About 40 s per subject.",
         eval_rig_opts},
        run_eval_rig},
       {{"eval model",

@@ -93,6 +93,35 @@ RigInput input_of(const Subject& s) {
   return in;
 }
 
+// Held-out random mixes (each shape on with p = 0.2, weight U(0, 1)): mean error of the rig and
+// of the naive baseline (the generic deltas added to the subject's neutral) against truth_of(w).
+struct HeldOut {
+  double rig = 0, baseline = 0;
+};
+
+template <class TruthOf>
+HeldOut score_mixes(const RigResult& rig, const Subject& s, std::span<const float> neutral,
+                    TruthOf&& truth_of, unsigned seed) {
+  const int n = model().fitting_expression_count;
+  const std::vector<std::vector<float>> generic_shapes(s.generic.begin() + 1, s.generic.end());
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0, 1);
+  HeldOut h;
+  const int mixes = 20;
+  for (int k = 0; k < mixes; ++k) {
+    std::vector<float> w(static_cast<std::size_t>(n), 0.0f);
+    for (auto& x : w)
+      if (u(rng) < 0.2f) x = u(rng);
+    const std::vector<float> truth = truth_of(w);
+    h.rig += mean_error(evaluate_rig(rig.neutral, rig.shapes, w), truth) / mixes;
+    const auto generic_mix = evaluate_rig(s.generic[0], generic_shapes, w);
+    std::vector<float> naive(neutral.begin(), neutral.end());
+    for (std::size_t q = 0; q < naive.size(); ++q) naive[q] += generic_mix[q] - s.generic[0][q];
+    h.baseline += mean_error(naive, truth) / mixes;
+  }
+  return h;
+}
+
 TEST(Rigging, GroundTruthExamplesMeetTheTargets) {
   ASSERT_GT(model().vertex_count, 0);
   ASSERT_EQ(guide().expressions.size(), 20u);
@@ -109,25 +138,9 @@ TEST(Rigging, GroundTruthExamplesMeetTheTargets) {
     train += mean_error(evaluate_rig(rig->neutral, rig->shapes, rig->weights[i]), s.examples[i]);
   train /= static_cast<double>(s.examples.size() - 1);
 
-  std::mt19937 rng(99);
-  std::uniform_real_distribution<float> u(0, 1);
-  double heldout = 0, baseline = 0;
-  const int mixes = 20;
-  for (int k = 0; k < mixes; ++k) {
-    std::vector<float> w(static_cast<std::size_t>(n), 0.0f);
-    for (auto& x : w)
-      if (u(rng) < 0.2f) x = u(rng);
-    const auto truth = face(s.identity, w);
-    heldout += mean_error(evaluate_rig(rig->neutral, rig->shapes, w), truth) / mixes;
-    // Naive baseline: generic deltas on the subject's neutral (exact for this synthetic truth).
-    const auto naive = evaluate_rig(s.examples[0], {s.generic.begin() + 1, s.generic.end()}, w);
-    std::vector<float> generic_mix =
-        evaluate_rig(s.generic[0], {s.generic.begin() + 1, s.generic.end()}, w);
-    (void)naive;
-    std::vector<float> base = s.examples[0];
-    for (std::size_t k2 = 0; k2 < base.size(); ++k2) base[k2] += generic_mix[k2] - s.generic[0][k2];
-    baseline += mean_error(base, truth) / mixes;
-  }
+  const HeldOut h = score_mixes(
+      *rig, s, s.examples[0], [&](const std::vector<float>& w) { return face(s.identity, w); }, 99);
+  const double heldout = h.rig, baseline = h.baseline;
   std::printf("train %.3f mm, heldout %.3f mm, baseline %.3f mm, %.2f s, rounds:", train, heldout,
               baseline, rig->seconds);
   for (double r : rig->round_residual_mm) std::printf(" %.3f", r);
@@ -159,22 +172,10 @@ TEST(Rigging, PersonalShapesFromTransferBeatTheGenericDeltas) {
   auto rig = rig_subject(input_of(s), options);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
 
-  std::mt19937 rng(17);
-  std::uniform_real_distribution<float> u(0, 1);
-  const std::vector<std::vector<float>> generic_shapes(s.generic.begin() + 1, s.generic.end());
-  double heldout = 0, baseline = 0;
-  const int mixes = 20;
-  for (int k = 0; k < mixes; ++k) {
-    std::vector<float> w(static_cast<std::size_t>(n), 0.0f);
-    for (auto& x : w)
-      if (u(rng) < 0.2f) x = u(rng);
-    const auto truth = evaluate_rig(neutral, personal, w);
-    heldout += mean_error(evaluate_rig(rig->neutral, rig->shapes, w), truth) / mixes;
-    const auto generic_mix = evaluate_rig(s.generic[0], generic_shapes, w);
-    std::vector<float> naive = neutral;
-    for (std::size_t q = 0; q < naive.size(); ++q) naive[q] += generic_mix[q] - s.generic[0][q];
-    baseline += mean_error(naive, truth) / mixes;
-  }
+  const HeldOut h = score_mixes(
+      *rig, s, neutral,
+      [&](const std::vector<float>& w) { return evaluate_rig(neutral, personal, w); }, 17);
+  const double heldout = h.rig, baseline = h.baseline;
   std::printf("transfer truth: heldout %.3f mm, baseline %.3f mm\n", heldout, baseline);
   // Measured: 0.20-0.23 mm against 0.36-0.48 mm (eval rig --truth transfer --examples truth).
   EXPECT_GT(baseline, 0.25);  // the personal part is there to recover

@@ -470,11 +470,17 @@ struct SubjectTruth {
   std::vector<float> expression_basis;  // empty = the model's (generic) expression basis
   std::vector<float> amplitude;         // per model expression
 
-  // neutral + sum_j amplitude_j w_j basis_j
-  std::vector<float> mesh(const FaceModel& model, std::span<const float> weights) const {
+  // amplitude_j w_j, one per model expression: the weights to render with this subject's basis.
+  std::vector<float> scaled(std::span<const float> weights) const {
     std::vector<float> w(amplitude.size(), 0.0f);
     for (std::size_t j = 0; j < w.size() && j < weights.size(); ++j)
       w[j] = amplitude[j] * weights[j];
+    return w;
+  }
+
+  // neutral + sum_j amplitude_j w_j basis_j
+  std::vector<float> mesh(const FaceModel& model, std::span<const float> weights) const {
+    const std::vector<float> w = scaled(weights);
     std::vector<float> out(neutral.size());
     if (expression_basis.empty()) {
       model.evaluate_expressions(neutral, w, out);
@@ -581,11 +587,6 @@ int run_eval_rig(const ParsedOptions& options) {
     std::mt19937_64 rng(seed * 7919 + 17);
     auto truth = subject_truth(*model, identity, truth_kind, seed);
     if (!truth) return report_failure(truth.error());
-    auto personal = [&](std::vector<float> w) {
-      for (std::size_t j = 0; j < w.size() && j < truth->amplitude.size(); ++j)
-        w[j] *= truth->amplitude[j];
-      return w;
-    };
     std::vector<std::vector<float>> weights, truth_meshes, fitted_meshes;
     for (const auto& ge : guide->expressions) {
       auto w = guide_weights(ge, *model);
@@ -606,7 +607,7 @@ int run_eval_rig(const ParsedOptions& options) {
       for (const auto& ge : guide->expressions) {
         auto full = guide_weights(ge, *model);
         if (!full) return report_failure(full.error());
-        auto cap = capture(*model, identity, personal(*full),
+        auto cap = capture(*model, identity, truth->scaled(*full),
                            seed * 1000 + static_cast<std::uint64_t>(ge.id),
                            static_cast<int>(*frames), false, truth->expression_basis);
         if (!cap) return report_failure(cap.error());

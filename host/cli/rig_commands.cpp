@@ -616,11 +616,7 @@ int run_eval_rig(const ParsedOptions& options) {
         if (ge.id == 0) {
           auto fit = fit_neutral(*model, *target, {}, nullptr, &*model_system);
           if (!fit) return report_failure(fit.error());
-          fitted_to_truth.rotation =
-              cap->truth_pose.rotation.conjugate() * fit->camera_from_model.rotation;
-          fitted_to_truth.translation =
-              cap->truth_pose.rotation.conjugate() *
-              (fit->camera_from_model.translation - cap->truth_pose.translation);
+          fitted_to_truth = cli::fitted_to_truth(*cap, fit->camera_from_model);
           auto tr = ExpressionTransfer::create(*model, fit->vertices, g0);
           if (!tr) return report_failure(tr.error());
           transfer.emplace(std::move(*tr));

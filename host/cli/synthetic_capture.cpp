@@ -88,6 +88,14 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   return c;
 }
 
+RigidPose fitted_to_truth(const Capture& c, const RigidPose& fitted_camera_from_model) {
+  const RigidPose true_from_camera = c.truth_pose.inverse();
+  RigidPose p;
+  p.rotation = true_from_camera.rotation * fitted_camera_from_model.rotation;
+  p.translation = true_from_camera.apply(fitted_camera_from_model.translation);
+  return p;
+}
+
 Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,
                                   bool noiseless_depth) {
   const KinectRegistration registration(c.calibration);

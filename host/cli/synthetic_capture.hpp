@@ -50,6 +50,10 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis = {});
 
+// A fit's model frame -> the capture's true model frame: truth_pose^-1 * the fit's
+// camera_from_model (both of frame 0). Fits are scored against the truth through it.
+RigidPose fitted_to_truth(const Capture& c, const RigidPose& fitted_camera_from_model);
+
 // The fit target of a capture: colour-image landmarks lifted with the registration and the
 // fused depth (or, for diagnostics, the noiseless rendering).
 Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,

@@ -13,15 +13,6 @@
 namespace fb {
 namespace {
 
-// camera_from_model of a fit, expressed as fitted model frame -> true model frame.
-RigidPose to_truth(const cli::Capture& c, const FitResult& fit) {
-  RigidPose p;
-  p.rotation = c.truth_pose.rotation.conjugate() * fit.camera_from_model.rotation;
-  p.translation = c.truth_pose.rotation.conjugate() *
-                  (fit.camera_from_model.translation - c.truth_pose.translation);
-  return p;
-}
-
 TEST(ExpressionPose, FittedPosesOfOneSubjectAgree) {
   auto model = load_face_model();
   ASSERT_TRUE(model.ok()) << model.error().message;
@@ -42,7 +33,7 @@ TEST(ExpressionPose, FittedPosesOfOneSubjectAgree) {
   ASSERT_TRUE(neutral_target.ok()) << neutral_target.error().message;
   auto neutral = fit_neutral(*model, *neutral_target);
   ASSERT_TRUE(neutral.ok()) << neutral.error().message;
-  const RigidPose neutral_to_truth = to_truth(neutral_cap, *neutral);
+  const RigidPose neutral_to_truth = cli::fitted_to_truth(neutral_cap, neutral->camera_from_model);
   std::vector<float> g0(static_cast<std::size_t>(model->vertex_count) * 3);
   model->evaluate({}, {}, g0);
   auto transfer = ExpressionTransfer::create(*model, neutral->vertices, g0);
@@ -56,7 +47,7 @@ TEST(ExpressionPose, FittedPosesOfOneSubjectAgree) {
     model->evaluate({}, weights, guide_mesh);
     auto fit = fit_expression(*model, *transfer, guide_mesh, *target);
     ASSERT_TRUE(fit.ok()) << fit.error().message;
-    const RigidPose p = to_truth(cap, *fit);
+    const RigidPose p = cli::fitted_to_truth(cap, fit->camera_from_model);
     const double deg = p.rotation.angularDistance(neutral_to_truth.rotation) * 180 / M_PI;
     std::printf("capture %d: pose %.3f deg from the neutral's\n", id, deg);
     EXPECT_LT(deg, 0.6) << "capture " << id;

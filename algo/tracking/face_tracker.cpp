@@ -120,7 +120,9 @@ struct FaceTracker::State {
   // detector puts each point on this face relative to the model's landmark vertex.
   Eigen::VectorXf landmark_offset;
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  // of the samples, model frame
-  ShapeVector shape_ridge;  // per-shape Tikhonov weight (mm^2), see build_rig()
+  ShapeVector shape_ridge;     // per-shape Tikhonov weight (mm^2), see build_rig()
+  ShapeVector shape_sparsity;  // per-shape L1 weight (mm^2) of the frame, see solve_weights()
+  float signal_median = 1.0f;  // median depth signal H_jj of the shapes over the whole face
   std::vector<int> weak_shapes;
   float nose_z = 0.0f;  // largest model z of the samples
   bool calibrated = false;
@@ -288,6 +290,8 @@ void FaceTracker::State::finish_rig() {
   std::nth_element(sorted.begin(), sorted.begin() + k / 2, sorted.end());
   const float median = sorted[static_cast<std::size_t>(k / 2)];
   shape_ridge.resize(k);
+  shape_sparsity.resize(k);
+  signal_median = median;
   weak_shapes.clear();
   for (int j = 0; j < k; ++j) {
     const bool weak = signal[j] < options.weak_shape_fraction * median;
@@ -627,11 +631,25 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     }
     h = h.selfadjointView<Eigen::Lower>();
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
+    // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
+    // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
+    // the whole face would drive it to 0 against the temporal term within a frame or two.
+    for (int j = 0; j < k; ++j)
+      shape_sparsity[j] = options.sparsity * std::pow(std::max(h(j, j), 0.0f) / signal_median,
+                                                      options.sparsity_signal_power);
     const float lt = options.temporal_weight;
     h.diagonal().array() += lt + shape_ridge.array();
     g += lt * previous_weights;
-    g.array() -= options.sparsity;
+    g -= shape_sparsity;
     solve_bounded_lsq(h, g, 0.0f, 1.0f, weights);
+    if (options.support_sparsity < 1.0f) {
+      // Relaxed lasso: the L1 term chose which shapes are on; on those it would also bias the
+      // weight down by ~sparsity / H_jj (0.1-0.3 for a brow or lid, whose depth signal H_jj is
+      // 45-300 mm^2), so they are solved again with the L1 weight scaled by support_sparsity.
+      for (int j = 0; j < k; ++j)
+        if (weights[j] > 0.0f) g[j] += (1.0f - options.support_sparsity) * shape_sparsity[j];
+      solve_bounded_lsq(h, g, 0.0f, 1.0f, weights);
+    }
     update_current();
   }
 }

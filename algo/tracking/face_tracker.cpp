@@ -123,6 +123,9 @@ struct FaceTracker::State {
   ShapeVector shape_ridge;     // per-shape Tikhonov weight (mm^2), see build_rig()
   ShapeVector shape_sparsity;  // per-shape L1 weight (mm^2) of the frame, see solve_weights()
   float signal_median = 1.0f;  // median depth signal H_jj of the shapes over the whole face
+  ShapeVector full_signal;     // per shape: H_jj over the whole face
+  ShapeVector seen_fraction;   // per shape: the last frame's H_jj / full_signal (clamped to 1)
+  ShapeVector seen_now;
   std::vector<int> weak_shapes;
   float nose_z = 0.0f;  // largest model z of the samples
   bool calibrated = false;
@@ -292,6 +295,9 @@ void FaceTracker::State::finish_rig() {
   shape_ridge.resize(k);
   shape_sparsity.resize(k);
   signal_median = median;
+  full_signal = signal.cwiseMax(1e-6f);
+  seen_fraction = ShapeVector::Ones(k);
+  seen_now = ShapeVector::Ones(k);
   weak_shapes.clear();
   for (int j = 0; j < k; ++j) {
     const bool weak = signal[j] < options.weak_shape_fraction * median;
@@ -638,8 +644,22 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       shape_sparsity[j] = options.sparsity * std::pow(std::max(h(j, j), 0.0f) / signal_median,
                                                       options.sparsity_signal_power);
     const float lt = options.temporal_weight;
-    h.diagonal().array() += lt + shape_ridge.array();
-    g += lt * previous_weights;
+    if (options.stale_temporal_floor < 1.0f) {
+      // A shape hidden on the previous frame (seen_fraction: its signal then over its
+      // whole-face signal) only held its value: the temporal term gets that fraction of its
+      // weight (at least the floor), so a region coming out from under an occluder follows its
+      // data at once. The ridge scales with this frame's fraction, so a hidden shape holds.
+      for (int j = 0; j < k; ++j) {
+        const float now = std::clamp(h(j, j) / full_signal[j], 0.0f, 1.0f);
+        const float ltj = lt * std::clamp(seen_fraction[j], options.stale_temporal_floor, 1.0f);
+        h(j, j) += ltj + shape_ridge[j] - options.ridge * (1.0f - now);
+        g[j] += ltj * previous_weights[j];
+        if (it == options.weight_iterations - 1) seen_now[j] = now;
+      }
+    } else {
+      h.diagonal().array() += lt + shape_ridge.array();
+      g += lt * previous_weights;
+    }
     g -= shape_sparsity;
     solve_bounded_lsq(h, g, 0.0f, 1.0f, weights);
     if (options.support_sparsity < 1.0f) {
@@ -652,6 +672,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     }
     update_current();
   }
+  seen_fraction = seen_now;
 }
 
 bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring) const {

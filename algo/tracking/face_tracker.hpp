@@ -94,6 +94,12 @@ struct TrackerOptions {
   float sparsity_signal_power = 0.5f;
   float support_sparsity = 0.0f;  // 1 = plain lasso
   float ridge = 3.0f;             // lambda_r ||w||^2
+  // Temporal weight of a shape whose region the previous frame hid (its signal then over its
+  // whole-face signal), at least this fraction of temporal_weight (1 = always full): a region
+  // coming out from under an occluder follows its data at once instead of easing back from
+  // the value held while hidden (occluder takes: a blink held under the plate was 0.41 off
+  // on the first frame out, 0.017 with 0.1).
+  float stale_temporal_floor = 0.1f;
   // Shapes whose depth signal (sum of squared point-to-plane rows) is below this fraction of
   // the median shape's get an extra prior of weak_shape_ridge * median signal.
   float weak_shape_fraction = 0.1f;

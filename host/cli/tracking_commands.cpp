@@ -673,6 +673,8 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
        [](TrackerOptions& o, double v) { o.sparsity_signal_power = static_cast<float>(v); }},
       {"support_sparsity",
        [](TrackerOptions& o, double v) { o.support_sparsity = static_cast<float>(v); }},
+      {"stale_temporal_floor",
+       [](TrackerOptions& o, double v) { o.stale_temporal_floor = static_cast<float>(v); }},
       {"ridge", [](TrackerOptions& o, double v) { o.ridge = static_cast<float>(v); }},
       {"landmark_weight",
        [](TrackerOptions& o, double v) { o.landmark_weight = static_cast<float>(v); }},

@@ -64,6 +64,13 @@ std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color
 Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
     const KinectRegistration& registration, const LiftOptions& options) {
+  std::vector<float> box_depths;
+  return lift_landmarks(color_px, depth_mm, registration, options, box_depths);
+}
+
+Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
+    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
   if (color_px.size() != static_cast<std::size_t>(kFitLandmarkCount))
     return fail("landmarks: expected 68 points, got " + std::to_string(color_px.size()));
   if (depth_mm.empty()) return fail("landmarks: the depth map is empty");
@@ -76,14 +83,14 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     x1 = std::max(x1, p.x());
     y1 = std::max(y1, p.y());
   }
-  std::vector<float> box;
+  box.clear();
   for (int y = std::max(0, static_cast<int>(y0)); y <= std::min<int>(depth_mm.height - 1, y1); ++y)
     for (int x = std::max(0, static_cast<int>(x0)); x <= std::min<int>(depth_mm.width - 1, x1); ++x)
       if (depth_mm.at(x, y) > 0.0f) box.push_back(depth_mm.at(x, y));
   if (box.size() < 50)
     return fail("landmarks: no depth in the face box (the depth map is missing there)");
   // The nearest quarter of the box is the face, not the background behind the jaw.
-  std::sort(box.begin(), box.end());
+  std::nth_element(box.begin(), box.begin() + box.size() / 4, box.end());
   const double reference = box[box.size() / 4];
   std::array<FitLandmark, kFitLandmarkCount> out{};
   for (int i = 0; i < kFitLandmarkCount; ++i) {

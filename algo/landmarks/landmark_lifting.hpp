@@ -6,6 +6,7 @@
 #include <array>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -36,6 +37,12 @@ std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color
 Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
     const KinectRegistration& registration, const LiftOptions& options = {});
+// The same with a caller's scratch buffer for the face box's depths, so a caller running every
+// frame (the tracker's landmark source) reuses it instead of allocating it per frame.
+Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
+    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options,
+    std::vector<float>& box_depths);
 
 // Depth as float mm (for raw sensor frames).
 Image<float> depth_to_float(const DepthImage& depth_mm);

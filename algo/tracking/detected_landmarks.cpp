@@ -29,7 +29,7 @@ LandmarkFrameResult TrackLandmarkSource::detect(const ColorImage& color, const D
   result.tracked_window = detected->tracked;
   depth_float_.resize(depth.width, depth.height);
   for (std::size_t i = 0; i < depth.pixels.size(); ++i) depth_float_.pixels[i] = depth.pixels[i];
-  auto lifted = lift_landmarks(detected->points, depth_float_, registration_);
+  auto lifted = lift_landmarks(detected->points, depth_float_, registration_, {}, box_depths_);
   if (!lifted) return finish("no depth under the detected face");
   for (int l = 0; l < 68; ++l) {
     const FitLandmark& lm = (*lifted)[static_cast<std::size_t>(l)];

@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -45,6 +46,7 @@ class TrackLandmarkSource {
   LandmarkDetector detector_;
   KinectRegistration registration_;
   Image<float> depth_float_;
+  std::vector<float> box_depths_;  // lift_landmarks' scratch
   std::array<Eigen::Vector2f, 68> points_{};
   std::array<std::uint8_t, 68> valid_{};
   TrackLandmarks view_;

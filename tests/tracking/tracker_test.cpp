@@ -163,11 +163,13 @@ TEST(Tracker, KnownIdentityExpressionWithNoise) {
   for (int j = 0; j < report.shape_count; ++j)
     mae += std::abs(report.weights[j] - t.expression_weights[j]);
   mae /= report.shape_count;
-  EXPECT_LT(mae, 0.03);
   EXPECT_NEAR(report.weights[model().expression_index("jawOpen")], 0.5f, 0.1f);
   EXPECT_NEAR(report.weights[model().expression_index("mouthSmile_L")], 0.6f, 0.1f);
-  // browInnerUp_R moves the brow along the forehead (tangential to the depth): it is
-  // under-estimated (about 0.1 for 0.4 here) and only counted in the MAE above.
+  // browInnerUp_R moves the brow along the forehead (tangential to the depth), a small depth
+  // signal: a constant L1 prior held it at 0.06 for 0.4 (MAE 0.0075); scaled by the shape's
+  // signal and relaxed on the shapes it turns on: 0.31 (MAE 0.0018).
+  EXPECT_LT(mae, 0.004);
+  EXPECT_NEAR(report.weights[model().expression_index("browInnerUp_R")], 0.4f, 0.15f);
   EXPECT_LT(rotation_error_deg(report.camera_from_model, t.camera_from_model), 0.5);
   const Eigen::Vector3d c = t.landmarks_3d[30];  // nose tip, camera frame
   const Eigen::Vector3d c_model = t.camera_from_model.inverse().apply(c);

@@ -648,7 +648,8 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       // A shape hidden on the previous frame (seen_fraction: its signal then over its
       // whole-face signal) only held its value: the temporal term gets that fraction of its
       // weight (at least the floor), so a region coming out from under an occluder follows its
-      // data at once. The ridge scales with this frame's fraction, so a hidden shape holds.
+      // data at once. The ridge scales with this frame's fraction, so a hidden shape holds
+      // (shape_ridge = ridge + the weak-shape prior; only the ridge part scales).
       for (int j = 0; j < k; ++j) {
         const float now = std::clamp(h(j, j) / full_signal[j], 0.0f, 1.0f);
         const float ltj = lt * std::clamp(seen_fraction[j], options.stale_temporal_floor, 1.0f);

@@ -125,7 +125,6 @@ struct FaceTracker::State {
   float signal_median = 1.0f;  // median depth signal H_jj of the shapes over the whole face
   ShapeVector full_signal;     // per shape: H_jj over the whole face
   ShapeVector seen_fraction;   // per shape: the last frame's H_jj / full_signal (clamped to 1)
-  ShapeVector seen_now;
   std::vector<int> weak_shapes;
   float nose_z = 0.0f;  // largest model z of the samples
   bool calibrated = false;
@@ -297,7 +296,6 @@ void FaceTracker::State::finish_rig() {
   signal_median = median;
   full_signal = signal.cwiseMax(1e-6f);
   seen_fraction = ShapeVector::Ones(k);
-  seen_now = ShapeVector::Ones(k);
   weak_shapes.clear();
   for (int j = 0; j < k; ++j) {
     const bool weak = signal[j] < options.weak_shape_fraction * median;
@@ -655,7 +653,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
         const float ltj = lt * std::clamp(seen_fraction[j], options.stale_temporal_floor, 1.0f);
         h(j, j) += ltj + shape_ridge[j] - options.ridge * (1.0f - now);
         g[j] += ltj * previous_weights[j];
-        if (it == options.weight_iterations - 1) seen_now[j] = now;
+        if (it == options.weight_iterations - 1) seen_fraction[j] = now;  // read above
       }
     } else {
       h.diagonal().array() += lt + shape_ridge.array();
@@ -673,7 +671,6 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     }
     update_current();
   }
-  seen_fraction = seen_now;
 }
 
 bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring) const {

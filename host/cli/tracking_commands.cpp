@@ -1027,6 +1027,16 @@ int run_eval_track(const ParsedOptions& options) {
       {"landmarks",
        "truth + 1.5 px noise; those under the plate misdetected (moved 15 px onto it)"},
       {"unaffected_weight_error_per_frame", to_json(stats_of(unaffected))}};
+  {
+    // The figure is the worst frame of a few takes, so how it spreads over takes says more
+    // than one value (e.g. --occluder-seed 1010 --occluder-takes 20).
+    std::vector<double> worst;
+    for (const auto& t : occluder_takes)
+      worst.push_back(t["occluded_unaffected_weight_error"].get<double>());
+    result["occluder"]["worst_frame_per_take"] = to_json(stats_of(worst));
+    result["occluder"]["takes_over_0_05"] =
+        std::count_if(worst.begin(), worst.end(), [](double e) { return e > 0.05; });
+  }
   result["takes"] = takes;
   result["tracker_overrides"] = options.get("set");
   result["landmark_source"] = landmark_source;

@@ -119,10 +119,8 @@ struct TrackerOptions {
 
   // --- Calibration ---
   int calibration_frames = 10;
-  // Alternations of identity solve and re-tracking. The block alternation converges slowly
-  // (eval track, 5 seeds: absolute pose error 0.92 deg / 1.56 mm at 4 rounds, 0.67 / 1.29 at 8,
-  // 0.52 / 0.96 at 16, 0.53 / 0.79 at 24; gauge-free 0.35 deg / 0.72 mm -> 0.22 / 0.53). It
-  // runs once per subject, about 30 ms a round here (bench track: calibration_ms).
+  // Gauss-Newton rounds of the joint identity + calibration-pose fit; the identity is the mean
+  // of the second half's iterates. It runs once per subject (bench track: calibration_ms).
   int calibration_rounds = 24;
   int identity_modes = 100;      // leading identity PCA modes fitted
   float identity_prior = 20.0f;  // mm^2 per unit coefficient^2 (coefficients are in sigma)

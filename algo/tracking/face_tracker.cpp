@@ -47,6 +47,16 @@ double ms_since(Clock::time_point start) {
 struct Pose {
   Eigen::Matrix3f r = Eigen::Matrix3f::Identity();
   Eigen::Vector3f t = Eigen::Vector3f::Zero();
+  // The small motion (omega, dt) about `pivot` (camera frame): x' = Rw (x - pivot) + pivot + dt.
+  void apply_twist(const Eigen::Vector3f& omega, const Eigen::Vector3f& dt,
+                   const Eigen::Vector3f& pivot) {
+    const float angle = omega.norm();
+    const Eigen::Matrix3f rw = angle > 1e-9f
+                                   ? Eigen::AngleAxisf(angle, omega / angle).toRotationMatrix()
+                                   : Eigen::Matrix3f::Identity();
+    r = rw * r;
+    t = rw * (t - pivot) + pivot + dt;
+  }
   RigidPose to_rigid() const {
     RigidPose p;
     p.rotation = Eigen::Quaterniond(r.cast<double>()).normalized();
@@ -531,14 +541,8 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
     if (s.inliers < 12) break;
     jtj.diagonal().array() += 1e-3f;
     const Eigen::Matrix<float, 6, 1> xi = jtj.ldlt().solve(-jtr);
-    const Eigen::Vector3f omega = xi.head<3>();
-    const float angle = omega.norm();
-    const Eigen::Matrix3f rw = angle > 1e-9f
-                                   ? Eigen::AngleAxisf(angle, omega / angle).toRotationMatrix()
-                                   : Eigen::Matrix3f::Identity();
-    // x' = Rw (x - pivot) + pivot + dt.
-    p.r = rw * p.r;
-    p.t = rw * (p.t - pivot) + pivot + xi.tail<3>();
+    p.apply_twist(xi.head<3>(), xi.tail<3>(), pivot);
+    const float angle = xi.head<3>().norm();
     // Orthonormalise now and then against float drift.
     if (it == iterations - 1) p.r = Eigen::Quaternionf(p.r).normalized().toRotationMatrix();
     if (angle < 2e-5f && xi.tail<3>().norm() < 0.01f && it > 0) break;
@@ -914,14 +918,8 @@ void FaceTracker::State::calibrate() {
       const PoseVector xi =
           d_frames[fi].ldlt().solve(-(g_frames[fi] + b_frames[fi].transpose() * dc));
       Pose& p = calib_pose[fi];
-      const Eigen::Vector3f pivot = p.r * centroid + p.t;
-      const Eigen::Vector3f omega = xi.head<3>().cast<float>();
-      const float angle = omega.norm();
-      const Eigen::Matrix3f rw = angle > 1e-9f
-                                     ? Eigen::AngleAxisf(angle, omega / angle).toRotationMatrix()
-                                     : Eigen::Matrix3f::Identity();
-      p.r = Eigen::Quaternionf(rw * p.r).normalized().toRotationMatrix();
-      p.t = rw * (p.t - pivot) + pivot + xi.tail<3>().cast<float>();
+      p.apply_twist(xi.head<3>().cast<float>(), xi.tail<3>().cast<float>(), p.r * centroid + p.t);
+      p.r = Eigen::Quaternionf(p.r).normalized().toRotationMatrix();
     }
     if (2 * round >= options.calibration_rounds) {
       c_sum += c;

@@ -1229,8 +1229,8 @@ int run_bench_track(const ParsedOptions& options) {
        "(k = 5) + rigid ICP + blendshape solve, depth only"},
       {"calibration_ms",
        "the identity fit, once per subject on the frame that ends calibration (not in "
-       "ms_per_frame): calibration_rounds alternations of identity solve and re-tracking of the "
-       "stored frames"},
+       "ms_per_frame): calibration_rounds Gauss-Newton rounds of the joint identity + pose fit "
+       "over the stored frames, then one re-tracking of them"},
       {"ms_per_frame_with_landmarks",
        "the same plus dlib on the colour image (HOG detection in a window around the last "
        "face, 68-point shape prediction, mapping into the depth image) and the 51 landmark "

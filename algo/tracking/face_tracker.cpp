@@ -846,6 +846,7 @@ void FaceTracker::State::calibrate() {
   std::vector<Eigen::MatrixXd> b_frames(static_cast<std::size_t>(calib_count),
                                         Eigen::MatrixXd(modes, 6));
   std::vector<PoseMatrix> d_frames(static_cast<std::size_t>(calib_count));
+  std::vector<Eigen::LDLT<PoseMatrix>> d_solvers(static_cast<std::size_t>(calib_count));
   std::vector<PoseVector> g_frames(static_cast<std::size_t>(calib_count));
   Eigen::VectorXf row(modes);
   Eigen::VectorXd c = Eigen::VectorXd::Zero(modes);
@@ -907,7 +908,8 @@ void FaceTracker::State::calibrate() {
     for (int f = 0; f < calib_count; ++f) {
       const auto fi = static_cast<std::size_t>(f);
       d_frames[fi].diagonal().array() += 1e-3;
-      bd = d_frames[fi].ldlt().solve(b_frames[fi].transpose()).transpose();  // B_f D_f^-1
+      d_solvers[fi].compute(d_frames[fi]);
+      bd = d_solvers[fi].solve(b_frames[fi].transpose()).transpose();  // B_f D_f^-1
       schur.noalias() -= bd * b_frames[fi].transpose();
       rhs.noalias() += bd * g_frames[fi];
     }
@@ -915,8 +917,7 @@ void FaceTracker::State::calibrate() {
     c += dc;
     for (int f = 0; f < calib_count; ++f) {
       const auto fi = static_cast<std::size_t>(f);
-      const PoseVector xi =
-          d_frames[fi].ldlt().solve(-(g_frames[fi] + b_frames[fi].transpose() * dc));
+      const PoseVector xi = d_solvers[fi].solve(-(g_frames[fi] + b_frames[fi].transpose() * dc));
       Pose& p = calib_pose[fi];
       p.apply_twist(xi.head<3>().cast<float>(), xi.tail<3>().cast<float>(), p.r * centroid + p.t);
       p.r = Eigen::Quaternionf(p.r).normalized().toRotationMatrix();

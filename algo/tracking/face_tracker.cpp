@@ -136,7 +136,8 @@ struct FaceTracker::State {
   ShapeVector full_signal;     // per shape: H_jj over the whole face
   ShapeVector seen_fraction;   // per shape: the last frame's H_jj / full_signal (clamped to 1)
   std::vector<int> weak_shapes;
-  float nose_z = 0.0f;  // largest model z of the samples
+  std::vector<std::uint8_t> gaze_shape;  // per shape: an eyeLook* (gaze) shape
+  float nose_z = 0.0f;                   // largest model z of the samples
   bool calibrated = false;
 
   // Per-frame state.
@@ -294,9 +295,9 @@ void FaceTracker::State::finish_rig() {
   landmark_base.resize(3 * 68);
   for (int l = 0; l < 68; ++l) landmark_base.segment<3>(3 * l) = vertex(m.landmark_vertices[l]);
   landmark_base += landmark_offset;
-  // Depth signal of each shape: H0_jj = sum_i (n_i . B_ij)^2. Shapes far below the median
-  // (eyeLook*: they rotate eyeballs the skin model does not have) are nearly invisible in
-  // depth; opposing pairs of them would wander on noise, so they get a strong prior to 0.
+  // Depth signal of each shape: H0_jj = sum_i (n_i . B_ij)^2. Shapes far below the median are
+  // nearly invisible in depth and would wander on noise, and the gaze shapes alias the lids
+  // (see TrackerOptions::hold_gaze_shapes), so they get a strong prior to 0.
   const Eigen::VectorXf signal = normal_rows.colwise().squaredNorm().transpose();
   std::vector<float> sorted(signal.data(), signal.data() + k);
   std::nth_element(sorted.begin(), sorted.begin() + k / 2, sorted.end());
@@ -308,7 +309,8 @@ void FaceTracker::State::finish_rig() {
   seen_fraction = ShapeVector::Ones(k);
   weak_shapes.clear();
   for (int j = 0; j < k; ++j) {
-    const bool weak = signal[j] < options.weak_shape_fraction * median;
+    const bool weak = (options.hold_gaze_shapes && gaze_shape[static_cast<std::size_t>(j)]) ||
+                      signal[j] < options.weak_shape_fraction * median;
     shape_ridge[j] = options.ridge + (weak ? options.weak_shape_ridge * median : 0.0f);
     if (weak) weak_shapes.push_back(j);
   }
@@ -642,9 +644,16 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
     // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
     // the whole face would drive it to 0 against the temporal term within a frame or two.
-    for (int j = 0; j < k; ++j)
-      shape_sparsity[j] = options.sparsity * std::pow(std::max(h(j, j), 0.0f) / signal_median,
-                                                      options.sparsity_signal_power);
+    // A low-signal shape that was on in the previous frame keeps a lighter one (see
+    // TrackerOptions::on_shape_sparsity).
+    for (int j = 0; j < k; ++j) {
+      const bool continuing = previous_weights[j] > options.on_shape_min_weight &&
+                              full_signal[j] < options.on_shape_max_signal * signal_median;
+      shape_sparsity[j] =
+          options.sparsity *
+          std::pow(std::max(h(j, j), 0.0f) / signal_median, options.sparsity_signal_power) *
+          (continuing ? options.on_shape_sparsity : 1.0f);
+    }
     const float lt = options.temporal_weight;
     if (options.stale_temporal_floor < 1.0f) {
       // A shape hidden on the previous frame (seen_fraction: its signal then over its
@@ -1025,6 +1034,13 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->k = model.fitting_expression_count;
   s->modes = std::clamp(options.identity_modes, 0, model.identity_count);
   s->filter = PoseFilter(options.pose_filter);
+  s->gaze_shape.resize(static_cast<std::size_t>(s->k));
+  for (int j = 0; j < s->k; ++j)
+    s->gaze_shape[static_cast<std::size_t>(j)] =
+        static_cast<std::size_t>(j) < model.expression_names.size() &&
+                model.expression_names[static_cast<std::size_t>(j)].rfind("eyeLook", 0) == 0
+            ? 1
+            : 0;
 
   // --- Sample selection on the mean face: front-facing fitting vertices, one per grid cell,
   // plus the most-displaced vertices of every shape so small shapes (blinks, brows) are seen.

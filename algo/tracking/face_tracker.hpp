@@ -101,10 +101,34 @@ struct TrackerOptions {
   // the value held while hidden (occluder takes: a blink held under the plate was 0.41 off
   // on the first frame out, 0.017 with 0.1).
   float stale_temporal_floor = 0.1f;
+  // A shape that was on in the previous frame (weight above on_shape_min_weight) and whose
+  // whole-face signal is below on_shape_max_signal x the median gets on_shape_sparsity x its
+  // L1 weight: an expression under way is likely to continue. A brow or lid needs a data
+  // gradient H_jj w > sparsity (H_jj / median)^0.5 to turn on, i.e. w > ~0.2, so without this a
+  // brow at 0.25-0.3 flickered between 0 and its value from frame to frame, and on a frame
+  // that hides most of the face it dropped to 0 and another shape took its motion (occluder
+  // take 1026: browDown_L 0.27 -> 0, browInnerUp_L 0.23 instead). Not for the mouth and jaw,
+  // whose L1 threshold is small anyway: there it let a combination of mouth shapes that
+  // imitated a funnel hold on after the occluder left (take 1016, 18 frames to recover).
+  // eval track, 5 seeds: weight MAE 0.0123 -> 0.0116, animated shapes 0.090 -> 0.078; 20
+  // held-out occluder takes: worst frame 0.273 -> 0.114, the plate's own share 0.231 -> 0.066.
+  float on_shape_sparsity = 0.25f;
+  float on_shape_min_weight = 0.02f;
+  float on_shape_max_signal = 1.0f;
   // Shapes whose depth signal (sum of squared point-to-plane rows) is below this fraction of
-  // the median shape's get an extra prior of weak_shape_ridge * median signal.
-  float weak_shape_fraction = 0.1f;
+  // the median shape's get an extra prior of weak_shape_ridge * median signal. On the mean face
+  // the weakest are eyeSquint (0.026), eyeWide (0.11) and eyeBlink (0.16); 0.1 held eyeWide at
+  // 0 for most identities (take 1017: eyeWide_R 0.78, tracked 0.00 even without the plate).
+  float weak_shape_fraction = 0.02f;
   float weak_shape_ridge = 2.0f;
+  // The gaze shapes (eyeLook*) get the weak-shape prior whatever their signal: depth has no
+  // eyeballs and the 68 landmarks no irises, so what these shapes move in the skin is the
+  // lids, as eyeWide and eyeBlink do, and more of it (eyeLookUp 0.15 of the median signal,
+  // eyeWide 0.11). Solved freely they take a lid's motion (take 1017: eyeWide_R 0.75 came out
+  // as eyeLookUp_R 0.56). The stream reports them near 0. eval track, 5 seeds, together with
+  // weak_shape_fraction 0.1 -> 0.02: weight MAE 0.0132 -> 0.0123, animated shapes 0.098 ->
+  // 0.090.
+  bool hold_gaze_shapes = true;
   float landmark_weight = 1.0f;  // mm^2 per px^2 of landmark residual
   float landmark_huber_px = 4.0f;
   // Calibration also measures where the landmarks sit on this face (see

@@ -87,8 +87,12 @@ Outcome run(const FaceModel& model, const Frames& take, TrackLandmarkSource* dli
     }
     (*tracker)->track(frame.depth_mm, f / 30.0, landmarks, report);
     face_before = report.face_found;
-    if (f < 4) EXPECT_TRUE(report.face_found) << "frame " << f << ": " << report.loss_reason;
-    if (lost) EXPECT_FALSE(report.face_found) << "frame " << f;
+    if (f < 4) {
+      EXPECT_TRUE(report.face_found) << "frame " << f << ": " << report.loss_reason;
+    }
+    if (lost) {
+      EXPECT_FALSE(report.face_found) << "frame " << f;
+    }
     if (f == 7) {
       outcome.state_back = report.state;
       outcome.pose_back = report.raw_camera_from_model;

@@ -121,8 +121,9 @@ struct Take {
   int occluder_first = -1, occluder_last = -1;  // frames with the plate over the face region
 };
 
-// Shapes a depth camera cannot see are not animated in the takes: eyeLook* move the eyeballs
-// (not in the skin mesh; the lids barely move). They are still solved for and scored (truth 0).
+// The gaze shapes are not animated in the takes: eyeLook* turn the eyeballs, which are not in
+// the skin mesh, and what they do to the lids eyeWide and eyeBlink also do, so the tracker
+// holds them (TrackerOptions::hold_gaze_shapes). They are still scored (truth 0).
 bool animatable(const std::string& name) {
   return name.rfind("eyeLook", 0) != 0;
 }

@@ -64,6 +64,15 @@ double rotation_error_deg(const RigidPose& a, const RigidPose& b) {
   return Eigen::AngleAxisd(a.rotation.conjugate() * b.rotation).angle() * kDeg;
 }
 
+// The stand-in for the detector: the true 2D landmarks plus N(0, 1.5 px) noise per axis.
+void noisy_landmarks(const FrameTruth& truth, std::mt19937& rng,
+                     std::vector<Eigen::Vector2f>& points) {
+  std::normal_distribution<float> noise(0.0f, 1.5f);
+  points.resize(68);
+  for (int l = 0; l < 68; ++l)
+    points[l] = truth.landmarks_depth_px[l].cast<float>() + Eigen::Vector2f(noise(rng), noise(rng));
+}
+
 TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
   auto mapping = make_arkit_mapping(model());
   ASSERT_TRUE(mapping.ok()) << mapping.error().message;
@@ -147,13 +156,9 @@ TEST(Tracker, KnownIdentityExpressionWithNoise) {
   ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
   TrackReport report;
   std::mt19937 rng(1);
-  std::normal_distribution<float> noise(0.0f, 1.5f);
-  std::vector<Eigen::Vector2f> points(68);
+  std::vector<Eigen::Vector2f> points;
   for (std::size_t f = 0; f < frames.depth.size(); ++f) {
-    for (int l = 0; l < 68; ++l) {
-      points[l] = frames.truth[f].landmarks_depth_px[l].cast<float>() +
-                  Eigen::Vector2f(noise(rng), noise(rng));
-    }
+    noisy_landmarks(frames.truth[f], rng, points);
     TrackLandmarks landmarks{points, {}};
     (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
   }
@@ -203,12 +208,9 @@ LidFrameErrors track_lids(const TrackerOptions& options) {
   EXPECT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
   TrackReport report;
   std::mt19937 rng(7);
-  std::normal_distribution<float> noise(0.0f, 1.5f);
-  std::vector<Eigen::Vector2f> points(68);
+  std::vector<Eigen::Vector2f> points;
   for (std::size_t f = 0; f < frames.depth.size(); ++f) {
-    for (int l = 0; l < 68; ++l)
-      points[l] = frames.truth[f].landmarks_depth_px[l].cast<float>() +
-                  Eigen::Vector2f(noise(rng), noise(rng));
+    noisy_landmarks(frames.truth[f], rng, points);
     TrackLandmarks landmarks{points, {}};
     (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
     EXPECT_EQ(report.state, TrackState::kTracking) << "frame " << f;

@@ -1038,7 +1038,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   for (int j = 0; j < s->k; ++j)
     s->gaze_shape[static_cast<std::size_t>(j)] =
         static_cast<std::size_t>(j) < model.expression_names.size() &&
-                model.expression_names[static_cast<std::size_t>(j)].rfind("eyeLook", 0) == 0
+                is_gaze_shape(model.expression_names[static_cast<std::size_t>(j)])
             ? 1
             : 0;
 

@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -176,6 +177,12 @@ enum class TrackState : std::uint8_t {
   kBadInput,   // wrong size or no valid depth at all
 };
 const char* to_string(TrackState state);
+
+// The gaze shapes (eyeLook*): they turn the eyeballs, which depth does not see (see
+// TrackerOptions::hold_gaze_shapes).
+inline bool is_gaze_shape(std::string_view name) {
+  return name.starts_with("eyeLook");
+}
 
 // Optional 2D landmarks: the 68 iBUG points in DEPTH image pixels (detect on colour, map
 // through the registration); `valid[i] == 0` drops point i. Contour points 0-16 are ignored

@@ -125,7 +125,7 @@ struct Take {
 // the skin mesh, and what they do to the lids eyeWide and eyeBlink also do, so the tracker
 // holds them (TrackerOptions::hold_gaze_shapes). They are still scored (truth 0).
 bool animatable(const std::string& name) {
-  return name.rfind("eyeLook", 0) != 0;
+  return !is_gaze_shape(name);
 }
 
 float smoothstep(float x) {

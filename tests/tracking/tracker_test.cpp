@@ -219,7 +219,7 @@ LidFrameErrors track_lids(const TrackerOptions& options) {
                        static_cast<float>(frames.depth.size() - 5);
     e.brow_lowest = std::min(e.brow_lowest, report.weights[model().expression_index("browDown_L")]);
     for (int j = 0; j < report.shape_count; ++j)
-      if (model().expression_names[j].rfind("eyeLook", 0) == 0)
+      if (is_gaze_shape(model().expression_names[j]))
         e.gaze_worst = std::max(e.gaze_worst, report.weights[j]);
   }
   return e;

@@ -13,6 +13,8 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
+#include "algo/tracking/depth_filter.hpp"
+
 namespace fb {
 
 const char* to_string(TrackState state) {
@@ -69,10 +71,7 @@ struct Pose {
 };
 
 // Pixel rectangle [x0, x1) x [y0, y1).
-struct Box {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-};
+using Box = PixelRect;
 
 // Tukey biweight: (1 - (r/c)^2)^2 inside the cut-off, 0 outside.
 inline float tukey(float r, float c) {
@@ -160,6 +159,7 @@ struct FaceTracker::State {
   int ring_count = 0;
   int ring_head = -1;
   Image<float> smoothed;
+  Image<float> spatial_scratch;  // the spatial pass's output before it replaces `smoothed`
   Box box;
 
   // Weight solve buffers.
@@ -219,6 +219,7 @@ struct FaceTracker::State {
   bool depth_at(const Image<float>& image, const Box& b, float u, float v, float& z) const;
   Box predicted_box(const Pose& p) const;
   int smooth(const DepthImage& depth, const Box& b);
+  void smooth_spatially(const Box& b);
   struct IcpStats {
     int facing = 0;
     int used = 0;
@@ -415,6 +416,19 @@ int FaceTracker::State::smooth(const DepthImage& depth, const Box& b) {
     }
   }
   return valid - (valid4[0] + valid4[1] + valid4[2] + valid4[3]);
+}
+
+void FaceTracker::State::smooth_spatially(const Box& b) {
+  const int r = options.spatial_radius_px;
+  if (r <= 0) return;
+  edge_aware_mean(smoothed, b, {.radius_px = r, .range_mm = options.spatial_range_mm},
+                  spatial_scratch);
+  for (int y = b.y0 + r; y < b.y1 - r; ++y) {
+    const auto first = static_cast<std::ptrdiff_t>(y) * width + b.x0 + r;
+    std::copy(spatial_scratch.pixels.begin() + first,
+              spatial_scratch.pixels.begin() + first + (b.x1 - b.x0 - 2 * r),
+              smoothed.pixels.begin() + first);
+  }
 }
 
 void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, const Pose& p,
@@ -1184,6 +1198,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->ring.resize(static_cast<std::size_t>(options.temporal_frames));
   for (auto& f : s->ring) f.resize(s->width, s->height);
   s->smoothed.resize(s->width, s->height);
+  s->spatial_scratch.resize(s->width, s->height);
   s->calib_depth.resize(static_cast<std::size_t>(options.calibration_frames));
   for (auto& f : s->calib_depth) f.resize(s->width, s->height);
   s->calib_box.resize(static_cast<std::size_t>(options.calibration_frames));
@@ -1326,6 +1341,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   const bool searching = !s.have_pose || s.lost;
   s.box = searching ? Box{0, 0, s.width, s.height} : s.predicted_box(s.pose);
   const int valid = s.smooth(depth, s.box);
+  s.smooth_spatially(s.box);
   report.times.smooth_ms = ms_since(start);
   if (valid < 50) {
     s.lost = s.have_pose;
@@ -1350,6 +1366,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
     s.lost = false;
     s.box = s.predicted_box(s.pose);
     s.smooth(depth, s.box);
+    s.smooth_spatially(s.box);
   }
 
   start = Clock::now();

@@ -46,6 +46,11 @@ struct TrackerOptions {
   int temporal_frames = 5;
   float temporal_range_mm = 4.0f;
   float temporal_decay = 0.7f;  // weight of frame age a: decay^a
+  // Spatial smoothing after the temporal mean (KinectFusion filters raw depth the same way):
+  // mean over the (2r+1)^2 neighbours that are valid and within spatial_range_mm of the centre
+  // pixel, so depth edges (eye and mouth openings, the silhouette) do not blur. 0 = off.
+  int spatial_radius_px = 1;
+  float spatial_range_mm = 3.0f;
   float min_depth_mm = 400.0f;
   float max_depth_mm = 2000.0f;
 

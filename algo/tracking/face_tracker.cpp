@@ -236,6 +236,7 @@ struct FaceTracker::State {
   bool acquire(const TrackLandmarks* landmarks, IcpStats& stats);
   void calibrate();
   void calibrate_landmark_offsets();
+  void calibrate_depth_offsets();
   void output(TrackReport& report, double time_s);
 };
 
@@ -961,6 +962,7 @@ void FaceTracker::State::calibrate() {
         calib_pose[static_cast<std::size_t>(f)], options.icp_iterations, options.icp_gate_mm,
         options.icp_gate_mm);
   }
+  if (options.calibrate_depth_offsets) calibrate_depth_offsets();
   if (options.calibrate_landmark_offsets) calibrate_landmark_offsets();
   // Continue from the last calibration frame.
   pose = calib_pose[static_cast<std::size_t>(calib_count - 1)];
@@ -1001,6 +1003,42 @@ void FaceTracker::State::calibrate_landmark_offsets() {
     if (d.norm() <= options.max_landmark_offset_mm) landmark_offset.segment<3>(3 * l) = d;
   }
   landmark_base += landmark_offset;
+  update_current();
+}
+
+void FaceTracker::State::calibrate_depth_offsets() {
+  // o_i = mean_f n_i . (q_f - x_f) over the frames where sample i has an inlier depth (model
+  // frame, neutral face, final calibration poses); base_i += o_i n_i.
+  weights.setZero();
+  update_current();
+  std::fill(found_residual.begin(), found_residual.end(), 0.0f);  // sum of residuals
+  std::fill(found_sample.begin(), found_sample.end(), 0);         // frames seen
+  for (int f = 0; f < calib_count; ++f) {
+    const auto fi = static_cast<std::size_t>(f);
+    const Pose& p = calib_pose[fi];
+    const Eigen::Matrix3f rt = p.r.transpose();
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3f xm = sample(i);
+      const Eigen::Vector3f x = p.r * xm + p.t;
+      const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
+      if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
+      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+      float z = 0.0f;
+      if (!depth_at(calib_depth[fi], calib_box[fi], u, v, z)) continue;
+      const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
+      const float r = nm.dot(q - xm);
+      if (std::abs(r) > options.icp_gate_mm) continue;
+      found_residual[static_cast<std::size_t>(i)] += r;
+      ++found_sample[static_cast<std::size_t>(i)];
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    if (2 * found_sample[ii] < calib_count || found_sample[ii] == 0) continue;
+    const float o = std::clamp(found_residual[ii] / static_cast<float>(found_sample[ii]),
+                               -options.max_depth_offset_mm, options.max_depth_offset_mm);
+    base.segment<3>(3 * i) += o * normals[ii];
+  }
   update_current();
 }
 

@@ -1008,7 +1008,9 @@ void FaceTracker::State::calibrate_landmark_offsets() {
 
 void FaceTracker::State::calibrate_depth_offsets() {
   // o_i = mean_f n_i . (q_f - x_f) over the frames where sample i has an inlier depth (model
-  // frame, neutral face, final calibration poses); base_i += o_i n_i.
+  // frame, neutral face, final calibration poses); base_i += o_i n_i. Per sample: what the
+  // identity fit misses that moved the weights was fine-scale (take 1002: averaging the offsets
+  // over 8 mm lost it, and the browDown_R stand-in came back).
   weights.setZero();
   update_current();
   std::fill(found_residual.begin(), found_residual.end(), 0.0f);  // sum of residuals
@@ -1034,7 +1036,7 @@ void FaceTracker::State::calibrate_depth_offsets() {
   }
   for (int i = 0; i < n; ++i) {
     const auto ii = static_cast<std::size_t>(i);
-    if (2 * found_sample[ii] < calib_count || found_sample[ii] == 0) continue;
+    if (found_sample[ii] == 0 || 2 * found_sample[ii] < calib_count) continue;
     const float o = std::clamp(found_residual[ii] / static_cast<float>(found_sample[ii]),
                                -options.max_depth_offset_mm, options.max_depth_offset_mm);
     base.segment<3>(3 * i) += o * normals[ii];

@@ -49,6 +49,8 @@ struct TrackerOptions {
   // Spatial smoothing after the temporal mean (KinectFusion filters raw depth the same way):
   // mean over the (2r+1)^2 neighbours that are valid and within spatial_range_mm of the centre
   // pixel, so depth edges (eye and mouth openings, the silhouette) do not blur. 0 = off.
+  // eval track, 5 seeds: depth-only weight MAE 0.0163 -> 0.0134, occluder worst frame 0.204 ->
+  // 0.151; 20 seeds 0.0082 -> 0.0077. About 0.1 ms a frame.
   int spatial_radius_px = 1;
   float spatial_range_mm = 3.0f;
   float min_depth_mm = 400.0f;

@@ -135,8 +135,9 @@ struct FaceTracker::State {
   ShapeVector full_signal;     // per shape: H_jj over the whole face
   ShapeVector seen_fraction;   // per shape: the last frame's H_jj / full_signal (clamped to 1)
   std::vector<int> weak_shapes;
-  std::vector<std::uint8_t> gaze_shape;  // per shape: an eyeLook* (gaze) shape
-  float nose_z = 0.0f;                   // largest model z of the samples
+  std::vector<std::uint8_t> gaze_shape;          // per shape: an eyeLook* (gaze) shape
+  std::vector<std::pair<int, int>> antagonists;  // shape pairs, TrackerOptions::antagonist_weight
+  float nose_z = 0.0f;                           // largest model z of the samples
   bool calibrated = false;
 
   // Per-frame state.
@@ -688,6 +689,12 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       g += lt * previous_weights;
     }
     g -= shape_sparsity;
+    for (const auto& [a, b] : antagonists) {
+      // + mu w_a w_b in the cost: w >= 0, so it only charges the two being on together.
+      const float mu = options.antagonist_weight * std::sqrt(h(a, a) * h(b, b));
+      h(a, b) += mu;
+      h(b, a) += mu;
+    }
     solve_bounded_lsq(h, g, 0.0f, 1.0f, weights);
     if (options.support_sparsity < 1.0f) {
       // Relaxed lasso: the L1 term chose which shapes are on; on those it would also bias the
@@ -1095,6 +1102,19 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
                 is_gaze_shape(model.expression_names[static_cast<std::size_t>(j)])
             ? 1
             : 0;
+
+  // Antagonist pairs (TrackerOptions::antagonist_weight), per side.
+  for (const char* side : {"_L", "_R"}) {
+    constexpr std::pair<std::string_view, std::string_view> kPairs[] = {{"browDown", "browInnerUp"},
+                                                                        {"browDown", "browOuterUp"},
+                                                                        {"eyeWide", "eyeBlink"},
+                                                                        {"eyeWide", "eyeSquint"}};
+    for (const auto& [first, second] : kPairs) {
+      const int a = model.expression_index(std::string(first) + side);
+      const int b = model.expression_index(std::string(second) + side);
+      if (a >= 0 && b >= 0 && a < s->k && b < s->k) s->antagonists.emplace_back(a, b);
+    }
+  }
 
   // --- Sample selection on the mean face: front-facing fitting vertices, one per grid cell,
   // plus the most-displaced vertices of every shape so small shapes (blinks, brows) are seen.

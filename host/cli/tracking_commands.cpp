@@ -692,6 +692,8 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
        [](TrackerOptions& o, double v) { o.calibrate_depth_offsets = v != 0.0; }},
       {"max_depth_offset_mm",
        [](TrackerOptions& o, double v) { o.max_depth_offset_mm = static_cast<float>(v); }},
+      {"antagonist_weight",
+       [](TrackerOptions& o, double v) { o.antagonist_weight = static_cast<float>(v); }},
       {"calibration_frames",
        [](TrackerOptions& o, double v) { o.calibration_frames = static_cast<int>(v); }},
       {"calibration_rounds",

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <new>
 #include <numbers>
 #include <random>
@@ -72,6 +73,38 @@ void noisy_landmarks(const FrameTruth& truth, std::mt19937& rng,
   points.resize(68);
   for (int l = 0; l < 68; ++l)
     points[l] = truth.landmarks_depth_px[l].cast<float>() + Eigen::Vector2f(noise(rng), noise(rng));
+}
+
+// Per-frame expression weights: all 0 until frame `start` (the calibration window), then each
+// listed shape rises linearly to its peak over `rise` frames and stays there.
+std::vector<std::vector<float>> ramp_track(int frames, int start, int rise,
+                                           std::initializer_list<std::pair<int, float>> peaks) {
+  std::vector<std::vector<float>> track(frames, std::vector<float>(model().expression_count, 0.0f));
+  for (int f = start; f < frames; ++f) {
+    const float s = std::min(1.0f, static_cast<float>(f - start) / static_cast<float>(rise));
+    for (const auto& [shape, peak] : peaks) track[f][shape] = peak * s;
+  }
+  return track;
+}
+
+// Renders `scene` and tracks it calibrating the identity, with truth + 1.5 px landmarks (noise
+// seed `noise_seed`); on_frame(frame, truth, report) sees every frame reported as tracking.
+template <class OnFrame>
+void track_scene(const SyntheticOptions& scene, const TrackerOptions& options,
+                 std::uint32_t noise_seed, OnFrame on_frame) {
+  const Frames frames = render(scene);
+  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+  ASSERT_TRUE(tracker.ok()) << tracker.error().message;
+  TrackReport report;
+  std::mt19937 rng(noise_seed);
+  std::vector<Eigen::Vector2f> points;
+  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
+    noisy_landmarks(frames.truth[f], rng, points);
+    TrackLandmarks landmarks{points, {}};
+    (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
+    if (report.state == TrackState::kTracking)
+      on_frame(static_cast<int>(f), frames.truth[f], report);
+  }
 }
 
 TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
@@ -252,42 +285,28 @@ PairScene track_rising_brow_and_lid(std::uint64_t seed, float antagonist_weight)
   SyntheticOptions o;
   o.seed = seed;
   o.frame_count = 50;
-  const int brow = model().expression_index("browDown_L");
-  const int lid = model().expression_index("eyeWide_R");
-  o.expression_track.assign(o.frame_count, std::vector<float>(model().expression_count, 0.0f));
-  for (int f = 14; f < o.frame_count; ++f) {
-    const float s = std::min(1.0f, (f - 14) / 20.0f);
-    o.expression_track[f][brow] = 0.6f * s;
-    o.expression_track[f][lid] = 0.4f * s;
-  }
-  const Frames frames = render(o);
+  o.expression_track = ramp_track(o.frame_count, 14, 20,
+                                  {{model().expression_index("browDown_L"), 0.6f},
+                                   {model().expression_index("eyeWide_R"), 0.4f}});
   TrackerOptions options;
   options.antagonist_weight = antagonist_weight;
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
-  EXPECT_TRUE(tracker.ok()) << tracker.error().message;
-  if (!tracker) return {};
-  TrackReport report;
-  std::mt19937 rng(static_cast<std::uint32_t>(seed));
-  std::vector<Eigen::Vector2f> points;
   const std::pair<const char*, const char*> pairs[] = {{"browDown_L", "browInnerUp_L"},
                                                        {"browDown_L", "browOuterUp_L"},
                                                        {"eyeWide_R", "eyeBlink_R"},
                                                        {"eyeWide_R", "eyeSquint_R"}};
   PairScene out;
   int n = 0;
-  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
-    noisy_landmarks(frames.truth[f], rng, points);
-    TrackLandmarks landmarks{points, {}};
-    (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
-    if (report.state != TrackState::kTracking || f < 14) continue;
-    for (const auto& [a, b] : pairs)
-      out.coactivation += std::min(report.weights[model().expression_index(a)],
-                                   report.weights[model().expression_index(b)]);
-    for (int j = 0; j < report.shape_count; ++j)
-      out.weight_mae +=
-          std::abs(report.weights[j] - frames.truth[f].expression_weights[j]) / report.shape_count;
-    ++n;
-  }
+  track_scene(o, options, static_cast<std::uint32_t>(seed),
+              [&](int f, const FrameTruth& truth, const TrackReport& report) {
+                if (f < 14) return;
+                for (const auto& [a, b] : pairs)
+                  out.coactivation += std::min(report.weights[model().expression_index(a)],
+                                               report.weights[model().expression_index(b)]);
+                for (int j = 0; j < report.shape_count; ++j)
+                  out.weight_mae += std::abs(report.weights[j] - truth.expression_weights[j]) /
+                                    report.shape_count;
+                ++n;
+              });
   EXPECT_GT(n, 30) << "seed " << seed;
   out.coactivation /= std::max(n, 1);
   out.weight_mae /= std::max(n, 1);
@@ -451,14 +470,9 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
   o.yaw_amplitude_deg = 12.0;
   o.pitch_amplitude_deg = 6.0;
   // Neutral while the tracker calibrates the identity, then the mouth opens and smiles.
-  const int jaw = model().expression_index("jawOpen");
-  const int smile = model().expression_index("mouthSmile_L");
-  o.expression_track.assign(o.frame_count, std::vector<float>(model().expression_count, 0.0f));
-  for (int f = 12; f < o.frame_count; ++f) {
-    const float s = std::min(1.0f, (f - 12) / 10.0f);
-    o.expression_track[f][jaw] = 0.3f * s;
-    o.expression_track[f][smile] = 0.5f * s;
-  }
+  o.expression_track = ramp_track(o.frame_count, 12, 10,
+                                  {{model().expression_index("jawOpen"), 0.3f},
+                                   {model().expression_index("mouthSmile_L"), 0.5f}});
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 46u);
   std::vector<int> upper;
@@ -583,28 +597,18 @@ NeutralHold hold_neutral(std::uint64_t seed, bool depth_offsets) {
   o.seed = seed;
   o.frame_count = 40;
   o.expression_weights.assign(model().expression_count, 0.0f);
-  const Frames frames = render(o);
   TrackerOptions options;
   options.calibrate_depth_offsets = depth_offsets;
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
-  EXPECT_TRUE(tracker.ok()) << tracker.error().message;
-  if (!tracker) return {};
-  TrackReport report;
-  std::mt19937 rng(static_cast<std::uint32_t>(seed));
-  std::vector<Eigen::Vector2f> points;
   NeutralHold out;
   int n = 0;
-  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
-    noisy_landmarks(frames.truth[f], rng, points);
-    TrackLandmarks landmarks{points, {}};
-    (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
-    if (report.state != TrackState::kTracking) continue;
-    for (int j = 0; j < report.shape_count; ++j) {
-      out.mean_weight += report.weights[j];
-      out.worst_weight = std::max<double>(out.worst_weight, report.weights[j]);
-    }
-    n += report.shape_count;
-  }
+  track_scene(o, options, static_cast<std::uint32_t>(seed),
+              [&](int, const FrameTruth&, const TrackReport& report) {
+                for (int j = 0; j < report.shape_count; ++j) {
+                  out.mean_weight += report.weights[j];
+                  out.worst_weight = std::max<double>(out.worst_weight, report.weights[j]);
+                }
+                n += report.shape_count;
+              });
   EXPECT_GT(n, 20 * model().fitting_expression_count) << "seed " << seed;
   out.mean_weight /= std::max(n, 1);
   return out;

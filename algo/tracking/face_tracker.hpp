@@ -141,9 +141,12 @@ struct TrackerOptions {
   // eyeWide with eyeBlink and with eyeSquint) partly cancel each other, so the two switched on
   // together can stand in for one of them (occluder take 1026: browDown_L 0.3 read 0.47 with
   // browInnerUp_L 0.4 beside it, with the true identity too). A penalty mu w_a w_b with
-  // mu = antagonist_weight sqrt(H_aa H_bb) (H with its priors) makes that cost; below 1/sqrt(2)
-  // H stays positive definite with a shape in two pairs. eval track, 5 seeds: weight MAE 0.0109
-  // -> 0.0106; 20 held-out occluder takes: worst frame 0.169 -> 0.121, mean 0.0133 -> 0.0124.
+  // mu = antagonist_weight sqrt(H_aa H_bb) (H with its priors) makes that cost. It adds to
+  // H's off-diagonal, so positive definiteness is not guaranteed in general (the pair's own
+  // 2x2 block stays so while |H_ab + mu| < sqrt(H_aa H_bb); an antagonist pair's data term
+  // H_ab is negative, the shapes cancel); the solver is a bounded coordinate descent either
+  // way, so the weights stay in [0, 1]. eval track, 5 seeds: weight MAE 0.0109 -> 0.0106; 20
+  // held-out occluder takes: worst frame 0.169 -> 0.121, mean 0.0133 -> 0.0124.
   float antagonist_weight = 0.5f;
   float landmark_weight = 1.0f;  // mm^2 per px^2 of landmark residual
   float landmark_huber_px = 4.0f;

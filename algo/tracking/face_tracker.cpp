@@ -422,7 +422,8 @@ int FaceTracker::State::smooth(const DepthImage& depth, const Box& b) {
 
 void FaceTracker::State::smooth_spatially(const Box& b) {
   const int r = options.spatial_radius_px;
-  if (r <= 0) return;
+  // A box too small for the window has no interior (edge_aware_mean writes nothing either).
+  if (r <= 0 || b.x1 - b.x0 <= 2 * r || b.y1 - b.y0 <= 2 * r) return;
   edge_aware_mean(smoothed, b, {.radius_px = r, .range_mm = options.spatial_range_mm},
                   spatial_scratch);
   for (int y = b.y0 + r; y < b.y1 - r; ++y) {

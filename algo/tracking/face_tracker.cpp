@@ -233,9 +233,17 @@ struct FaceTracker::State {
                float gate) const;
   void solve_weights(const Image<float>& image, const Box& b, const Pose& p,
                      const TrackLandmarks* landmarks, int& landmarks_used);
-  bool acceptable(const IcpStats& s, bool acquiring) const;
+  // `face_seen`: landmarks say there is a face here (see max_rms_mm()).
+  bool acceptable(const IcpStats& s, bool acquiring, bool face_seen) const;
+  // The RMS bound of a fit: before calibration the model is the mean face, which fits an
+  // atypical one only to a few mm, so the bound is looser there when landmarks confirm a face
+  // (depth alone cannot tell a face at 5 mm from a head-sized ellipsoid).
+  float max_rms_mm(bool face_seen) const {
+    return calibrated || !face_seen ? options.max_rms_mm : options.uncalibrated_max_rms_mm;
+  }
   bool acquire(const TrackLandmarks* landmarks, IcpStats& stats);
-  void calibrate();
+  // Returns the mean RMS of the calibration frames re-tracked with the fitted face.
+  float calibrate();
   void calibrate_landmark_offsets();
   void calibrate_depth_offsets();
   void output(TrackReport& report, double time_s);
@@ -709,11 +717,11 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
   }
 }
 
-bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring) const {
+bool FaceTracker::State::acceptable(const IcpStats& s, bool acquiring, bool face_seen) const {
   // Acquisition is stricter on coverage (a flat wall must not pass for a face).
   const float fraction =
       acquiring ? std::max(0.5f, options.min_inlier_fraction) : options.min_inlier_fraction;
-  const float rms = options.max_rms_mm;
+  const float rms = max_rms_mm(face_seen);
   return s.inliers >= options.min_inliers &&
          static_cast<float>(s.inliers) >= fraction * static_cast<float>(s.facing) && s.rms <= rms;
 }
@@ -808,9 +816,9 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   // calibration the mean face fits a real one only to a few mm, so the RMS bound is the
   // tracking one then.
   auto good = [&](const IcpStats& s) {
-    return acceptable(s, true) &&
+    return acceptable(s, true, from_landmarks) &&
            static_cast<float>(s.inliers) >= options.acquire_min_sample_fraction * n &&
-           s.rms <= (calibrated ? options.acquire_max_rms_mm : options.max_rms_mm);
+           s.rms <= (calibrated ? options.acquire_max_rms_mm : max_rms_mm(from_landmarks));
   };
   // With landmarks, a candidate must also put the model's landmarks on them: median
   // reprojection error over the interior points.
@@ -835,7 +843,7 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   for (int c = 0; c < count; ++c) {
     Pose p = candidates[c];
     IcpStats s = icp(smoothed, full, p, options.acquire_iterations, 40.0f, options.icp_gate_mm);
-    if (!acceptable(s, true)) continue;
+    if (!acceptable(s, true, from_landmarks)) continue;
     if (calibrated) {
       // The face may show any expression: fit the weights at this pose and refine it before
       // judging the residual (a neutral face on an open jaw leaves several mm).
@@ -858,7 +866,7 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   return found;
 }
 
-void FaceTracker::State::calibrate() {
+float FaceTracker::State::calibrate() {
   // Identity and the calibration frames' poses by joint Gauss-Newton on the point-to-plane
   // residuals of all stored frames, r = n . (x - q) with x = R_f (neutral_i + U_i c) + t_f,
   // and a Tikhonov prior on c (coefficients are in sigma units). The unknowns are c (m) and a
@@ -965,10 +973,12 @@ void FaceTracker::State::calibrate() {
   // stays the model's (absolute pose) instead of moving by the removed motion. The stored
   // frames are re-tracked with it.
   rebuild(options.keep_identity_rigid);
+  float rms_sum = 0.0f;
   for (int f = 0; f < calib_count; ++f) {
-    icp(calib_depth[static_cast<std::size_t>(f)], calib_box[static_cast<std::size_t>(f)],
-        calib_pose[static_cast<std::size_t>(f)], options.icp_iterations, options.icp_gate_mm,
-        options.icp_gate_mm);
+    rms_sum += icp(calib_depth[static_cast<std::size_t>(f)], calib_box[static_cast<std::size_t>(f)],
+                   calib_pose[static_cast<std::size_t>(f)], options.icp_iterations,
+                   options.icp_gate_mm, options.icp_gate_mm)
+                   .rms;
   }
   if (options.calibrate_depth_offsets) calibrate_depth_offsets();
   if (options.calibrate_landmark_offsets) calibrate_landmark_offsets();
@@ -978,6 +988,7 @@ void FaceTracker::State::calibrate() {
   previous_weights = weights;
   update_current();
   calibrated = true;
+  return rms_sum / static_cast<float>(calib_count);
 }
 
 void FaceTracker::State::calibrate_landmark_offsets() {
@@ -1438,11 +1449,12 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   report.samples_used = stats.used;
   report.inliers = stats.inliers;
   report.rms_mm = stats.rms;
-  if (!s.acceptable(stats, false)) {
+  const bool face_seen = landmarks != nullptr && landmarks->points.size() >= 68;
+  if (!s.acceptable(stats, false, face_seen)) {
     s.lost = true;
     s.pose = s.last_good_pose;
     keep_last(TrackState::kLost, stats.inliers < s.options.min_inliers ? "too few depth inliers"
-                                 : stats.rms > s.options.max_rms_mm    ? "residual too large"
+                                 : stats.rms > s.max_rms_mm(face_seen) ? "residual too large"
                                                                        : "too few inliers");
     return;
   }
@@ -1476,9 +1488,21 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
     report.calibration_frames_left = s.options.calibration_frames - s.calib_count;
     if (s.calib_count >= s.options.calibration_frames) {
       start = Clock::now();
-      s.calibrate();
+      const float fit_rms = s.calibrate();
       report.times.calibrate_ms = ms_since(start);
       s.filter.reset();
+      // The fitted face must explain its own calibration frames as well as a re-acquisition
+      // would have to (acquire_max_rms_mm); when it does not, the frames were not one neutral
+      // face at a right pose (a lock on the wrong pose, the subject moving or talking), and the
+      // tracker starts over rather than track with a wrong face.
+      if (fit_rms > s.options.acquire_max_rms_mm) {
+        reset();
+        report.face_found = false;
+        keep_last(TrackState::kSearching,
+                  "calibration did not fit this face: face the camera with a neutral face and "
+                  "hold still");
+        return;
+      }
     }
   }
   s.output(report, time_s);

@@ -218,6 +218,21 @@ struct FaceTracker::State {
   }
   Eigen::Vector3f sample(int i) const { return current.segment<3>(3 * i); }
   bool depth_at(const Image<float>& image, const Box& b, float u, float v, float& z) const;
+  // Sample i's point x and normal nn in the camera frame under pose p; false when it faces away
+  // from the camera or grazes it (depth there is unreliable).
+  bool facing_sample(const Pose& p, int i, Eigen::Vector3f& x, Eigen::Vector3f& nn) const {
+    x = p.r * sample(i) + p.t;
+    nn = p.r * normals[static_cast<std::size_t>(i)];
+    return x.z() > 1.0f && nn.dot(x) <= -0.2f * x.norm();
+  }
+  // The measured point q on the camera ray through x (depth_at() at x's pixel), if any.
+  bool measured_point(const Image<float>& image, const Box& b, const Eigen::Vector3f& x,
+                      Eigen::Vector3f& q) const {
+    float z = 0.0f;
+    if (!depth_at(image, b, fx * x.x() / x.z() + cx, fy * x.y() / x.z() + cy, z)) return false;
+    q = x * (z / x.z());
+    return true;
+  }
   Box predicted_box(const Pose& p) const;
   int smooth(const DepthImage& depth, const Box& b);
   void smooth_spatially(const Box& b);
@@ -538,20 +553,16 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
     IcpStats s;
     double r2 = 0.0;
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3f x = p.r * sample(i) + p.t;
-      const Eigen::Vector3f nn = p.r * normals[static_cast<std::size_t>(i)];
-      if (x.z() <= 1.0f || nn.dot(x) > -0.2f * x.norm()) continue;  // faces away / grazing
+      Eigen::Vector3f x, nn, q;
+      if (!facing_sample(p, i, x, nn)) continue;
       const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
       if (u < 0.0f || v < 0.0f || u > width - 1.0f || v > height - 1.0f) continue;
       // Hidden samples are not expected to be seen: the inlier fraction of loss detection is of
       // the visible ones (min_inliers still reports a face covered entirely).
       if (mask_on && occluded[static_cast<std::size_t>(i)]) continue;
       ++s.facing;
-      float z = 0.0f;
-      if (!depth_at(image, b, u, v, z)) continue;
+      if (!measured_point(image, b, x, q)) continue;
       ++s.used;
-      // The measured point on the same ray as x: p = x * z / x_z.
-      const Eigen::Vector3f q = x * (z / x.z());
       const float r = nn.dot(x - q);
       const float w = tukey(r, c);
       if (w <= 0.0f) continue;
@@ -583,16 +594,14 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
   for (int it = 0; it < options.weight_iterations; ++it) {
     int found = 0;
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3f xm = sample(i);
-      const Eigen::Vector3f x = p.r * xm + p.t;
-      const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
-      if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
+      Eigen::Vector3f x, nn, measured;
+      if (!facing_sample(p, i, x, nn)) continue;
       if (mask_on && occluded[static_cast<std::size_t>(i)]) continue;
-      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
-      float z = 0.0f;
-      if (!depth_at(image, b, u, v, z)) continue;
+      if (!measured_point(image, b, x, measured)) continue;
       // Data point in the model frame; the row says n_i . (B_i w) = n_i . (q - base_i).
-      const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
+      const Eigen::Vector3f xm = sample(i);
+      const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
+      const Eigen::Vector3f q = rt * (measured - p.t);
       const auto f = static_cast<std::size_t>(found++);
       found_sample[f] = i;
       found_residual[f] = nm.dot(xm - q);
@@ -917,14 +926,11 @@ float FaceTracker::State::calibrate() {
       d.setZero();
       gp.setZero();
       for (int i = 0; i < n; ++i) {
-        const Eigen::Vector3f x = p.r * sample(i) + p.t;
+        Eigen::Vector3f x, nn, q;
+        if (!facing_sample(p, i, x, nn)) continue;
+        if (!measured_point(calib_depth[fi], calib_box[fi], x, q)) continue;
         const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
-        const Eigen::Vector3f nn = p.r * nm;
-        if (x.z() <= 1.0f || nn.dot(x) > -0.2f * x.norm()) continue;
-        const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
-        float z = 0.0f;
-        if (!depth_at(calib_depth[fi], calib_box[fi], u, v, z)) continue;
-        const float r = nn.dot(x - x * (z / x.z()));
+        const float r = nn.dot(x - q);
         const float w = tukey(r, options.icp_gate_mm);
         if (w <= 0.0f) continue;
         // d r / d c = n_camera . R U_i = n_model . U_i; d r / d (omega, t) as in icp().
@@ -1039,15 +1045,11 @@ void FaceTracker::State::calibrate_depth_offsets() {
     const Pose& p = calib_pose[fi];
     const Eigen::Matrix3f rt = p.r.transpose();
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3f xm = sample(i);
-      const Eigen::Vector3f x = p.r * xm + p.t;
-      const Eigen::Vector3f& nm = normals[static_cast<std::size_t>(i)];
-      if (x.z() <= 1.0f || (p.r * nm).dot(x) > -0.2f * x.norm()) continue;
-      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
-      float z = 0.0f;
-      if (!depth_at(calib_depth[fi], calib_box[fi], u, v, z)) continue;
-      const Eigen::Vector3f q = rt * (x * (z / x.z()) - p.t);
-      const float r = nm.dot(q - xm);
+      Eigen::Vector3f x, nn, measured;
+      if (!facing_sample(p, i, x, nn)) continue;
+      if (!measured_point(calib_depth[fi], calib_box[fi], x, measured)) continue;
+      const Eigen::Vector3f q = rt * (measured - p.t);
+      const float r = normals[static_cast<std::size_t>(i)].dot(q - sample(i));
       if (std::abs(r) > options.icp_gate_mm) continue;
       found_residual[static_cast<std::size_t>(i)] += r;
       ++found_sample[static_cast<std::size_t>(i)];

@@ -823,7 +823,7 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   // surface (a face rotated far from the truth shows too few) with a residual near the sensor
   // noise (ICP can converge to a wrong rotation at the right place with a few mm RMS). Before
   // calibration the mean face fits a real one only to a few mm, so the RMS bound is the
-  // tracking one then.
+  // tracking one then, or uncalibrated_max_rms_mm when landmarks confirm a face.
   auto good = [&](const IcpStats& s) {
     return acceptable(s, true, from_landmarks) &&
            static_cast<float>(s.inliers) >= options.acquire_min_sample_fraction * n &&

@@ -832,9 +832,9 @@ TEST(Tracker, AHeadSizedEllipsoidIsNotAFace) {
 
 // A subject so far from the mean face (2.5 sigma in every mode) that acquisition locks on at
 // 24 deg and the pose walks to 38 deg while calibrating. The fitted face then explains its own
-// calibration frames only to ~4 mm, above what a re-acquisition must reach, so the tracker
-// starts over instead of tracking the wrong pose; without that check (acquire_max_rms_mm 10)
-// it reports tracking 38 deg off.
+// calibration frames only to 3.0 mm RMS (right locks: 0.8-1.1 mm), above the 2 mm a
+// re-acquisition must reach, so the tracker starts over instead of tracking the wrong pose;
+// without that check (acquire_max_rms_mm 10) it reports tracking 38 deg off.
 TEST(Tracker, CalibrationThatDoesNotFitStartsOver) {
   const std::vector<float> identity = atypical_identity(5, 2.5f);
   const AcquisitionRun checked = acquire_subject(5, identity, TrackerOptions{});

@@ -786,8 +786,8 @@ TEST(Tracker, AcquiresAnAtypicalFaceWithLandmarks) {
     strict_calibrated += acquire_subject(seed, identity, strict).calibrated_at >= 0;
   }
   // Measured: 5 of 6 by frame 10 (the sixth at frame 15), 6 of 6; with the strict bound 4.
-  std::printf("calibrated by frame 10: %d, in 20 frames: %d; strict bound: %d\n",
-              calibrated_by_10, calibrated, strict_calibrated);
+  std::printf("calibrated by frame 10: %d, in 20 frames: %d; strict bound: %d\n", calibrated_by_10,
+              calibrated, strict_calibrated);
   EXPECT_GE(calibrated_by_10, 5);
   EXPECT_EQ(calibrated, 6);
   EXPECT_LE(strict_calibrated, 4);

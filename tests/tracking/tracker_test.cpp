@@ -87,12 +87,11 @@ std::vector<std::vector<float>> ramp_track(int frames, int start, int rise,
   return track;
 }
 
-// Renders `scene` and tracks it calibrating the identity, with truth + 1.5 px landmarks (noise
-// seed `noise_seed`); on_frame(frame, truth, report) sees every frame reported as tracking.
+// Tracks `frames`, calibrating the identity, with truth + 1.5 px landmarks (noise seed
+// `noise_seed`); on_frame(frame, truth, report, tracker) sees every frame.
 template <class OnFrame>
-void track_scene(const SyntheticOptions& scene, const TrackerOptions& options,
-                 std::uint32_t noise_seed, OnFrame on_frame) {
-  const Frames frames = render(scene);
+void track_frames(const Frames& frames, const TrackerOptions& options, std::uint32_t noise_seed,
+                  OnFrame on_frame) {
   auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   TrackReport report;
@@ -102,9 +101,19 @@ void track_scene(const SyntheticOptions& scene, const TrackerOptions& options,
     noisy_landmarks(frames.truth[f], rng, points);
     TrackLandmarks landmarks{points, {}};
     (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
-    if (report.state == TrackState::kTracking)
-      on_frame(static_cast<int>(f), frames.truth[f], report);
+    on_frame(static_cast<int>(f), frames.truth[f], report, **tracker);
   }
+}
+
+// Renders `scene` and tracks it (track_frames()); on_frame(frame, truth, report) sees every
+// frame reported as tracking.
+template <class OnFrame>
+void track_scene(const SyntheticOptions& scene, const TrackerOptions& options,
+                 std::uint32_t noise_seed, OnFrame on_frame) {
+  track_frames(render(scene), options, noise_seed,
+               [&](int f, const FrameTruth& truth, const TrackReport& report, const FaceTracker&) {
+                 if (report.state == TrackState::kTracking) on_frame(f, truth, report);
+               });
 }
 
 TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
@@ -742,26 +751,18 @@ AcquisitionRun acquire_subject(std::uint32_t seed, const std::vector<float>& ide
   o.frame_count = 20;
   o.yaw_amplitude_deg = 10.0;
   o.pitch_amplitude_deg = 5.0;
-  const Frames frames = render(o);
   AcquisitionRun run;
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
-  EXPECT_TRUE(tracker.ok());
-  if (!tracker) return run;
-  TrackReport report;
-  std::mt19937 rng(seed);
-  std::vector<Eigen::Vector2f> points;
-  for (std::size_t f = 0; f < frames.depth.size(); ++f) {
-    noisy_landmarks(frames.truth[f], rng, points);
-    TrackLandmarks landmarks{points, {}};
-    (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
-    if (run.first_found < 0 && report.face_found) run.first_found = static_cast<int>(f);
-    if (run.calibrated_at < 0 && (*tracker)->calibrated()) run.calibrated_at = static_cast<int>(f);
-    if (report.state == TrackState::kTracking || report.state == TrackState::kRecovered) {
-      run.worst_tracked_deg =
-          std::max(run.worst_tracked_deg,
-                   rotation_error_deg(report.camera_from_model, frames.truth[f].camera_from_model));
-    }
-  }
+  track_frames(
+      render(o), options, seed,
+      [&](int f, const FrameTruth& truth, const TrackReport& report, const FaceTracker& tracker) {
+        if (run.first_found < 0 && report.face_found) run.first_found = f;
+        if (run.calibrated_at < 0 && tracker.calibrated()) run.calibrated_at = f;
+        if (report.state == TrackState::kTracking || report.state == TrackState::kRecovered) {
+          run.worst_tracked_deg =
+              std::max(run.worst_tracked_deg,
+                       rotation_error_deg(report.camera_from_model, truth.camera_from_model));
+        }
+      });
   return run;
 }
 

@@ -302,6 +302,7 @@ nlohmann::json Daemon::Impl::status_json() const {
         {"vmc_target", !d.config.streaming.vmc_target.empty() ? d.config.streaming.vmc_target
                                                               : d.config.streaming.osc_target},
         {"state", s.tracking_state},
+        {"reason", s.tracking_reason},
         {"identity", s.tracking_identity},
         {"frames", s.tracking_frames},
         {"vmc_datagrams", s.vmc_datagrams},

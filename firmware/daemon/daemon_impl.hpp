@@ -105,6 +105,7 @@ struct StatusData {
   long long frames_dropped = 0;  // frames a real-time sensor would have overwritten
   long long tracking_frames = 0;
   std::string tracking_state;     // the tracker's state of the last frame
+  std::string tracking_reason;    // why it has no face then (TrackReport::loss_reason), or ""
   std::string tracking_identity;  // where the tracked identity came from
   long long vmc_datagrams = 0;
   std::int64_t last_take = 0;  // id of the last stored take

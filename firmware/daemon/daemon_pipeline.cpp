@@ -383,6 +383,7 @@ Result<void> Daemon::Impl::start_tracking() {
   update_status([](StatusData& s) {
     s.tracking_frames = 0;
     s.tracking_state.clear();
+    s.tracking_reason.clear();
     s.tracking_note.clear();
   });
   if (!fitter) return fail("tracking needs the face model: " + fitter_error);
@@ -525,6 +526,7 @@ void Daemon::Impl::tracking_tick() {
   }
   const long long vmc_sent = vmc ? vmc->datagrams_sent() : 0;
   const char* state = tracker ? to_string(track_report.state) : "";
+  const char* reason = tracker ? track_report.loss_reason : "";
   // The status (and its SSE stream) changes on tracker state changes and twice a second; the
   // per-frame weights go through the live stream.
   long long frames;
@@ -536,6 +538,7 @@ void Daemon::Impl::tracking_tick() {
   if (state_changed || frames % 15 == 0)
     update_status([&](StatusData& s) {
       s.tracking_state = state;
+      s.tracking_reason = reason;
       s.vmc_datagrams = vmc_sent;
     });
   if (config.camera.realtime) {

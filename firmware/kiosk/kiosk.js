@@ -133,7 +133,8 @@ function renderTracking(s) {
   $("tracking").hidden = !on;
   if (on) {
     const t = s.tracking || {};
-    $("tracking-info").textContent = `tracker: ${t.state || "starting"}, identity: ` +
+    $("tracking-info").textContent = `tracker: ${t.state || "starting"}` +
+        `${t.reason ? " (" + t.reason + ")" : ""}, identity: ` +
         `${t.identity || "-"}, VMC: ${t.vmc_target || "off"} (${t.vmc_datagrams || 0} datagrams)`;
   }
   if (on && !live) {

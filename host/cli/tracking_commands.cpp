@@ -1473,6 +1473,7 @@ int run_track(const ParsedOptions& options) {
   std::string sse;
   std::vector<double> latency, cost;
   long long read = 0, found = 0, lost_reports = 0, timeouts_in_row = 0;
+  std::string last_reason;  // the tracker's loss reason on the previous frame
   std::map<std::string, long long> states;
   std::string stop_reason = "end of stream";
   bool camera_failed = false;
@@ -1553,7 +1554,12 @@ int run_track(const ParsedOptions& options) {
     if (report.state == TrackState::kLost) {
       ++lost_reports;
       std::cerr << "track: frame " << frame.index << ": face lost (" << report.loss_reason << ")\n";
+    } else if (report.state == TrackState::kSearching && *report.loss_reason &&
+               last_reason != report.loss_reason) {
+      // Once per reason: "no face found" every frame of an empty room says nothing new.
+      std::cerr << "track: frame " << frame.index << ": searching (" << report.loss_reason << ")\n";
     }
+    last_reason = report.loss_reason;
     ++states[to_string(report.state)];
     progress.update(read);
   }

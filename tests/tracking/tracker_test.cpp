@@ -740,6 +740,7 @@ struct AcquisitionRun {
   int first_found = -1;            // first frame with a face
   int calibrated_at = -1;          // first frame calibrated
   double worst_tracked_deg = 0.0;  // largest rotation error of a frame reported as tracking
+  std::string restart_reason;      // the loss reason when calibration started over
 };
 
 // Tracks a 20-frame head turn of `identity` with truth + 1.5 px landmarks from the first frame.
@@ -757,6 +758,9 @@ AcquisitionRun acquire_subject(std::uint32_t seed, const std::vector<float>& ide
       [&](int f, const FrameTruth& truth, const TrackReport& report, const FaceTracker& tracker) {
         if (run.first_found < 0 && report.face_found) run.first_found = f;
         if (run.calibrated_at < 0 && tracker.calibrated()) run.calibrated_at = f;
+        if (report.state == TrackState::kSearching && run.first_found >= 0 &&
+            run.restart_reason.empty())
+          run.restart_reason = report.loss_reason;
         if (report.state == TrackState::kTracking || report.state == TrackState::kRecovered) {
           run.worst_tracked_deg =
               std::max(run.worst_tracked_deg,
@@ -847,6 +851,10 @@ TEST(Tracker, CalibrationThatDoesNotFitStartsOver) {
               trusted.worst_tracked_deg);
   EXPECT_GT(trusted.worst_tracked_deg, 20.0);  // the scene shows the problem
   EXPECT_LT(checked.worst_tracked_deg, 5.0);
+  // The user is told what happened and what to do.
+  EXPECT_EQ(checked.restart_reason.rfind("calibration did not fit this face", 0), 0u)
+      << checked.restart_reason;
+  EXPECT_NE(checked.restart_reason.find("neutral face"), std::string::npos);
 }
 
 // The face disappears (all-invalid depth, then an empty room) and comes back: loss is

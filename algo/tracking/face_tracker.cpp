@@ -947,6 +947,51 @@ float FaceTracker::State::calibrate() {
         d.noalias() += w * jp * jp.transpose();
         gp += (w * r) * jp;
       }
+      // Landmark rows: the reprojection error r = proj(R m_l(c) + t) - detected of each interior
+      // landmark, per image axis a with v_a the row of d proj / d x (model frame): d r_a / d c =
+      // v_a . dm_l/dc, where dm_l/dc is the mode minus its rigid part (rebuild(false)),
+      // omega x (mean_l - pivot) + t; d r_a / d (omega, t) = ((x - pivot) x v_a, v_a) (camera).
+      // Depth sees a lip or a lid slide along the face hardly at all; the landmarks do.
+      const float lw = options.calibration_landmark_weight;
+      for (int l = 17; l < 68 && lw > 0.0f; ++l) {
+        const std::size_t at = fi * 68 + static_cast<std::size_t>(l);
+        if (!calib_landmark_valid[at]) continue;
+        const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+        if (x.z() <= 1.0f) continue;
+        const float iz = 1.0f / x.z();
+        const Eigen::Vector2f res =
+            Eigen::Vector2f(fx * x.x() * iz + cx, fy * x.y() * iz + cy) - calib_landmarks[at];
+        const float rn = res.norm();
+        const float w =
+            lw * (rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn);
+        Eigen::Matrix<float, 2, 3> jproj;
+        jproj << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
+        const Eigen::Matrix<float, 2, 3> jmodel = jproj * p.r;
+        const auto mv = model->landmark_vertices[static_cast<std::size_t>(l)];
+        const Eigen::Vector3f y =
+            Eigen::Vector3f(model->neutral[3 * mv], model->neutral[3 * mv + 1],
+                            model->neutral[3 * mv + 2]) -
+            rigid_pivot;
+        for (int ax = 0; ax < 2; ++ax) {
+          const Eigen::Vector3f vm = jmodel.row(ax).transpose();
+          row = vm.x() * identity_at_landmarks.row(3 * l) +
+                vm.y() * identity_at_landmarks.row(3 * l + 1) +
+                vm.z() * identity_at_landmarks.row(3 * l + 2);
+          row.noalias() -= rigid_of_mode.topRows<3>().transpose() * y.cross(vm);
+          row.noalias() -= rigid_of_mode.bottomRows<3>().transpose() * vm;
+          const Eigen::Vector3f vc = jproj.row(ax).transpose();
+          PoseVector jp;
+          jp.head<3>() = (x - pivot).cross(vc).cast<double>();
+          jp.tail<3>() = vc.cast<double>();
+          const Eigen::VectorXd rd = row.cast<double>();
+          const double r = res[ax];
+          a.selfadjointView<Eigen::Lower>().rankUpdate(rd, w);
+          gc += (w * r) * rd;
+          b.noalias() += (w * rd) * jp.transpose();
+          d.noalias() += w * jp * jp.transpose();
+          gp += (w * r) * jp;
+        }
+      }
     }
     schur = a.selfadjointView<Eigen::Lower>();
     schur.diagonal().array() += options.identity_prior;

@@ -184,6 +184,14 @@ struct TrackerOptions {
   int calibration_rounds = 24;
   int identity_modes = 100;      // leading identity PCA modes fitted
   float identity_prior = 20.0f;  // mm^2 per unit coefficient^2 (coefficients are in sigma)
+  // The identity fit also reprojects the calibration frames' landmarks (mm^2 per px^2, Huber
+  // landmark_huber_px; 0 = depth only). Depth hardly sees a lip or a lid slide along the face:
+  // occluder take 1041's subject came out with the lower lip 13 mm high (its landmarks 10 px
+  // off), so mouthLowerDown read 1.0 on a neutral face (take weight MAE 0.069; with the true
+  // identity 0.006, with this 0.0065). eval track, 5 seeds: weight MAE 0.0106 -> 0.0102,
+  // absolute pose 0.534 -> 0.424 deg; 40 takes 1030-1069: take weight MAE 0.0097 -> 0.0088,
+  // absolute pose 0.51 -> 0.41 deg. Calibration 475 -> 536 ms.
+  float calibration_landmark_weight = 1.0f;
   // Calibration fits the identity with the rigid part of its modes removed (depth cannot tell
   // it from pose); true keeps the fitted coefficients' rigid part in the final face: the PCA
   // modes tie it to their shape, so it predicts the true face frame (absolute pose error

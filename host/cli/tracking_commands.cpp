@@ -732,6 +732,8 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
        [](TrackerOptions& o, double v) { o.max_hidden_landmark_fraction = static_cast<float>(v); }},
       {"landmark_huber_px",
        [](TrackerOptions& o, double v) { o.landmark_huber_px = static_cast<float>(v); }},
+      {"calibration_landmark_weight",
+       [](TrackerOptions& o, double v) { o.calibration_landmark_weight = static_cast<float>(v); }},
       {"uncalibrated_max_rms_mm",
        [](TrackerOptions& o, double v) { o.uncalibrated_max_rms_mm = static_cast<float>(v); }},
       {"icp_iterations",

@@ -225,6 +225,13 @@ struct FaceTracker::State {
     nn = p.r * normals[static_cast<std::size_t>(i)];
     return x.z() > 1.0f && nn.dot(x) <= -0.2f * x.norm();
   }
+  // d proj / d x at the camera-frame point x (2x3): the point's image motion per unit motion.
+  Eigen::Matrix<float, 2, 3> projection_jacobian(const Eigen::Vector3f& x) const {
+    const float iz = 1.0f / x.z();
+    Eigen::Matrix<float, 2, 3> j;
+    j << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
+    return j;
+  }
   // The measured point q on the camera ray through x (depth_at() at x's pixel), if any.
   bool measured_point(const Image<float>& image, const Box& b, const Eigen::Vector3f& x,
                       Eigen::Vector3f& q) const {
@@ -645,10 +652,8 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
         const Eigen::Vector2f r = proj - landmarks->points[static_cast<std::size_t>(l)];
         const float rn = r.norm();
         const float hw = rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn;
-        // d proj / d x (2x3) times R: the landmark's image motion per model-frame motion.
-        Eigen::Matrix<float, 2, 3> jp;
-        jp << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
-        const Eigen::Matrix<float, 2, 3> jr = jp * p.r;
+        // d proj / d x times R: the landmark's image motion per model-frame motion.
+        const Eigen::Matrix<float, 2, 3> jr = projection_jacobian(x) * p.r;
         const float s = std::sqrt(lw * hw);
         for (int a = 0; a < 2; ++a) {
           // Linearised at the current w: J w_new = J w - r.
@@ -925,6 +930,14 @@ float FaceTracker::State::calibrate() {
       b.setZero();
       d.setZero();
       gp.setZero();
+      // A residual r with identity row rd and pose row jp, weight w, into the normal equations.
+      auto add_row = [&](const Eigen::VectorXd& rd, const PoseVector& jp, auto r, float w) {
+        a.selfadjointView<Eigen::Lower>().rankUpdate(rd, w);
+        gc += (w * r) * rd;
+        b.noalias() += (w * rd) * jp.transpose();
+        d.noalias() += w * jp * jp.transpose();
+        gp += (w * r) * jp;
+      };
       for (int i = 0; i < n; ++i) {
         Eigen::Vector3f x, nn, q;
         if (!facing_sample(p, i, x, nn)) continue;
@@ -940,12 +953,7 @@ float FaceTracker::State::calibrate() {
         PoseVector jp;
         jp.head<3>() = (x - pivot).cross(nn).cast<double>();
         jp.tail<3>() = nn.cast<double>();
-        const Eigen::VectorXd rd = row.cast<double>();
-        a.selfadjointView<Eigen::Lower>().rankUpdate(rd, w);
-        gc += (w * r) * rd;
-        b.noalias() += (w * rd) * jp.transpose();
-        d.noalias() += w * jp * jp.transpose();
-        gp += (w * r) * jp;
+        add_row(row.cast<double>(), jp, r, w);
       }
       // Landmark rows: the reprojection error r = proj(R m_l(c) + t) - detected of each interior
       // landmark, per image axis a with v_a the row of d proj / d x (model frame): d r_a / d c =
@@ -964,8 +972,7 @@ float FaceTracker::State::calibrate() {
         const float rn = res.norm();
         const float w =
             lw * (rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn);
-        Eigen::Matrix<float, 2, 3> jproj;
-        jproj << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
+        const Eigen::Matrix<float, 2, 3> jproj = projection_jacobian(x);
         const Eigen::Matrix<float, 2, 3> jmodel = jproj * p.r;
         const auto mv = model->landmark_vertices[static_cast<std::size_t>(l)];
         const Eigen::Vector3f y =
@@ -983,13 +990,7 @@ float FaceTracker::State::calibrate() {
           PoseVector jp;
           jp.head<3>() = (x - pivot).cross(vc).cast<double>();
           jp.tail<3>() = vc.cast<double>();
-          const Eigen::VectorXd rd = row.cast<double>();
-          const double r = res[ax];
-          a.selfadjointView<Eigen::Lower>().rankUpdate(rd, w);
-          gc += (w * r) * rd;
-          b.noalias() += (w * rd) * jp.transpose();
-          d.noalias() += w * jp * jp.transpose();
-          gp += (w * r) * jp;
+          add_row(row.cast<double>(), jp, static_cast<double>(res[ax]), w);
         }
       }
     }

@@ -232,11 +232,20 @@ struct FaceTracker::State {
     j << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
     return j;
   }
+  // The pixel (u, v) the camera-frame point x (z > 0) projects to.
+  Eigen::Vector2f pixel_of(const Eigen::Vector3f& x) const {
+    return {fx * x.x() / x.z() + cx, fy * x.y() / x.z() + cy};
+  }
+  // Landmark l of the current face (landmark_current) in the camera frame at pose p.
+  Eigen::Vector3f landmark_in_camera(const Pose& p, int l) const {
+    return p.r * landmark_current.segment<3>(3 * l) + p.t;
+  }
   // The measured point q on the camera ray through x (depth_at() at x's pixel), if any.
   bool measured_point(const Image<float>& image, const Box& b, const Eigen::Vector3f& x,
                       Eigen::Vector3f& q) const {
     float z = 0.0f;
-    if (!depth_at(image, b, fx * x.x() / x.z() + cx, fy * x.y() / x.z() + cy, z)) return false;
+    const Eigen::Vector2f px = pixel_of(x);
+    if (!depth_at(image, b, px.x(), px.y(), z)) return false;
     q = x * (z / x.z());
     return true;
   }
@@ -372,7 +381,8 @@ Box FaceTracker::State::predicted_box(const Pose& p) const {
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector3f x = p.r * sample(i) + p.t;
     if (x.z() <= 1.0f) continue;
-    const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+    const Eigen::Vector2f px = pixel_of(x);
+    const float u = px.x(), v = px.y();
     u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
   }
   constexpr int kMargin = 16;  // px: a frame's motion plus the bilinear footprint
@@ -490,8 +500,9 @@ void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, 
   auto pixel = [&](int i, int& u, int& v, float& nearer) {
     const Eigen::Vector3f x = p.r * sample(i) + p.t;
     if (x.z() <= 1.0f) return false;
-    u = static_cast<int>(std::lround(fx * x.x() / x.z() + cx));
-    v = static_cast<int>(std::lround(fy * x.y() / x.z() + cy));
+    const Eigen::Vector2f px = pixel_of(x);
+    u = static_cast<int>(std::lround(px.x()));
+    v = static_cast<int>(std::lround(px.y()));
     nearer = x.z() - margin;
     return true;
   };
@@ -515,11 +526,12 @@ void FaceTracker::State::mark_occluded(const Image<float>& image, const Box& b, 
     return false;
   };
   for (int l = 0; l < 68; ++l) {
-    const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+    const Eigen::Vector3f x = landmark_in_camera(p, l);
     if (x.z() <= 1.0f) continue;
     const float nearer = x.z() - margin;
-    bool hidden = hidden_around(static_cast<int>(std::lround(fx * x.x() / x.z() + cx)),
-                                static_cast<int>(std::lround(fy * x.y() / x.z() + cy)), nearer);
+    const Eigen::Vector2f px = pixel_of(x);
+    bool hidden = hidden_around(static_cast<int>(std::lround(px.x())),
+                                static_cast<int>(std::lround(px.y())), nearer);
     if (!hidden && detected) {
       const Eigen::Vector2f& q = landmarks->points[static_cast<std::size_t>(l)];
       hidden = hidden_around(static_cast<int>(std::lround(q.x())),
@@ -562,7 +574,8 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
     for (int i = 0; i < n; ++i) {
       Eigen::Vector3f x, nn, q;
       if (!facing_sample(p, i, x, nn)) continue;
-      const float u = fx * x.x() / x.z() + cx, v = fy * x.y() / x.z() + cy;
+      const Eigen::Vector2f px = pixel_of(x);
+      const float u = px.x(), v = px.y();
       if (u < 0.0f || v < 0.0f || u > width - 1.0f || v > height - 1.0f) continue;
       // Hidden samples are not expected to be seen: the inlier fraction of loss detection is of
       // the visible ones (min_inliers still reports a face covered entirely).
@@ -645,11 +658,9 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       for (int l = 17; l < 68; ++l) {
         if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
         if (mask_on && landmark_occluded[static_cast<std::size_t>(l)]) continue;
-        const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+        const Eigen::Vector3f x = landmark_in_camera(p, l);
         if (x.z() <= 1.0f) continue;
-        const float iz = 1.0f / x.z();
-        const Eigen::Vector2f proj(fx * x.x() * iz + cx, fy * x.y() * iz + cy);
-        const Eigen::Vector2f r = proj - landmarks->points[static_cast<std::size_t>(l)];
+        const Eigen::Vector2f r = pixel_of(x) - landmarks->points[static_cast<std::size_t>(l)];
         const float rn = r.norm();
         const float hw = rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn;
         // d proj / d x times R: the landmark's image motion per model-frame motion.
@@ -827,12 +838,13 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
   // Acquisition accepts only a fit as good as tracking gives: most of the face's samples on the
   // surface (a face rotated far from the truth shows too few) with a residual near the sensor
   // noise (ICP can converge to a wrong rotation at the right place with a few mm RMS). Before
-  // calibration the mean face fits a real one only to a few mm, so the RMS bound is the
-  // tracking one then, or uncalibrated_max_rms_mm when landmarks confirm a face.
+  // calibration the mean face fits a real one only to a few mm, so the RMS bound is then
+  // acceptable()'s alone (the tracking one, or uncalibrated_max_rms_mm when landmarks confirm a
+  // face).
   auto good = [&](const IcpStats& s) {
     return acceptable(s, true, from_landmarks) &&
            static_cast<float>(s.inliers) >= options.acquire_min_sample_fraction * n &&
-           s.rms <= (calibrated ? options.acquire_max_rms_mm : max_rms_mm(from_landmarks));
+           (!calibrated || s.rms <= options.acquire_max_rms_mm);
   };
   // With landmarks, a candidate must also put the model's landmarks on them: median
   // reprojection error over the interior points.
@@ -841,11 +853,10 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
     int m = 0;
     for (int l = 17; l < 68; ++l) {
       if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
-      const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+      const Eigen::Vector3f x = landmark_in_camera(p, l);
       if (x.z() <= 1.0f) continue;
-      const Eigen::Vector2f proj(fx * x.x() / x.z() + cx, fy * x.y() / x.z() + cy);
       errors[static_cast<std::size_t>(m++)] =
-          (proj - landmarks->points[static_cast<std::size_t>(l)]).norm();
+          (pixel_of(x) - landmarks->points[static_cast<std::size_t>(l)]).norm();
     }
     if (m < 10) return 1e9f;
     std::nth_element(errors.begin(), errors.begin() + m / 2, errors.begin() + m);
@@ -964,11 +975,9 @@ float FaceTracker::State::calibrate() {
       for (int l = 17; l < 68 && lw > 0.0f; ++l) {
         const std::size_t at = fi * 68 + static_cast<std::size_t>(l);
         if (!calib_landmark_valid[at]) continue;
-        const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+        const Eigen::Vector3f x = landmark_in_camera(p, l);
         if (x.z() <= 1.0f) continue;
-        const float iz = 1.0f / x.z();
-        const Eigen::Vector2f res =
-            Eigen::Vector2f(fx * x.x() * iz + cx, fy * x.y() * iz + cy) - calib_landmarks[at];
+        const Eigen::Vector2f res = pixel_of(x) - calib_landmarks[at];
         const float rn = res.norm();
         const float w =
             lw * (rn < options.landmark_huber_px ? 1.0f : options.landmark_huber_px / rn);
@@ -1062,7 +1071,7 @@ void FaceTracker::State::calibrate_landmark_offsets() {
       const std::size_t at = static_cast<std::size_t>(f) * 68 + static_cast<std::size_t>(l);
       if (!calib_landmark_valid[at]) continue;
       const Pose& p = calib_pose[static_cast<std::size_t>(f)];
-      const Eigen::Vector3f x = p.r * landmark_current.segment<3>(3 * l) + p.t;
+      const Eigen::Vector3f x = landmark_in_camera(p, l);
       if (x.z() <= 1.0f) continue;
       const Eigen::Vector2f& px = calib_landmarks[at];
       const Eigen::Vector3f ray((px.x() - cx) * x.z() / fx, (px.y() - cy) * x.z() / fy, x.z());

@@ -11,6 +11,7 @@ TrackLandmarkSource::TrackLandmarkSource(LandmarkDetector detector,
     : detector_(std::move(detector)), registration_(calibration) {
   view_.points = points_;
   view_.valid = valid_;
+  view_.noise_px = kDlibLandmarkNoisePx;
 }
 
 LandmarkFrameResult TrackLandmarkSource::detect(const ColorImage& color, const DepthImage& depth) {

@@ -23,6 +23,12 @@
 
 namespace fb {
 
+// dlib's error per image axis, px rms over the interior points: `facebooth eval track --landmarks
+// dlib` measures 2.52 on the synthetic colour render (dlib_landmark_error_px, 5 seeds). The
+// tracker weighs its points by it (TrackLandmarks::noise_px) against the 1.5 px its landmark
+// weights are set for.
+constexpr float kDlibLandmarkNoisePx = 2.5f;
+
 struct LandmarkFrameResult {
   bool found = false;
   const char* reason = "";      // why not (no colour image, no face, no depth there)

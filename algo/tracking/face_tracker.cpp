@@ -185,6 +185,7 @@ struct FaceTracker::State {
   std::vector<ShapeVector> calib_weights;
   std::vector<Eigen::Vector2f> calib_landmarks;    // calibration_frames x 68
   std::vector<std::uint8_t> calib_landmark_valid;  // calibration_frames x 68
+  std::vector<float> calib_landmark_scale;         // per calibration frame: landmark_scale()
   int calib_count = 0;
   std::vector<float> mesh_scratch;
   std::vector<Eigen::Vector3f> mesh_normals;
@@ -231,6 +232,12 @@ struct FaceTracker::State {
     Eigen::Matrix<float, 2, 3> j;
     j << fx * iz, 0.0f, -fx * x.x() * iz * iz, 0.0f, fy * iz, -fy * x.y() * iz * iz;
     return j;
+  }
+  // How much a source's landmark rows count against the ones the weights are set for.
+  float landmark_scale(const TrackLandmarks& l) const {
+    if (l.noise_px <= 0.0f) return 1.0f;
+    const float ratio = options.landmark_noise_px / l.noise_px;
+    return ratio * ratio;
   }
   // The pixel (u, v) the camera-frame point x (z > 0) projects to.
   Eigen::Vector2f pixel_of(const Eigen::Vector3f& x) const {
@@ -654,7 +661,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     }
     landmarks_used = 0;
     if (landmarks != nullptr && landmarks->points.size() >= 68) {
-      const float lw = options.landmark_weight;
+      const float lw = options.landmark_weight * landmark_scale(*landmarks);
       for (int l = 17; l < 68; ++l) {
         if (!landmarks->valid.empty() && !landmarks->valid[static_cast<std::size_t>(l)]) continue;
         if (mask_on && landmark_occluded[static_cast<std::size_t>(l)]) continue;
@@ -971,7 +978,7 @@ float FaceTracker::State::calibrate() {
       // v_a . dm_l/dc, where dm_l/dc is the mode minus its rigid part (rebuild(false)),
       // omega x (mean_l - pivot) + t; d r_a / d (omega, t) = ((x - pivot) x v_a, v_a) (camera).
       // Depth sees a lip or a lid slide along the face hardly at all; the landmarks do.
-      const float lw = options.calibration_landmark_weight;
+      const float lw = options.calibration_landmark_weight * calib_landmark_scale[fi];
       for (int l = 17; l < 68 && lw > 0.0f; ++l) {
         const std::size_t at = fi * 68 + static_cast<std::size_t>(l);
         if (!calib_landmark_valid[at]) continue;
@@ -1154,6 +1161,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
     return fail("tracking: temporal_frames must be in [1, 16]");
   }
   if (options.calibration_frames < 1) return fail("tracking: calibration_frames must be >= 1");
+  if (!(options.landmark_noise_px > 0.0f)) return fail("tracking: landmark_noise_px must be > 0");
   auto s = std::make_unique<State>();
   s->model = &model;
   s->options = options;
@@ -1334,6 +1342,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->calib_landmarks.assign(static_cast<std::size_t>(options.calibration_frames) * 68,
                             Eigen::Vector2f::Zero());
   s->calib_landmark_valid.assign(static_cast<std::size_t>(options.calibration_frames) * 68, 0);
+  s->calib_landmark_scale.assign(static_cast<std::size_t>(options.calibration_frames), 1.0f);
   s->landmark_offset = Eigen::VectorXf::Zero(3 * 68);
   s->calib_pose.resize(static_cast<std::size_t>(options.calibration_frames));
   s->calib_weights.assign(static_cast<std::size_t>(options.calibration_frames),
@@ -1536,6 +1545,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
     s.calib_pose[f] = s.pose;
     s.calib_weights[f] = s.weights;
     const bool have_landmarks = landmarks != nullptr && landmarks->points.size() >= 68;
+    s.calib_landmark_scale[f] = have_landmarks ? s.landmark_scale(*landmarks) : 1.0f;
     for (std::size_t l = 0; l < 68; ++l) {
       const bool valid = have_landmarks && (landmarks->valid.empty() || landmarks->valid[l] != 0);
       s.calib_landmark_valid[f * 68 + l] = valid ? 1 : 0;

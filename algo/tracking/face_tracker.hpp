@@ -150,6 +150,11 @@ struct TrackerOptions {
   float antagonist_weight = 0.5f;
   float landmark_weight = 1.0f;  // mm^2 per px^2 of landmark residual
   float landmark_huber_px = 4.0f;
+  // The per-axis landmark error landmark_weight and calibration_landmark_weight are set for
+  // (eval track's truth landmarks: N(0, 1.5 px)). A source stating a larger error
+  // (TrackLandmarks::noise_px) gets both scaled by (landmark_noise_px / noise_px)^2: least
+  // squares weighs a row by 1 / sigma^2.
+  float landmark_noise_px = 1.5f;
   // Calibration also measures where the landmarks sit on this face (see
   // calibrate_landmark_offsets()); offsets longer than this are not trusted.
   bool calibrate_landmark_offsets = true;
@@ -236,6 +241,9 @@ inline bool is_gaze_shape(std::string_view name) {
 struct TrackLandmarks {
   std::span<const Eigen::Vector2f> points;
   std::span<const std::uint8_t> valid;  // empty = all valid
+  // The source's typical error, px rms per image axis (0 = TrackerOptions::landmark_noise_px):
+  // the landmark rows count (landmark_noise_px / noise_px)^2 as much.
+  float noise_px = 0.0f;
 };
 
 // A subject's personal blendshape rig in the face model's topology (storage's RigData seen

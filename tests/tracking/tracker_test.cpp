@@ -964,5 +964,49 @@ TEST(Tracker, CalibrationFindsTheHeadFrameFromAFewDegreesOff) {
   }
 }
 
+// A landmark source that states its error (TrackLandmarks::noise_px) is weighed by it: with
+// 6 px of noise per axis, 4x the 1.5 px the weights are set for, the stated noise counts the
+// rows 1/16 as much and the weights follow the depth instead of the noise.
+TEST(Tracker, NoisierLandmarkSourceCountsLess) {
+  SyntheticOptions o;
+  o.seed = 9;
+  o.frame_count = 50;
+  o.yaw_amplitude_deg = 15.0;
+  o.pitch_amplitude_deg = 8.0;
+  o.expression_track = ramp_track(50, 12, 15,
+                                  {{model().expression_index("mouthSmile_L"), 0.6f},
+                                   {model().expression_index("browInnerUp_R"), 0.5f},
+                                   {model().expression_index("jawOpen"), 0.3f}});
+  const Frames frames = render(o);
+  auto weight_mae = [&](float stated_noise_px) {
+    auto tracker = FaceTracker::create(model(), frames.intrinsics);
+    EXPECT_TRUE(tracker.ok());
+    if (!tracker) return 1.0;
+    std::mt19937 rng(4);
+    std::normal_distribution<float> noise(0.0f, 6.0f);
+    std::vector<Eigen::Vector2f> points(68);
+    TrackReport report;
+    double sum = 0;
+    int count = 0;
+    for (std::size_t f = 0; f < frames.depth.size(); ++f) {
+      for (int l = 0; l < 68; ++l)
+        points[l] = frames.truth[f].landmarks_depth_px[l].cast<float>() +
+                    Eigen::Vector2f(noise(rng), noise(rng));
+      TrackLandmarks landmarks{points, {}, stated_noise_px};
+      (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
+      if (report.state != TrackState::kTracking) continue;
+      for (int j = 0; j < report.shape_count; ++j)
+        sum += std::abs(report.weights[j] - frames.truth[f].expression_weights[j]);
+      count += report.shape_count;
+    }
+    EXPECT_GT(count, 30 * report.shape_count);
+    return count ? sum / count : 1.0;
+  };
+  const double unstated = weight_mae(0.0f), stated = weight_mae(6.0f);
+  std::printf("weight MAE with 6 px landmarks: noise unstated %.4f, stated %.4f\n", unstated,
+              stated);
+  EXPECT_LT(stated, 0.8 * unstated);
+}
+
 }  // namespace
 }  // namespace fb

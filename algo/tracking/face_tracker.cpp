@@ -269,8 +269,10 @@ struct FaceTracker::State {
                      const TrackLandmarks* landmarks);
   IcpStats icp(const Image<float>& image, const Box& b, Pose& p, int iterations, float first_gate,
                float gate) const;
-  void solve_weights(const Image<float>& image, const Box& b, const Pose& p,
-                     const TrackLandmarks* landmarks, int& landmarks_used);
+  // `iterations` IRLS rounds; the frame's last solve (final) records each shape's seen
+  // fraction for the next frame.
+  void solve_weights(const Image<float>& image, const Box& b, const Pose& p, int iterations,
+                     bool final, const TrackLandmarks* landmarks, int& landmarks_used);
   // `face_seen`: landmarks say there is a face here (see max_rms_mm()).
   bool acceptable(const IcpStats& s, bool acquiring, bool face_seen) const;
   // The RMS bound of a fit: before calibration the model is the mean face, which fits an
@@ -616,9 +618,10 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
 }
 
 void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, const Pose& p,
-                                       const TrackLandmarks* landmarks, int& landmarks_used) {
+                                       int iterations, bool final, const TrackLandmarks* landmarks,
+                                       int& landmarks_used) {
   const Eigen::Matrix3f rt = p.r.transpose();
-  for (int it = 0; it < options.weight_iterations; ++it) {
+  for (int it = 0; it < iterations; ++it) {
     int found = 0;
     for (int i = 0; i < n; ++i) {
       Eigen::Vector3f x, nn, measured;
@@ -723,7 +726,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
         const float ltj = lt * std::clamp(seen_fraction[j], options.stale_temporal_floor, 1.0f);
         h(j, j) += ltj + shape_ridge[j] - options.ridge * (1.0f - now);
         g[j] += ltj * previous_weights[j];
-        if (it == options.weight_iterations - 1) seen_fraction[j] = now;  // read above
+        if (final && it == iterations - 1) seen_fraction[j] = now;  // read above
       }
     } else {
       h.diagonal().array() += lt + shape_ridge.array();
@@ -880,7 +883,7 @@ bool FaceTracker::State::acquire(const TrackLandmarks* landmarks, IcpStats& stat
       // The face may show any expression: fit the weights at this pose and refine it before
       // judging the residual (a neutral face on an open jaw leaves several mm).
       int unused = 0;
-      solve_weights(smoothed, full, p, landmarks, unused);
+      solve_weights(smoothed, full, p, options.weight_iterations, true, landmarks, unused);
       s = icp(smoothed, full, p, options.icp_iterations, options.icp_gate_mm, options.icp_gate_mm);
     }
     if (!good(s) || (from_landmarks && landmark_error_px(p) > options.acquire_landmark_px)) {
@@ -1530,7 +1533,24 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   // identity difference the calibration is about to measure.
   // The mask of the ICP's start pose serves the weights too (ICP moves the face by a few mm,
   // far below the mask's margin).
-  if (s.calibrated) s.solve_weights(s.smoothed, s.box, s.pose, landmarks, report.landmarks_used);
+  if (s.calibrated) {
+    // ICP fitted the face with the last frame's weights. Where a shape moves little depth (a
+    // brow against a pitch of the forehead), the pose takes part of this frame's expression
+    // change and the weight solve the rest of the pose error; a few ICP iterations against the
+    // face with this frame's first weights, then the remaining IRLS rounds, split them again.
+    // The iterations are those of the weight solve split around them, so this costs only the
+    // ICP iterations.
+    const int iterations = s.options.weight_iterations;
+    const bool refine = s.options.pose_refine_iterations > 0 && iterations > 1;
+    s.solve_weights(s.smoothed, s.box, s.pose, refine ? 1 : iterations, !refine, landmarks,
+                    report.landmarks_used);
+    if (refine) {
+      s.icp(s.smoothed, s.box, s.pose, s.options.pose_refine_iterations, s.options.icp_gate_mm,
+            s.options.icp_gate_mm);
+      s.solve_weights(s.smoothed, s.box, s.pose, iterations - 1, true, landmarks,
+                      report.landmarks_used);
+    }
+  }
   s.mask_on = false;  // calibrate() below re-tracks stored frames: not this frame's mask
   report.times.weights_ms = ms_since(start);
   s.previous_weights = s.weights;

@@ -750,6 +750,8 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
        [](TrackerOptions& o, double v) { o.uncalibrated_max_rms_mm = static_cast<float>(v); }},
       {"icp_iterations",
        [](TrackerOptions& o, double v) { o.icp_iterations = static_cast<int>(v); }},
+      {"pose_refine_iterations",
+       [](TrackerOptions& o, double v) { o.pose_refine_iterations = static_cast<int>(v); }},
       {"occluder_margin_mm",
        [](TrackerOptions& o, double v) { o.occluder_margin_mm = static_cast<float>(v); }},
       {"occluder_radius_px",

@@ -77,11 +77,13 @@ struct TrackerOptions {
 
   // --- Blendshape weights ---
   int weight_iterations = 2;  // IRLS rounds (re-association + robust weights)
-  // ICP iterations between the frame's first IRLS round and the rest (0 = off): the pose is
-  // refined against the face with this frame's weights (see track()). Together with
-  // temporal_weight 30 -> 50, eval track (5 seeds): occluder worst frame 0.052 -> 0.033, pose
-  // 0.175 -> 0.173 deg, weight MAE 0.0102 unchanged; 20 held-out occluder takes: worst 0.118
-  // -> 0.114, takes over 0.05 5 -> 3, mean 0.0123 -> 0.0114. About 0.1 ms a frame.
+  // ICP iterations between the frame's first IRLS round and the rest (0 = off; needs
+  // weight_iterations >= 2): the pose is refined against the face with this frame's weights
+  // (see track()). Together with temporal_weight 30 -> 50, eval track (5 seeds): occluder
+  // worst frame 0.052 -> 0.033, pose 0.175 -> 0.173 deg, weight MAE 0.0102 unchanged; 20
+  // held-out occluder takes: worst 0.118 -> 0.114, takes over 0.05 5 -> 3, mean 0.0123 ->
+  // 0.0114. Costs the 2 ICP iterations, 0.16-0.18 ms a frame here (bench track: ICP stage
+  // 0.45 -> 0.63 ms).
   int pose_refine_iterations = 2;
   // Robust weights of the depth rows: Tukey biweight with cut-off weight_tukey_k * sigma, sigma
   // from the median absolute residual of the frame (MAD), clamped to [weight_min_gate_mm,

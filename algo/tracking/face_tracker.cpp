@@ -1515,7 +1515,6 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   stats = s.icp(s.smoothed, s.box, s.pose, s.options.icp_iterations, s.options.icp_first_gate_mm,
                 s.options.icp_gate_mm);
   report.times.icp_ms = ms_since(start);
-  const double icp_before_refine_ms = report.times.icp_ms;
   report.samples_used = stats.used;
   report.inliers = stats.inliers;
   report.rms_mm = stats.rms;
@@ -1534,6 +1533,7 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   // identity difference the calibration is about to measure.
   // The mask of the ICP's start pose serves the weights too (ICP moves the face by a few mm,
   // far below the mask's margin).
+  double refine_ms = 0.0;  // counted as ICP in the stage split, not as weights
   if (s.calibrated) {
     // ICP fitted the face with the last frame's weights. Where a shape moves little depth (a
     // brow against a pitch of the forehead), the pose takes part of this frame's expression
@@ -1549,13 +1549,14 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
       const auto refine_start = Clock::now();
       s.icp(s.smoothed, s.box, s.pose, s.options.pose_refine_iterations, s.options.icp_gate_mm,
             s.options.icp_gate_mm);
-      report.times.icp_ms += ms_since(refine_start);  // the stage split counts it as ICP
+      refine_ms = ms_since(refine_start);
       s.solve_weights(s.smoothed, s.box, s.pose, iterations - 1, true, landmarks,
                       report.landmarks_used);
     }
   }
   s.mask_on = false;  // calibrate() below re-tracks stored frames: not this frame's mask
-  report.times.weights_ms = ms_since(start) - (report.times.icp_ms - icp_before_refine_ms);
+  report.times.icp_ms += refine_ms;
+  report.times.weights_ms = ms_since(start) - refine_ms;
   s.previous_weights = s.weights;
   s.last_good_pose = s.pose;
   s.have_last_good = true;

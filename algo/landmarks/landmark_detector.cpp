@@ -231,11 +231,26 @@ struct ShapeCascade {
   }
 };
 
+// The re-detection window's face size: the frontal detector's template is 80 px and its pyramid
+// steps by 6/5, so a face of 96 px is found on the second level.
+constexpr double kWindowFacePx = 96.0;
+
+// dlib's frontal face detector (same filters) scanning only the first three pyramid levels.
+dlib::frontal_face_detector three_level_detector(const dlib::frontal_face_detector& full) {
+  dlib::frontal_face_detector::image_scanner_type scanner;
+  scanner.copy_configuration(full.get_scanner());
+  scanner.set_max_pyramid_levels(3);
+  std::vector<dlib::frontal_face_detector::feature_vector_type> filters;
+  for (unsigned long i = 0; i < full.num_detectors(); ++i) filters.push_back(full.get_w(i));
+  return dlib::frontal_face_detector(scanner, full.get_overlap_tester(), filters);
+}
+
 }  // namespace
 
 struct LandmarkDetector::State {
   LandmarkDetectorOptions options;
   dlib::frontal_face_detector detector = dlib::get_frontal_face_detector();
+  dlib::frontal_face_detector window_detector = three_level_detector(detector);
   ShapeCascade predictor;
   dlib::array2d<unsigned char> gray;    // whole image, reused
   dlib::array2d<unsigned char> window;  // tracking window, reused
@@ -346,11 +361,14 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       }
       // Implausible: the detector runs on this frame (window around the last box first).
     }
-    to_gray(0, 0, w, h);
     std::vector<std::pair<double, dlib::rectangle>> found;
     bool tracked = false;
     if (o.track && s.last) {
-      // Face-region tracking: detect in a window around the last face only.
+      // Face-region tracking: detect in a window around the last face only. The face cannot
+      // change size much since the last frame, so the window is resampled to put the last face
+      // at the HOG template's second pyramid level (80 px * 6/5 = 96 px) and only levels 0-2
+      // are scanned: faces of 5/6 to 6/5 the last size. At full resolution the detector would
+      // scan every level from the face's size down to 80 px, several times the pixels.
       const dlib::rectangle& r = *s.last;
       const double scale = s.options.track_window_scale;
       const long cw = static_cast<long>(r.width() * scale),
@@ -358,17 +376,35 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       const long x0 = std::clamp<long>(dlib::center(r).x() - cw / 2, 0, w - 1);
       const long y0 = std::clamp<long>(dlib::center(r).y() - ch / 2, 0, h - 1);
       const long x1 = std::min<long>(x0 + cw, w), y1 = std::min<long>(y0 + ch, h);
-      if (x1 - x0 >= 80 && y1 - y0 >= 80) {
-        s.window.set_size(y1 - y0, x1 - x0);
-        for (long y = y0; y < y1; ++y)
-          for (long x = x0; x < x1; ++x) s.window[y - y0][x - x0] = s.gray[y][x];
+      const double shrink = std::min(1.0, kWindowFacePx / double(std::max(r.width(), r.height())));
+      const long sw = std::lround((x1 - x0) * shrink), sh = std::lround((y1 - y0) * shrink);
+      if (sw >= 80 && sh >= 80) {
+        to_gray(x0, y0, x1, y1);
+        const auto region = dlib::sub_image(s.gray, dlib::rectangle(x0, y0, x1 - 1, y1 - 1));
+        s.window.set_size(sh, sw);
+        if (shrink < 1.0)
+          dlib::resize_image(region, s.window, dlib::interpolate_bilinear());
+        else
+          dlib::assign_image(s.window, region);
         std::vector<dlib::rect_detection> dets;
-        s.detector(s.window, dets, 0.0);
-        for (const auto& d : dets)
-          found.emplace_back(d.detection_confidence, dlib::translate_rect(d.rect, x0, y0));
+        s.window_detector(s.window, dets, 0.0);
+        const double grow = double(x1 - x0) / sw, grow_y = double(y1 - y0) / sh;
+        for (const auto& d : dets) {
+          const dlib::drectangle full(x0 + d.rect.left() * grow, y0 + d.rect.top() * grow_y,
+                                      x0 + (d.rect.right() + 1) * grow - 1,
+                                      y0 + (d.rect.bottom() + 1) * grow_y - 1);
+          found.emplace_back(
+              d.detection_confidence,
+              dlib::rectangle(std::lround(full.left()), std::lround(full.top()),
+                              std::lround(full.right()), std::lround(full.bottom())));
+        }
         tracked = !found.empty();
       }
     }
+    // The predictor reads pixels around the box it runs on: a face found in the window has
+    // them converted already (the window is track_window_scale times the face); otherwise the
+    // whole image is needed.
+    if (!tracked) to_gray(0, 0, w, h);
     if (found.empty()) {
       std::vector<dlib::rect_detection> dets;
       dlib::array2d<unsigned char> up;

@@ -8,7 +8,8 @@
 // instead of a ~35-70 ms full-image HOG pass; the predictor is dlib's model evaluated with its
 // trees packed into 16-bit leaves and prefetched: dlib's points to within a rounding step, half
 // the memory and a few times faster than dlib's loop). The detector
-// re-anchors on a window around the last face (falling back to the full image) every
+// re-anchors on a window around the last face (resampled so that face is 96 px, three pyramid
+// levels: faces of 5/6 to 6/5 its size; falling back to the full image) every
 // `redetect_every` tracked frames, when the new points are implausible (bounding box size or
 // position jumps, points off the image, the image under them no longer looks like the previous
 // frame's face) and after reset_tracking(). Pure: the model arrives as a
@@ -58,9 +59,9 @@ struct DetectedLandmarks {
   PixelBox face;
   std::array<Eigen::Vector2d, 68> points{};  // iBUG order, colour image px
   bool tracked = false;  // not a full-image pass: found in the tracking window or from points
-  bool from_landmarks = false;  // the box came from the previous frame's points (no detector)
-  double detection_score = 0;   // HOG margin of the last real detection (this frame unless
-                                // from_landmarks, then the detection that anchored the track)
+  bool from_landmarks = false;     // the box came from the previous frame's points (no detector)
+  double detection_score = 0;      // HOG margin of the last real detection (this frame unless
+                                   // from_landmarks, then the detection that anchored the track)
   int frames_since_detection = 0;  // 0: the detector ran on this frame
 };
 

@@ -41,20 +41,33 @@ std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color
     gx = std::clamp(static_cast<int>(std::lround(gx + color_px.x() - c.x())), 0, w - 1);
     gy = std::clamp(static_cast<int>(std::lround(gy + color_px.y() - c.y())), 0, h - 1);
   }
+  // The pixel of the window that maps nearest to color_px; ties go to the first in raster
+  // order. The registration shifts along x only (a pixel's colour row does not depend on its
+  // depth), so a pixel whose row alone is farther than the best so far is passed over without
+  // reading its depth; scanning in rings from the first guess outwards finds a close match
+  // first, and the rest of the window mostly costs one table read a pixel.
   double best = 1e30;
-  Eigen::Vector2d best_px, best_c;
+  Eigen::Vector2d best_px = Eigen::Vector2d::Zero(), best_c = Eigen::Vector2d::Zero();
   const int r = options.search_radius_px;
-  for (int y = gy - r; y <= gy + r; ++y)
-    for (int x = gx - r; x <= gx + r; ++x) {
-      if (x < 0 || y < 0 || x >= w || y >= h) continue;
-      Eigen::Vector2d c;
-      if (!mapped(x, y, c)) continue;
-      const double d = (c - color_px).squaredNorm();
-      if (d < best) {
-        best = d;
-        best_px = {x, y};
-        best_c = c;
-      }
+  auto consider = [&](int x, int y) {
+    if (x < 0 || y < 0 || x >= w || y >= h) return;
+    double row = 0;
+    if (!registration.color_row(x, y, row)) return;
+    const double dy = row - color_px.y();
+    if (dy * dy > best) return;
+    Eigen::Vector2d c;
+    if (!mapped(x, y, c)) return;
+    const double d = (c - color_px).squaredNorm();
+    if (d < best || (d == best && (y < best_px.y() || (y == best_px.y() && x < best_px.x())))) {
+      best = d;
+      best_px = {x, y};
+      best_c = c;
+    }
+  };
+  for (int k = 0; k <= r; ++k)
+    for (int y = gy - k; y <= gy + k; ++y) {
+      const int step = (y == gy - k || y == gy + k) ? 1 : std::max(1, 2 * k);
+      for (int x = gx - k; x <= gx + k; x += step) consider(x, y);
     }
   if (best > 4.0 * 4.0) return std::nullopt;
   // Sub-pixel: the mapping is a shift locally (unit Jacobian).

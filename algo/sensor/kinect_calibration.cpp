@@ -312,6 +312,14 @@ bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& 
   return color_x >= 0.0 && color_x < kWidth && color_y >= 0.0 && color_y < kHeight;
 }
 
+bool KinectRegistration::color_row(int x, int y, double& color_y) const {
+  if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
+  const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;
+  color_y =
+      static_cast<double>(registration_table_[2 * index + 1] - calibration_.pad_info.start_lines);
+  return color_y >= 0.0 && color_y < kHeight;
+}
+
 void KinectRegistration::register_depth_to_color(const DepthImage& depth_mm,
                                                  DepthImage& registered) const {
   if (registered.width != depth_mm.width || registered.height != depth_mm.height ||

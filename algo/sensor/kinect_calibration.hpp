@@ -80,6 +80,10 @@ class KinectRegistration {
   // resolution, color_y is a whole row (libfreenect's table); the colour pixel
   // (floor(color_x), color_y) is the one register_depth_to_color() writes.
   bool depth_to_color(int x, int y, std::uint16_t mm, double& color_x, double& color_y) const;
+  // The colour row depth_to_color() gives for this pixel at any valid depth: the registration
+  // shifts along x only. False outside the depth image or when that row is outside the colour
+  // image.
+  bool color_row(int x, int y, double& color_y) const;
 
   // Equivalent of libfreenect's FREENECT_DEPTH_REGISTERED: depth resampled into the colour
   // camera's image, nearest surface wins, 0 where nothing maps.

@@ -3,11 +3,14 @@
 // own) where Debian's model is installed.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include <dlib/image_processing.h>
@@ -77,6 +80,66 @@ TEST(Landmarks, LiftingPutsColourPointsOntoTheDepthImage) {
   EXPECT_LT(px_err, 1.5);
   EXPECT_GT(n3, 30);
   EXPECT_LT(mm_err, 3.0);
+}
+
+// color_to_depth_pixel's ring search with row pruning must pick the pixel a plain raster scan of
+// the same window picks (nearest mapping, first in raster order on a tie). The scan is written
+// out here as the reference, over colour points spread across the face and its silhouette.
+TEST(Landmarks, LiftingSearchMatchesAPlainScan) {
+  const Shot s = shot();
+  const KinectRegistration reg(s.calibration);
+  const Image<float> depth = depth_to_float(s.frame.depth_mm);
+  const LiftOptions options;
+  const double reference = 600.0;
+  auto plain_scan = [&](const Eigen::Vector2d& target) -> std::optional<Eigen::Vector2d> {
+    const int w = depth.width, h = depth.height;
+    auto mapped = [&](int x, int y, Eigen::Vector2d& c) {
+      std::uint16_t mm = static_cast<std::uint16_t>(reference);
+      if (depth.contains(x, y)) {
+        const float d = depth.at(x, y);
+        if (d > 0.0f && std::abs(d - reference) <= options.depth_band_mm)
+          mm = static_cast<std::uint16_t>(std::lround(d));
+      }
+      return reg.depth_to_color(x, y, mm, c.x(), c.y());
+    };
+    int gx = std::clamp(static_cast<int>(std::lround(target.x())), 0, w - 1);
+    int gy = std::clamp(static_cast<int>(std::lround(target.y())), 0, h - 1);
+    for (int pass = 0; pass < 2; ++pass) {
+      Eigen::Vector2d c;
+      if (!mapped(gx, gy, c)) break;
+      gx = std::clamp(static_cast<int>(std::lround(gx + target.x() - c.x())), 0, w - 1);
+      gy = std::clamp(static_cast<int>(std::lround(gy + target.y() - c.y())), 0, h - 1);
+    }
+    double best = 1e30;
+    Eigen::Vector2d best_px = Eigen::Vector2d::Zero(), best_c = Eigen::Vector2d::Zero();
+    const int r = options.search_radius_px;
+    for (int y = gy - r; y <= gy + r; ++y)
+      for (int x = gx - r; x <= gx + r; ++x) {
+        Eigen::Vector2d c;
+        if (x < 0 || y < 0 || x >= w || y >= h || !mapped(x, y, c)) continue;
+        const double d = (c - target).squaredNorm();
+        if (d < best) {
+          best = d;
+          best_px = {x, y};
+          best_c = c;
+        }
+      }
+    if (best > 4.0 * 4.0) return std::nullopt;
+    return best_px + (target - best_c);
+  };
+  int compared = 0, found = 0;
+  for (double y = 150.0; y < 360.0; y += 3.7)
+    for (double x = 220.0; x < 430.0; x += 3.3) {
+      const Eigen::Vector2d target(x + 0.25, y + 0.6);
+      const auto ours = color_to_depth_pixel(target, depth, reg, reference, options);
+      const auto theirs = plain_scan(target);
+      ASSERT_EQ(ours.has_value(), theirs.has_value()) << x << " " << y;
+      ++compared;
+      if (!ours) continue;
+      ++found;
+      EXPECT_EQ(*ours, *theirs) << x << " " << y;
+    }
+  EXPECT_GT(found, compared / 2);
 }
 
 TEST(Landmarks, LiftingWithoutDepthIsAnError) {

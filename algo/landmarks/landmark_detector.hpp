@@ -8,8 +8,8 @@
 // instead of a ~35-70 ms full-image HOG pass; the predictor is dlib's model evaluated with its
 // trees packed into 16-bit leaves and prefetched: dlib's points to within a rounding step, half
 // the memory and a few times faster than dlib's loop). The detector
-// re-anchors on a window around the last face (resampled so that face is 96 px, three pyramid
-// levels: faces of 5/6 to 6/5 its size; falling back to the full image) every
+// re-anchors on a window around the last face (resampled so that face is 96 px, four pyramid
+// levels: faces of 5/6 to 1.44x its size; falling back to the full image) every
 // `redetect_every` tracked frames, when the new points are implausible (bounding box size or
 // position jumps, points off the image, the image under them no longer looks like the previous
 // frame's face) and after reset_tracking(). Pure: the model arrives as a

@@ -188,6 +188,63 @@ TEST(Landmarks, DlibDetectsTracksAndReportsNoFace) {
   EXPECT_FALSE(LandmarkDetector::create(garbage).ok());
 }
 
+// A still subject at `distance_mm` (seed 2): its colour image and true points.
+std::pair<ColorImage, std::array<Eigen::Vector2d, 68>> still_at(double distance_mm) {
+  SyntheticOptions o;
+  o.seed = 2;
+  o.motion = SyntheticMotion::kStatic;
+  o.sensor.depth_noise = false;
+  o.distance_mm = distance_mm;
+  o.frame_count = 1;
+  auto cam = make_synthetic_camera(o);
+  EXPECT_TRUE(cam.ok());
+  EXPECT_TRUE((*cam)->start().ok());
+  RgbdFrame frame;
+  EXPECT_TRUE((*cam)->next_frame(frame, std::chrono::milliseconds(1000)).ok());
+  std::array<Eigen::Vector2d, 68> truth{};
+  const FrameTruth t = *(*cam)->truth();
+  for (int l = 0; l < 68; ++l) truth[l] = t.landmarks_color_px[l];
+  return {frame.color, truth};
+}
+
+// Re-anchoring: when the points tracked from the last frame are implausible (here the face
+// jumped nearer), the detector searches a window around the last face resampled to a 96 px face
+// over four pyramid levels. A face 1.2x and one 1.6x as near are both found there, with a box
+// that grew with the face, and their points are as good as a first detection's.
+TEST(Landmarks, DlibReanchorsOnTheResampledWindowWhenTheFaceJumpsNearer) {
+  if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
+  const std::string bytes = predictor_bytes();
+  const auto far = still_at(800.0);
+  // The detection on `far`, then on the subject at `distance_mm`.
+  auto jump_to = [&](double distance_mm) -> std::pair<DetectedLandmarks, double> {
+    std::istringstream in(bytes);
+    auto det = LandmarkDetector::create(in);
+    EXPECT_TRUE(det.ok());
+    auto first = det->detect(far.first);
+    EXPECT_TRUE(first.ok());
+    EXPECT_FALSE(first->tracked);
+    const auto target = still_at(distance_mm);
+    auto second = det->detect(target.first);
+    EXPECT_TRUE(second.ok());
+    if (!first || !second) return {};
+    double error = 0;
+    for (int l = 0; l < 68; ++l) error += (second->points[l] - target.second[l]).norm();
+    std::printf("800 -> %.0f mm: face box %d -> %d px, %s, %.2f px from the true points\n",
+                distance_mm, first->face.width, second->face.width,
+                second->tracked ? "window" : "full image", error / 68);
+    EXPECT_FALSE(second->from_landmarks);
+    return {*second, error / 68};
+  };
+  const auto [nearer, nearer_error] = jump_to(667.0);
+  EXPECT_TRUE(nearer.tracked);
+  EXPECT_GE(nearer.face.width, 110);  // from 104 px
+  EXPECT_LT(nearer_error, 3.5);
+  const auto [near, near_error] = jump_to(500.0);
+  EXPECT_TRUE(near.tracked);
+  EXPECT_GE(near.face.width, 130);
+  EXPECT_LT(near_error, 3.5);
+}
+
 struct TakeFrame {
   ColorImage color;
   std::array<Eigen::Vector2d, 68> truth;  // projected model landmark vertices

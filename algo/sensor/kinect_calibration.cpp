@@ -301,15 +301,13 @@ void KinectRegistration::mm_to_disparity(const DepthImage& mm, DisparityImage& o
 bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& color_x,
                                         double& color_y) const {
   if (mm == 0 || mm >= kDepthMaxMetricValue) return false;
-  if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
+  if (!color_row(x, y, color_y)) return false;
   const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;
   const std::int32_t fx = registration_table_[2 * index] + depth_to_rgb_shift_[mm];
   // Same pixel as libfreenect picks: it truncates fx / 256 (and stores y truncated), so the
   // colour pixel (floor(color_x), color_y) is the one register_depth_to_color() writes.
   color_x = static_cast<double>(fx) / kRegXValScale;
-  color_y =
-      static_cast<double>(registration_table_[2 * index + 1] - calibration_.pad_info.start_lines);
-  return color_x >= 0.0 && color_x < kWidth && color_y >= 0.0 && color_y < kHeight;
+  return color_x >= 0.0 && color_x < kWidth;
 }
 
 bool KinectRegistration::color_row(int x, int y, double& color_y) const {

@@ -612,7 +612,9 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
     const float angle = xi.head<3>().norm();
     // Orthonormalise now and then against float drift.
     if (it == iterations - 1) p.r = Eigen::Quaternionf(p.r).normalized().toRotationMatrix();
-    if (angle < 2e-5f && xi.tail<3>().norm() < 0.01f && it > 0) break;
+    if (angle < options.icp_converged_rad && xi.tail<3>().norm() < options.icp_converged_mm &&
+        it > 0)
+      break;
   }
   return stats;
 }

@@ -177,6 +177,7 @@ struct FaceTracker::State {
   bool mask_on = false;
   ShapeMatrix h;
   ShapeVector g;
+  ShapeMatrix h_hidden;  // imputed rows of the hidden samples, see solve_weights()
 
   // Calibration frames.
   std::vector<Image<float>> calib_depth;
@@ -690,6 +691,20 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       }
     }
     if (count < 8) return;
+    // Samples under an occluder are imputed at the previous frame's weights with weight
+    // hidden_hold: rows n_i . B_i (w - w_prev) = 0. A shape mostly under the plate then holds
+    // instead of following the few samples of it still in view, which otherwise pull it (and,
+    // through the shared samples, the visible shapes) to whatever fits the plate's ragged edge.
+    int hidden_rows = 0;
+    if (mask_on && options.hidden_hold > 0.0f) {
+      const float s = std::sqrt(options.hidden_hold);
+      for (int i = 0; i < n; ++i) {
+        if (!occluded[static_cast<std::size_t>(i)]) continue;
+        Eigen::Vector3f x, nn;
+        if (!facing_sample(p, i, x, nn)) continue;
+        rows.row(count + hidden_rows++) = s * normal_rows.row(i);
+      }
+    }
     // H = J^T J in chunks of rows: Eigen's GEMM packs its operands into a workspace that it
     // heap-allocates above 128 KB (EIGEN_STACK_ALLOCATION_LIMIT); 256 x 53 floats stay on the
     // stack, so the steady state does not allocate (and it is no slower). A symmetric rank-k
@@ -703,6 +718,15 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     }
     h = h.selfadjointView<Eigen::Lower>();
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
+    if (hidden_rows > 0) {
+      h_hidden.setZero();
+      for (int first = 0; first < hidden_rows; first += kChunkRows) {
+        const int n = std::min(kChunkRows, hidden_rows - first);
+        h_hidden.selfadjointView<Eigen::Lower>().rankUpdate(
+            rows.middleRows(count + first, n).transpose());
+      }
+      h_hidden = h_hidden.selfadjointView<Eigen::Lower>();
+    }
     // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
     // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
     // the whole face would drive it to 0 against the temporal term within a frame or two.
@@ -735,6 +759,10 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       g += lt * previous_weights;
     }
     g -= shape_sparsity;
+    if (hidden_rows > 0) {
+      h += h_hidden;
+      g.noalias() += h_hidden * previous_weights;
+    }
     for (const auto& [a, b] : antagonists) {
       // + mu w_a w_b in the cost: w >= 0, so it only charges the two being on together.
       const float mu = options.antagonist_weight * std::sqrt(h(a, a) * h(b, b));
@@ -1327,6 +1355,7 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->weights = ShapeVector::Zero(s->k);
   s->previous_weights = ShapeVector::Zero(s->k);
   s->h.resize(s->k, s->k);
+  s->h_hidden.resize(s->k, s->k);
   s->g.resize(s->k);
   s->rows.resize(n + 2 * 68, s->k);
   s->targets.resize(n + 2 * 68);

@@ -756,6 +756,7 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
        [](TrackerOptions& o, double v) { o.icp_converged_rad = static_cast<float>(v); }},
       {"icp_converged_mm",
        [](TrackerOptions& o, double v) { o.icp_converged_mm = static_cast<float>(v); }},
+      {"hidden_hold", [](TrackerOptions& o, double v) { o.hidden_hold = static_cast<float>(v); }},
       {"occluder_margin_mm",
        [](TrackerOptions& o, double v) { o.occluder_margin_mm = static_cast<float>(v); }},
       {"occluder_radius_px",

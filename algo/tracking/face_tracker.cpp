@@ -95,6 +95,22 @@ inline V4f load4(const std::uint16_t* p) {
 
 const Eigen::Matrix3f kFlip = Eigen::Vector3f(1.0f, -1.0f, -1.0f).asDiagonal();
 
+// gram = A^T A for A = rows [first, first + count), in chunks of rows: Eigen's GEMM packs its
+// operands into a workspace that it heap-allocates above 128 KB (EIGEN_STACK_ALLOCATION_LIMIT);
+// 256 x 53 floats stay on the stack, so the steady state does not allocate (and it is no
+// slower). A symmetric rank-k update (SYRK) builds the lower triangle only, half the
+// multiply-adds of the full product; the upper triangle is then mirrored (the solver reads
+// whole columns).
+void set_gram(const RowMatrix& rows, int first, int count, ShapeMatrix& gram) {
+  constexpr int kChunkRows = 256;
+  gram.setZero();
+  for (int start = first; start < first + count; start += kChunkRows) {
+    const int n = std::min(kChunkRows, first + count - start);
+    gram.selfadjointView<Eigen::Lower>().rankUpdate(rows.middleRows(start, n).transpose());
+  }
+  gram = gram.selfadjointView<Eigen::Lower>();
+}
+
 }  // namespace
 
 struct FaceTracker::State {
@@ -705,28 +721,9 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
         rows.row(count + hidden_rows++) = s * normal_rows.row(i);
       }
     }
-    // H = J^T J in chunks of rows: Eigen's GEMM packs its operands into a workspace that it
-    // heap-allocates above 128 KB (EIGEN_STACK_ALLOCATION_LIMIT); 256 x 53 floats stay on the
-    // stack, so the steady state does not allocate (and it is no slower). A symmetric rank-k
-    // update (SYRK) builds the lower triangle only, half the multiply-adds of the full product;
-    // the upper triangle is then mirrored (the solver reads whole columns).
-    constexpr int kChunkRows = 256;
-    h.setZero();
-    for (int first = 0; first < count; first += kChunkRows) {
-      const int n = std::min(kChunkRows, count - first);
-      h.selfadjointView<Eigen::Lower>().rankUpdate(rows.middleRows(first, n).transpose());
-    }
-    h = h.selfadjointView<Eigen::Lower>();
+    set_gram(rows, 0, count, h);
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
-    if (hidden_rows > 0) {
-      h_hidden.setZero();
-      for (int first = 0; first < hidden_rows; first += kChunkRows) {
-        const int n = std::min(kChunkRows, hidden_rows - first);
-        h_hidden.selfadjointView<Eigen::Lower>().rankUpdate(
-            rows.middleRows(count + first, n).transpose());
-      }
-      h_hidden = h_hidden.selfadjointView<Eigen::Lower>();
-    }
+    if (hidden_rows > 0) set_gram(rows, count, hidden_rows, h_hidden);
     // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
     // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
     // the whole face would drive it to 0 against the temporal term within a frame or two.

@@ -13,17 +13,21 @@ Image<float> depth_to_float(const DepthImage& depth_mm) {
   return out;
 }
 
-std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color_px,
-                                                    const Image<float>& depth_mm,
-                                                    const KinectRegistration& registration,
-                                                    double reference_mm,
-                                                    const LiftOptions& options) {
+namespace {
+
+// Both depth representations (float mm for fitting, the raw 16-bit frame for the tracker) go
+// through the same code; 0 is "no measurement" in both.
+template <class Pixel>
+std::optional<Eigen::Vector2d> map_to_depth_pixel(const Eigen::Vector2d& color_px,
+                                                  const Image<Pixel>& depth_mm,
+                                                  const KinectRegistration& registration,
+                                                  double reference_mm, const LiftOptions& options) {
   const int w = depth_mm.width, h = depth_mm.height;
   const auto ref16 = static_cast<std::uint16_t>(std::clamp(reference_mm, 1.0, 9999.0));
   auto mapped = [&](int x, int y, Eigen::Vector2d& c) {
     std::uint16_t mm = ref16;
     if (depth_mm.contains(x, y)) {
-      const float d = depth_mm.at(x, y);
+      const auto d = static_cast<float>(depth_mm.at(x, y));
       if (d > 0.0f && std::abs(d - reference_mm) <= options.depth_band_mm)
         mm = static_cast<std::uint16_t>(std::lround(d));
     }
@@ -74,20 +78,14 @@ std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color
   return best_px + (color_px - best_c);
 }
 
-Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
-    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
-    const KinectRegistration& registration, const LiftOptions& options) {
-  std::vector<float> box_depths;
-  return lift_landmarks(color_px, depth_mm, registration, options, box_depths);
-}
-
-Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
-    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
-    const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
+// The face's depth: the nearest quarter of the valid depths in the points' bounding box (the
+// face, not the background behind the jaw). `box` is scratch.
+template <class Pixel>
+Result<double> face_reference_depth(std::span<const Eigen::Vector2d> color_px,
+                                    const Image<Pixel>& depth_mm, std::vector<float>& box) {
   if (color_px.size() != static_cast<std::size_t>(kFitLandmarkCount))
     return fail("landmarks: expected 68 points, got " + std::to_string(color_px.size()));
   if (depth_mm.empty()) return fail("landmarks: the depth map is empty");
-  // Reference depth over the landmarks' bounding box (the face).
   double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
   for (const auto& p : color_px) {
     if (!p.allFinite()) return fail("landmarks: a point is not finite");
@@ -99,17 +97,40 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
   box.clear();
   for (int y = std::max(0, static_cast<int>(y0)); y <= std::min<int>(depth_mm.height - 1, y1); ++y)
     for (int x = std::max(0, static_cast<int>(x0)); x <= std::min<int>(depth_mm.width - 1, x1); ++x)
-      if (depth_mm.at(x, y) > 0.0f) box.push_back(depth_mm.at(x, y));
+      if (depth_mm.at(x, y) > 0) box.push_back(static_cast<float>(depth_mm.at(x, y)));
   if (box.size() < 50)
     return fail("landmarks: no depth in the face box (the depth map is missing there)");
-  // The nearest quarter of the box is the face, not the background behind the jaw.
   std::nth_element(box.begin(), box.begin() + box.size() / 4, box.end());
-  const double reference = box[box.size() / 4];
+  return static_cast<double>(box[box.size() / 4]);
+}
+
+}  // namespace
+
+std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color_px,
+                                                    const Image<float>& depth_mm,
+                                                    const KinectRegistration& registration,
+                                                    double reference_mm,
+                                                    const LiftOptions& options) {
+  return map_to_depth_pixel(color_px, depth_mm, registration, reference_mm, options);
+}
+
+Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
+    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options) {
+  std::vector<float> box_depths;
+  return lift_landmarks(color_px, depth_mm, registration, options, box_depths);
+}
+
+Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
+    std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
+  auto reference = face_reference_depth(color_px, depth_mm, box);
+  if (!reference) return reference.failure();
   std::array<FitLandmark, kFitLandmarkCount> out{};
   for (int i = 0; i < kFitLandmarkCount; ++i) {
     FitLandmark& lm = out[static_cast<std::size_t>(i)];
-    const auto px = color_to_depth_pixel(color_px[static_cast<std::size_t>(i)], depth_mm,
-                                         registration, reference, options);
+    const auto px = map_to_depth_pixel(color_px[static_cast<std::size_t>(i)], depth_mm,
+                                       registration, *reference, options);
     if (!px) continue;
     lm.valid = true;
     lm.pixel = *px;
@@ -117,6 +138,19 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     // Strict lifting: on a rim (eyes, mouth) the point stays 2D (see lift_depth).
     lm.point =
         lift_depth(depth_mm, registration.depth_intrinsics(), *px, options.depth_radius_px, true);
+  }
+  return out;
+}
+
+Result<std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount>> landmark_depth_pixels(
+    std::span<const Eigen::Vector2d> color_px, const DepthImage& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
+  auto reference = face_reference_depth(color_px, depth_mm, box);
+  if (!reference) return reference.failure();
+  std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount> out{};
+  for (int i = 0; i < kFitLandmarkCount; ++i) {
+    out[static_cast<std::size_t>(i)] = map_to_depth_pixel(
+        color_px[static_cast<std::size_t>(i)], depth_mm, registration, *reference, options);
   }
   return out;
 }

@@ -44,6 +44,14 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     const KinectRegistration& registration, const LiftOptions& options,
     std::vector<float>& box_depths);
 
+// Only the depth-image pixels of the 68 points, straight from the raw 16-bit frame (no 3D
+// points): what the tracker's landmark rows use, without converting the frame to float. The
+// same pixels as lift_landmarks(); a point without one is nullopt.
+Result<std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount>> landmark_depth_pixels(
+    std::span<const Eigen::Vector2d> color_px, const DepthImage& depth_mm,
+    const KinectRegistration& registration, const LiftOptions& options,
+    std::vector<float>& box_depths);
+
 // Depth as float mm (for raw sensor frames).
 Image<float> depth_to_float(const DepthImage& depth_mm);
 

@@ -28,15 +28,14 @@ LandmarkFrameResult TrackLandmarkSource::detect(const ColorImage& color, const D
   auto detected = detector_.detect(color);
   if (!detected) return finish("no face found in the colour image");
   result.tracked_window = detected->tracked;
-  depth_float_.resize(depth.width, depth.height);
-  for (std::size_t i = 0; i < depth.pixels.size(); ++i) depth_float_.pixels[i] = depth.pixels[i];
-  auto lifted = lift_landmarks(detected->points, depth_float_, registration_, {}, box_depths_);
-  if (!lifted) return finish("no depth under the detected face");
+  auto mapped = landmark_depth_pixels(detected->points, depth, registration_, {}, box_depths_);
+  if (!mapped) return finish("no depth under the detected face");
   for (int l = 0; l < 68; ++l) {
-    const FitLandmark& lm = (*lifted)[static_cast<std::size_t>(l)];
-    valid_[static_cast<std::size_t>(l)] = lm.valid ? 1 : 0;
-    points_[static_cast<std::size_t>(l)] = lm.pixel.cast<float>();
-    if (lm.valid && l >= 17) ++result.valid_points;
+    const auto& px = (*mapped)[static_cast<std::size_t>(l)];
+    valid_[static_cast<std::size_t>(l)] = px ? 1 : 0;
+    points_[static_cast<std::size_t>(l)] =
+        px ? Eigen::Vector2f(px->cast<float>()) : Eigen::Vector2f::Zero();
+    if (px && l >= 17) ++result.valid_points;
   }
   if (result.valid_points < 20) return finish("too few landmarks map into the depth image");
   have_ = true;

@@ -51,7 +51,6 @@ class TrackLandmarkSource {
  private:
   LandmarkDetector detector_;
   KinectRegistration registration_;
-  Image<float> depth_float_;
   std::vector<float> box_depths_;  // lift_landmarks' scratch
   std::array<Eigen::Vector2f, 68> points_{};
   std::array<std::uint8_t, 68> valid_{};

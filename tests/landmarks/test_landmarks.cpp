@@ -142,6 +142,46 @@ TEST(Landmarks, LiftingSearchMatchesAPlainScan) {
   EXPECT_GT(found, compared / 2);
 }
 
+// The tracker maps its points straight from the raw 16-bit frame (landmark_depth_pixels); it
+// must give the pixels lift_landmarks gives on the float copy, on a noisy frame with holes and
+// with points off the face, and the same error where there is no depth.
+TEST(Landmarks, PixelsFromTheRawFrameMatchTheLifting) {
+  SyntheticOptions o;
+  o.seed = 4;
+  o.frame_count = 3;
+  auto cam = make_synthetic_camera(o);
+  ASSERT_TRUE(cam.ok());
+  ASSERT_TRUE((*cam)->start().ok());
+  RgbdFrame frame;
+  for (int i = 0; i < 3; ++i)
+    ASSERT_TRUE((*cam)->next_frame(frame, std::chrono::milliseconds(1000)).ok());
+  const FrameTruth truth = *(*cam)->truth();
+  const KinectRegistration reg((*cam)->info().calibration);
+  std::vector<Eigen::Vector2d> points(truth.landmarks_color_px.begin(),
+                                      truth.landmarks_color_px.end());
+  points[0] += Eigen::Vector2d(-60.0, 0.0);  // off the face, onto the background
+  points[30] += Eigen::Vector2d(0.4, -0.3);
+  auto lifted = lift_landmarks(points, depth_to_float(frame.depth_mm), reg);
+  std::vector<float> box;
+  auto raw = landmark_depth_pixels(points, frame.depth_mm, reg, {}, box);
+  ASSERT_TRUE(lifted.ok()) << lifted.error().message;
+  ASSERT_TRUE(raw.ok()) << raw.error().message;
+  int valid = 0;
+  for (int l = 0; l < 68; ++l) {
+    const auto& px = (*raw)[static_cast<std::size_t>(l)];
+    ASSERT_EQ(px.has_value(), (*lifted)[l].valid) << l;
+    if (!px) continue;
+    ++valid;
+    EXPECT_EQ(*px, (*lifted)[l].pixel) << l;
+  }
+  EXPECT_GT(valid, 60);
+  DepthImage empty;
+  empty.resize(640, 480);
+  auto none = landmark_depth_pixels(points, empty, reg, {}, box);
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.error().message.find("no depth"), std::string::npos);
+}
+
 TEST(Landmarks, LiftingWithoutDepthIsAnError) {
   const Shot s = shot();
   const KinectRegistration reg(s.calibration);

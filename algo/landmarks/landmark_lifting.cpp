@@ -104,6 +104,24 @@ Result<double> face_reference_depth(std::span<const Eigen::Vector2d> color_px,
   return static_cast<double>(box[box.size() / 4]);
 }
 
+using DepthPixels = std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount>;
+
+// Every point's depth-image pixel, against the face's reference depth.
+template <class Pixel>
+Result<DepthPixels> depth_pixels_of(std::span<const Eigen::Vector2d> color_px,
+                                    const Image<Pixel>& depth_mm,
+                                    const KinectRegistration& registration,
+                                    const LiftOptions& options, std::vector<float>& box) {
+  auto reference = face_reference_depth(color_px, depth_mm, box);
+  if (!reference) return reference.failure();
+  DepthPixels out{};
+  for (int i = 0; i < kFitLandmarkCount; ++i) {
+    out[static_cast<std::size_t>(i)] = map_to_depth_pixel(
+        color_px[static_cast<std::size_t>(i)], depth_mm, registration, *reference, options);
+  }
+  return out;
+}
+
 }  // namespace
 
 std::optional<Eigen::Vector2d> color_to_depth_pixel(const Eigen::Vector2d& color_px,
@@ -124,13 +142,12 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
 Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
     std::span<const Eigen::Vector2d> color_px, const Image<float>& depth_mm,
     const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
-  auto reference = face_reference_depth(color_px, depth_mm, box);
-  if (!reference) return reference.failure();
+  auto pixels = depth_pixels_of(color_px, depth_mm, registration, options, box);
+  if (!pixels) return pixels.failure();
   std::array<FitLandmark, kFitLandmarkCount> out{};
   for (int i = 0; i < kFitLandmarkCount; ++i) {
     FitLandmark& lm = out[static_cast<std::size_t>(i)];
-    const auto px = map_to_depth_pixel(color_px[static_cast<std::size_t>(i)], depth_mm,
-                                       registration, *reference, options);
+    const auto& px = (*pixels)[static_cast<std::size_t>(i)];
     if (!px) continue;
     lm.valid = true;
     lm.pixel = *px;
@@ -145,14 +162,7 @@ Result<std::array<FitLandmark, kFitLandmarkCount>> lift_landmarks(
 Result<std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount>> landmark_depth_pixels(
     std::span<const Eigen::Vector2d> color_px, const DepthImage& depth_mm,
     const KinectRegistration& registration, const LiftOptions& options, std::vector<float>& box) {
-  auto reference = face_reference_depth(color_px, depth_mm, box);
-  if (!reference) return reference.failure();
-  std::array<std::optional<Eigen::Vector2d>, kFitLandmarkCount> out{};
-  for (int i = 0; i < kFitLandmarkCount; ++i) {
-    out[static_cast<std::size_t>(i)] = map_to_depth_pixel(
-        color_px[static_cast<std::size_t>(i)], depth_mm, registration, *reference, options);
-  }
-  return out;
+  return depth_pixels_of(color_px, depth_mm, registration, options, box);
 }
 
 }  // namespace fb

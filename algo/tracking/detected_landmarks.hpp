@@ -1,6 +1,6 @@
 // The tracker's 2D landmarks from dlib on the colour image (algo/landmarks): the 68 iBUG points
 // found by the HOG detector + shape predictor, moved into the depth image through the inverse
-// depth-to-colour registration (lift_landmarks). Two uses:
+// depth-to-colour registration (landmark_depth_pixels). Two uses:
 //  - every frame (`facebooth track --landmarks dlib`): landmark rows in the weight solve;
 //  - re-acquisition: while the tracker searches (start, after loss) the detection gives the
 //    tracker a face pose to start ICP from (FaceTracker's landmark candidate), so the face is
@@ -51,7 +51,7 @@ class TrackLandmarkSource {
  private:
   LandmarkDetector detector_;
   KinectRegistration registration_;
-  std::vector<float> box_depths_;  // lift_landmarks' scratch
+  std::vector<float> box_depths_;  // landmark_depth_pixels' scratch
   std::array<Eigen::Vector2f, 68> points_{};
   std::array<std::uint8_t, 68> valid_{};
   TrackLandmarks view_;

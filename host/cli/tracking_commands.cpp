@@ -795,14 +795,14 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
 constexpr int kOccluderTakeFrames = 130;
 
 Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const ArkitMapping& mapping,
-                                              const TrackerOptions& tracker, std::uint64_t seed,
-                                              int active_shapes, std::vector<double>& unaffected) {
+                                              const TrackerOptions& tracker, const TakeSpec& spec,
+                                              std::vector<double>& unaffected) {
   const int k = model.fitting_expression_count;
-  TakeSpec ospec;
-  ospec.seed = seed;
+  const std::uint64_t seed = spec.seed;
+  TakeSpec ospec = spec;
   ospec.frames = kOccluderTakeFrames;
-  ospec.active_shapes = active_shapes;
   ospec.occluder = true;
+  ospec.color = false;
   std::cerr << "eval track: occluder take " << seed << ": rendering " << ospec.frames
             << " frames...\n";
   auto otake = render_take(model, ospec);
@@ -937,6 +937,13 @@ int run_eval_track(const ParsedOptions& options) {
   if (*seeds < 1 || *frames < 60 || *active < 1) {
     return report_failure({"need --seeds >= 1, --frames >= 60, --active >= 1"});
   }
+  // The occluder takes' plate arrives at frame 60: the faces must move before it does.
+  auto neutral = options.get_int("neutral-frames");
+  if (!neutral || *neutral < 1 || *neutral > 50 || *neutral > *frames - 10) {
+    return report_failure(
+        {"--neutral-frames must be an integer from 1 to 50 and at most --frames - 10 (the "
+         "takes' expressions start after it, and the occluder takes' plate arrives at frame 60)"});
+  }
   auto model_result = shared_model();
   if (!model_result) return report_failure(model_result.error());
   const FaceModel& model = **model_result;
@@ -959,6 +966,7 @@ int run_eval_track(const ParsedOptions& options) {
     spec.seed = static_cast<std::uint64_t>(seed);
     spec.frames = static_cast<int>(*frames);
     spec.active_shapes = static_cast<int>(*active);
+    spec.neutral_frames = static_cast<int>(*neutral);
     spec.color = landmark_source == "dlib";
     std::cerr << "eval track: seed " << seed << ": rendering " << spec.frames << " frames...\n";
     auto take = render_take(model, spec);
@@ -1035,9 +1043,11 @@ int run_eval_track(const ParsedOptions& options) {
   nlohmann::json occluder_takes = nlohmann::json::array();
   int recovery = 0;
   for (long long i = 0; i < *occluder_takes_count; ++i) {
-    auto take = evaluate_occluder_take(model, *mapping, *overrides,
-                                       static_cast<std::uint64_t>(*occluder_seed + i),
-                                       static_cast<int>(*active), unaffected);
+    TakeSpec ospec;
+    ospec.seed = static_cast<std::uint64_t>(*occluder_seed + i);
+    ospec.active_shapes = static_cast<int>(*active);
+    ospec.neutral_frames = static_cast<int>(*neutral);
+    auto take = evaluate_occluder_take(model, *mapping, *overrides, ospec, unaffected);
     if (!take) return report_failure(take.error());
     const int r = (*take)["occlusion_recovery_frames"];
     recovery = (r < 0 || recovery < 0) ? -1 : std::max(recovery, r);
@@ -1101,6 +1111,7 @@ int run_eval_track(const ParsedOptions& options) {
       {"seeds", *seeds},
       {"frames_per_take", *frames},
       {"active_shapes_per_take", *active},
+      {"neutral_frames", *neutral},
       {"scored_frames", "after identity calibration (first 10 tracked frames, neutral face)"},
       {"weight_mae",
        "mean over frames of the mean abs error over all 53 model fitting shapes, "
@@ -1658,6 +1669,10 @@ std::vector<Command> tracking_commands() {
         {{"seeds", "N", "synthetic takes (seeds 1..N)", "5"},
          {"frames", "N", "frames per take", "150"},
          {"active", "N", "animated shapes per take", "5"},
+         {"neutral-frames", "N",
+          "frames each take (and occluder take) holds a neutral face before its expressions "
+          "start: the calibration window",
+          "20"},
          {"occluder-seed", "N", "seed of the first occluder take", "1000"},
          {"occluder-takes", "N", "occluder takes (seeds occluder-seed ..)", "5"},
          {"landmarks", "truth|dlib",

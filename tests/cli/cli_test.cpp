@@ -127,3 +127,19 @@ TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
 }
 
 }  // namespace
+
+// The take design's calibration window is an eval option; values that leave the takes no
+// expression before the occluder plate are refused before any rendering.
+TEST_F(CliTest, EvalTrackRefusesANeutralWindowThatLeavesNoExpression) {
+  for (const char* bad : {"0", "51", "x"}) {
+    const auto result = run_cli(std::string("eval track --neutral-frames ") + bad);
+    EXPECT_EQ(result.exit_code, 1) << bad;
+    EXPECT_NE(result.out.find("--neutral-frames must be an integer from 1 to 50"),
+              std::string::npos)
+        << result.out;
+    EXPECT_EQ(result.out.find("rendering"), std::string::npos) << result.out;
+  }
+  const auto result = run_cli("eval track --frames 60 --neutral-frames 55");
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.out.find("at most --frames - 10"), std::string::npos) << result.out;
+}

@@ -1,6 +1,7 @@
 // The facebooth CLI as a user runs it: exit codes, messages, and the files it writes.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -9,7 +10,6 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
-#include <sys/wait.h>
 
 namespace {
 
@@ -24,7 +24,8 @@ RunResult run_cli(const std::string& arguments) {
   std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
   if (!pipe) return result;
   std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr) result.out += buffer.data();
+  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr)
+    result.out += buffer.data();
   const int status = pclose(pipe.release());
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
@@ -90,14 +91,16 @@ TEST_F(CliTest, BadCameraUriFailsClearly) {
 
 TEST_F(CliTest, RecordThenViewTheRecording) {
   const auto take = dir_ / "take";
-  auto result = run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
+  auto result =
+      run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
   ASSERT_EQ(result.exit_code, 0) << result.out;
   EXPECT_EQ(count_lines_starting_with(take / "INDEX.txt", 'd'), 6);
   EXPECT_EQ(count_lines_starting_with(take / "INDEX.txt", 'r'), 6);
   EXPECT_TRUE(std::filesystem::exists(take / "device.json"));
 
   // Recording into the same, now non-empty, directory must be refused without --force.
-  result = run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
+  result =
+      run_cli("camera record --camera synthetic:seed=2,frames=6 --frames 6 --out " + take.string());
   EXPECT_EQ(result.exit_code, 1) << result.out;
 
   const auto png = dir_ / "view.png";
@@ -108,13 +111,15 @@ TEST_F(CliTest, RecordThenViewTheRecording) {
   EXPECT_EQ(image.cols, 3 * 640);
   EXPECT_EQ(image.rows, 480);
 
-  result = run_cli("camera view --camera replay:" + take.string() + " --frame 6 --out " + png.string());
+  result =
+      run_cli("camera view --camera replay:" + take.string() + " --frame 6 --out " + png.string());
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.out.find("ended after 6 frames"), std::string::npos) << result.out;
 }
 
 TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
-  const std::string command = std::string(FB_CLI_PATH) + " bench camera --json --frames 5 2>/dev/null";
+  const std::string command =
+      std::string(FB_CLI_PATH) + " bench camera --json --frames 5 2>/dev/null";
   std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
   ASSERT_TRUE(pipe);
   std::string out;

@@ -790,12 +790,13 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
 
 // One occluder take: a flat plate passes in front of the face. Landmarks are on: those under
 // the plate are misdetected (moved onto it), as a real detector's would be, and the tracker
-// must drop them itself. Appends the per-frame mean abs error of the shapes the plate does not
-// cover to `unaffected`; returns the take's figures.
+// must drop them itself. `run` gives the tracker options and whether the true identity is
+// loaded instead of calibrated (both the take and its control). Appends the per-frame mean abs
+// error of the shapes the plate does not cover to `unaffected`; returns the take's figures.
 constexpr int kOccluderTakeFrames = 130;
 
 Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const ArkitMapping& mapping,
-                                              const TrackerOptions& tracker, const TakeSpec& spec,
+                                              const RunOptions& run, const TakeSpec& spec,
                                               std::vector<double>& unaffected) {
   const int k = model.fitting_expression_count;
   const std::uint64_t seed = spec.seed;
@@ -808,7 +809,8 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
   auto otake = render_take(model, ospec);
   if (!otake) return otake.failure();
   RunOptions orun;
-  orun.tracker = tracker;
+  orun.tracker = run.tracker;
+  orun.known_identity = run.known_identity;
   orun.landmarks = true;
   auto ores = run_take(model, mapping, *otake, orun);
   if (!ores) return ores.failure();
@@ -944,6 +946,12 @@ int run_eval_track(const ParsedOptions& options) {
         {"--neutral-frames must be an integer from 1 to 50 and at most --frames - 10 (the "
          "takes' expressions start after it, and the occluder takes' plate arrives at frame 60)"});
   }
+  const std::string occluder_identity = options.get("occluder-identity");
+  if (occluder_identity != "calibrated" && occluder_identity != "known") {
+    return report_failure(
+        {"--occluder-identity must be calibrated (the tracker fits the subject, "
+         "as on the device) or known (the true identity is loaded)"});
+  }
   auto model_result = shared_model();
   if (!model_result) return report_failure(model_result.error());
   const FaceModel& model = **model_result;
@@ -1042,12 +1050,15 @@ int run_eval_track(const ParsedOptions& options) {
   std::vector<double> unaffected;
   nlohmann::json occluder_takes = nlohmann::json::array();
   int recovery = 0;
+  RunOptions occluder_run;
+  occluder_run.tracker = *overrides;
+  occluder_run.known_identity = occluder_identity == "known";
   for (long long i = 0; i < *occluder_takes_count; ++i) {
     TakeSpec ospec;
     ospec.seed = static_cast<std::uint64_t>(*occluder_seed + i);
     ospec.active_shapes = static_cast<int>(*active);
     ospec.neutral_frames = static_cast<int>(*neutral);
-    auto take = evaluate_occluder_take(model, *mapping, *overrides, ospec, unaffected);
+    auto take = evaluate_occluder_take(model, *mapping, occluder_run, ospec, unaffected);
     if (!take) return report_failure(take.error());
     const int r = (*take)["occlusion_recovery_frames"];
     recovery = (r < 0 || recovery < 0) ? -1 : std::max(recovery, r);
@@ -1112,6 +1123,7 @@ int run_eval_track(const ParsedOptions& options) {
       {"frames_per_take", *frames},
       {"active_shapes_per_take", *active},
       {"neutral_frames", *neutral},
+      {"occluder_identity", occluder_identity},
       {"scored_frames", "after identity calibration (first 10 tracked frames, neutral face)"},
       {"weight_mae",
        "mean over frames of the mean abs error over all 53 model fitting shapes, "
@@ -1675,6 +1687,10 @@ std::vector<Command> tracking_commands() {
           "20"},
          {"occluder-seed", "N", "seed of the first occluder take", "1000"},
          {"occluder-takes", "N", "occluder takes (seeds occluder-seed ..)", "5"},
+         {"occluder-identity", "calibrated|known",
+          "the occluder takes' subject: calibrated by the tracker (as on the device), or the "
+          "true identity loaded (tells calibration error from the solve's own)",
+          "calibrated"},
          {"landmarks", "truth|dlib",
           "landmarks of the with-landmarks runs: ground truth + 1.5 px noise, or dlib on the "
           "synthetic colour render",

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -147,4 +148,28 @@ TEST_F(CliTest, EvalTrackRefusesANeutralWindowThatLeavesNoExpression) {
   const auto result = run_cli("eval track --frames 60 --neutral-frames 55");
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.out.find("at most --frames - 10"), std::string::npos) << result.out;
+}
+
+// The occluder takes can load the true identity instead of calibrating it, to tell calibration
+// error from the weight solve's own. Loaded, the tracker scores every frame of the 130-frame
+// take (a calibrated run spends its first 10 tracked frames calibrating).
+TEST_F(CliTest, EvalTrackOccluderTakesCanLoadTheTrueIdentity) {
+  const auto bad = run_cli("eval track --occluder-identity truth");
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.out.find("--occluder-identity must be calibrated"), std::string::npos) << bad.out;
+  EXPECT_EQ(bad.out.find("rendering"), std::string::npos) << bad.out;
+
+  const auto out = dir_ / "eval.json";
+  const int code = std::system((std::string(FB_CLI_PATH) +
+                                " eval track --json --seeds 1 --frames 60 --occluder-takes 1 "
+                                "--occluder-identity known > " +
+                                out.string() + " 2>/dev/null")
+                                   .c_str());
+  ASSERT_EQ(code, 0);
+  std::ifstream in(out);
+  const auto json = nlohmann::json::parse(in);
+  EXPECT_EQ(json.at("setup").at("occluder_identity"), "known");
+  const auto& take = json.at("occluder").at("takes").at(0);
+  EXPECT_EQ(take.at("take").at("frames_scored").get<int>(), 130);
+  EXPECT_LE(take.at("occluded_unaffected_weight_error").get<double>(), 0.05);
 }

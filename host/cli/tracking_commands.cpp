@@ -808,9 +808,7 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
             << " frames...\n";
   auto otake = render_take(model, ospec);
   if (!otake) return otake.failure();
-  RunOptions orun;
-  orun.tracker = run.tracker;
-  orun.known_identity = run.known_identity;
+  RunOptions orun = run;
   orun.landmarks = true;
   auto ores = run_take(model, mapping, *otake, orun);
   if (!ores) return ores.failure();

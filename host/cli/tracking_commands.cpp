@@ -964,15 +964,19 @@ int run_eval_track(const ParsedOptions& options) {
   long long dlib_frames = 0, dlib_found = 0, dlib_axes = 0;
   double dlib_sq_error = 0;
 
+  // The take design both kinds of take share; each sets its seed (and the plain takes their
+  // length, the occluder takes theirs).
+  TakeSpec design;
+  design.active_shapes = static_cast<int>(*active);
+  design.neutral_frames = static_cast<int>(*neutral);
+
   Score with_landmarks, depth_only, known;
   nlohmann::json takes = nlohmann::json::array();
   PinholeIntrinsics intrinsics;
   for (long long seed = 1; seed <= *seeds; ++seed) {
-    TakeSpec spec;
+    TakeSpec spec = design;
     spec.seed = static_cast<std::uint64_t>(seed);
     spec.frames = static_cast<int>(*frames);
-    spec.active_shapes = static_cast<int>(*active);
-    spec.neutral_frames = static_cast<int>(*neutral);
     spec.color = landmark_source == "dlib";
     std::cerr << "eval track: seed " << seed << ": rendering " << spec.frames << " frames...\n";
     auto take = render_take(model, spec);
@@ -1052,10 +1056,8 @@ int run_eval_track(const ParsedOptions& options) {
   occluder_run.tracker = *overrides;
   occluder_run.known_identity = occluder_identity == "known";
   for (long long i = 0; i < *occluder_takes_count; ++i) {
-    TakeSpec ospec;
+    TakeSpec ospec = design;
     ospec.seed = static_cast<std::uint64_t>(*occluder_seed + i);
-    ospec.active_shapes = static_cast<int>(*active);
-    ospec.neutral_frames = static_cast<int>(*neutral);
     auto take = evaluate_occluder_take(model, *mapping, occluder_run, ospec, unaffected);
     if (!take) return report_failure(take.error());
     const int r = (*take)["occlusion_recovery_frames"];

@@ -4,7 +4,6 @@
 #include <sys/wait.h>
 #include <array>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -16,11 +15,14 @@ namespace {
 
 struct RunResult {
   int exit_code = -1;
-  std::string out;  // stdout and stderr together
+  std::string out;
 };
 
-RunResult run_cli(const std::string& arguments) {
-  const std::string command = std::string(FB_CLI_PATH) + " " + arguments + " 2>&1";
+// `out` holds stdout and stderr together, or stdout alone (a JSON printer's output) when
+// with_stderr is false.
+RunResult run_cli(const std::string& arguments, bool with_stderr = true) {
+  const std::string command =
+      std::string(FB_CLI_PATH) + " " + arguments + (with_stderr ? " 2>&1" : " 2>/dev/null");
   RunResult result;
   std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
   if (!pipe) return result;
@@ -119,14 +121,9 @@ TEST_F(CliTest, RecordThenViewTheRecording) {
 }
 
 TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
-  const std::string command =
-      std::string(FB_CLI_PATH) + " bench camera --json --frames 5 2>/dev/null";
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
-  ASSERT_TRUE(pipe);
-  std::string out;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr) out += buffer.data();
-  const auto json = nlohmann::json::parse(out);
+  const auto result = run_cli("bench camera --json --frames 5", false);
+  ASSERT_EQ(result.exit_code, 0);
+  const auto json = nlohmann::json::parse(result.out);
   EXPECT_GT(json.at("synthetic_fps").get<double>(), 0.0);
   EXPECT_GT(json.at("replay_fps").get<double>(), 0.0);
   EXPECT_EQ(json.at("replay_frames").get<int>(), 5);
@@ -159,15 +156,11 @@ TEST_F(CliTest, EvalTrackOccluderTakesCanLoadTheTrueIdentity) {
   EXPECT_NE(bad.out.find("--occluder-identity must be calibrated"), std::string::npos) << bad.out;
   EXPECT_EQ(bad.out.find("rendering"), std::string::npos) << bad.out;
 
-  const auto out = dir_ / "eval.json";
-  const int code = std::system((std::string(FB_CLI_PATH) +
-                                " eval track --json --seeds 1 --frames 60 --occluder-takes 1 "
-                                "--occluder-identity known > " +
-                                out.string() + " 2>/dev/null")
-                                   .c_str());
-  ASSERT_EQ(code, 0);
-  std::ifstream in(out);
-  const auto json = nlohmann::json::parse(in);
+  const auto result = run_cli(
+      "eval track --json --seeds 1 --frames 60 --occluder-takes 1 --occluder-identity known",
+      false);
+  ASSERT_EQ(result.exit_code, 0);
+  const auto json = nlohmann::json::parse(result.out);
   EXPECT_EQ(json.at("setup").at("occluder_identity"), "known");
   const auto& take = json.at("occluder").at("takes").at(0);
   EXPECT_EQ(take.at("take").at("frames_scored").get<int>(), 130);

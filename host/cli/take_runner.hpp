@@ -1,0 +1,77 @@
+// What `eval track`, `bench track` and `track` share: running the tracker over a rendered
+// synthetic take frame by frame (errors against the truth, stage times, thread CPU time, the
+// frame-to-OSC latency), dlib loading, the `--set` tracker overrides and small statistics.
+#pragma once
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+#include "algo/tracking/arkit.hpp"
+#include "algo/tracking/detected_landmarks.hpp"
+#include "algo/tracking/face_tracker.hpp"
+#include "firmware/streaming/vmc_sender.hpp"
+#include "host/cli/synthetic_take.hpp"
+
+namespace fb::cli {
+
+using Clock = std::chrono::steady_clock;
+double ms_between(Clock::time_point a, Clock::time_point b);
+double thread_cpu_ms();  // CPU time of the calling thread
+
+struct Stats {
+  double mean = 0, median = 0, p95 = 0, max = 0;
+  int count = 0;
+};
+Stats stats_of(std::vector<double> v);
+nlohmann::json to_json(const Stats& s);
+
+inline constexpr const char* kShapePredictor =
+    "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+// dlib's detector + 68-point predictor (Debian libdlib-data), ~1 s to deserialise. An empty
+// option means kShapePredictor.
+Result<LandmarkDetector> load_landmark_detector(const std::string& option);
+
+// --set key=value[,key=value...]: tracker options by their TrackerOptions names (booleans as
+// 0 / 1), for side-by-side runs of two option sets.
+Result<TrackerOptions> tracker_overrides(const std::string& text);
+
+struct FrameResult {
+  TrackState state = TrackState::kSearching;
+  bool calibrated = false;
+  std::vector<float> abs_error;  // per model fitting shape
+  double rotation_error_deg = 0, centre_error_mm = 0, origin_error_mm = 0;
+  double raw_rotation_error_deg = 0, raw_centre_error_mm = 0;
+  TrackTimes times;
+  double cpu_ms = 0;       // thread CPU time of track()
+  double latency_ms = -1;  // frame arrival -> OSC datagrams sent (when a sender is given)
+  int landmarks_used = 0;
+  double landmark_ms = 0;  // dlib detection + mapping (RunOptions::dlib), not in `times`
+  // dlib's points against the truth (interior points 17-67 it placed): sum of squared per-axis
+  // pixel errors and how many axes.
+  double landmark_sq_error_px2 = 0;
+  int landmark_axes = 0;
+  bool detected = false;
+  RigidPose estimate, truth;  // filtered estimate and truth (camera_from_model)
+};
+
+struct RunOptions {
+  bool landmarks = true;
+  TrackLandmarkSource* dlib = nullptr;  // landmarks from dlib on the colour images instead
+  bool known_identity = false;          // load the true identity instead of calibrating
+  VmcSender* sender = nullptr;
+  std::vector<float>* identity_out = nullptr;  // the tracker's identity after the take
+  TrackerOptions tracker;
+};
+
+RigidPose compose(const RigidPose& a, const RigidPose& b);
+double rotation_error_deg(const RigidPose& a, const RigidPose& b);
+bool tracked(TrackState s);  // tracking or recovered
+
+Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMapping& mapping,
+                                          const RenderedTake& take, const RunOptions& run);
+
+}  // namespace fb::cli

@@ -5,11 +5,11 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "drivers/camera/recorder/recorder.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
+#include "host/cli/scratch_directory.hpp"
 
 namespace fb::cli {
 namespace {
@@ -34,24 +34,6 @@ Result<double> measure_fps(const std::string& uri, long long max_frames, long lo
   return static_cast<double>(frames_read) / seconds;
 }
 
-// A scratch directory removed on scope exit, so an interrupted bench leaves nothing behind.
-class ScratchDirectory {
- public:
-  ScratchDirectory() {
-    std::random_device seed;
-    path_ = std::filesystem::temp_directory_path() /
-            ("facebooth-bench-" + std::to_string(std::mt19937_64(seed())()));
-  }
-  ~ScratchDirectory() {
-    std::error_code ignored;
-    std::filesystem::remove_all(path_, ignored);
-  }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
 int run_bench_camera(const ParsedOptions& options) {
   auto frames = options.get_int("frames");
   if (!frames) return report_failure(frames.error());
@@ -67,17 +49,18 @@ int run_bench_camera(const ParsedOptions& options) {
   result["synthetic_frames"] = read;
   result["synthetic_uri"] = synthetic_uri;
 
-  ScratchDirectory scratch;
+  auto scratch = ScratchDirectory::create("facebooth-bench-");
+  if (!scratch) return report_failure(scratch.error());
   std::string replay_dir = options.get("replay");
   if (replay_dir.empty()) {
-    std::cerr << "bench camera: recording the synthetic take to " << scratch.path() << "...\n";
+    std::cerr << "bench camera: recording the synthetic take to " << scratch->path() << "...\n";
     auto camera = open_camera(synthetic_uri);
     if (!camera) return report_failure(camera.error());
     RecorderOptions record_options;
     record_options.overwrite = true;  // the scratch directory is ours
-    auto recorded = record_camera(**camera, scratch.path(), *frames, {}, record_options);
+    auto recorded = record_camera(**camera, scratch->path(), *frames, {}, record_options);
     if (!recorded) return report_failure(recorded.error());
-    replay_dir = scratch.path().string();
+    replay_dir = scratch->path().string();
   }
   std::cerr << "bench camera: replay of " << replay_dir << "...\n";
   auto replay_fps = measure_fps("replay:" + replay_dir, *frames, read);

@@ -17,12 +17,12 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <random>
 #include <sstream>
 
 #include "algo/fusion/face_fusion.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
+#include "host/cli/scratch_directory.hpp"
 
 namespace fb::cli {
 namespace {
@@ -441,25 +441,6 @@ Result<void> write_ply(const std::filesystem::path& path, const TriangleMesh& me
   return success();
 }
 
-// A scratch directory removed on scope exit.
-class ScratchDirectory {
- public:
-  explicit ScratchDirectory(const std::string& prefix) {
-    std::random_device seed;
-    path_ = std::filesystem::temp_directory_path() /
-            (prefix + std::to_string(std::mt19937_64(seed())()));
-    std::filesystem::create_directories(path_);
-  }
-  ~ScratchDirectory() {
-    std::error_code ignored;
-    std::filesystem::remove_all(path_, ignored);
-  }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
-
 // The replay directory of a dump given as a directory or a .tar.xz (extracted to `scratch`).
 Result<std::filesystem::path> dump_directory(const std::filesystem::path& source,
                                              const std::filesystem::path& scratch) {
@@ -607,8 +588,9 @@ int run_eval_fusion(const ParsedOptions& options) {
   // The real dump: must run to the end without losing track, and give a mesh.
   const std::string real = options.get("real");
   if (real != "off") {
-    ScratchDirectory scratch("facebooth-eval-fusion-");
-    auto dir = dump_directory(real, scratch.path());
+    auto scratch = ScratchDirectory::create("facebooth-eval-fusion-");
+    if (!scratch) return report_failure(scratch.error());
+    auto dir = dump_directory(real, scratch->path());
     if (!dir) return report_failure(dir.error());
     const std::string uri = "replay:" + dir->string();
     std::cerr << "eval fusion: real dump " << uri << " ...\n";
@@ -892,13 +874,14 @@ int run_bench_fusion(const ParsedOptions& options) {
   } else if (peer.empty()) {
     result["open3d"] = "not built (install libopen3d-dev and rebuild facebooth-bench-open3d)";
   } else {
-    ScratchDirectory scratch("facebooth-bench-fusion-");
+    auto scratch = ScratchDirectory::create("facebooth-bench-fusion-");
+    if (!scratch) return report_failure(scratch.error());
     // Re-run once so that the volume placement written out is the one of a full run.
     FusionOptions o = *fusion_options;
     o.threads = 1;
     auto run = run_fusion(fusion, *seq, *box, o);
     if (!run) return report_failure(run.error());
-    const auto frames_file = scratch.path() / "frames.fbdepth";
+    const auto frames_file = scratch->path() / "frames.fbdepth";
     if (auto ok = write_frames_file(frames_file, *seq, *box, fusion); !ok)
       return report_failure(ok.error());
     std::cerr << "bench fusion: Open3D (" << peer << ", 1 thread) ...\n";

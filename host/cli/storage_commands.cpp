@@ -8,10 +8,10 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <random>
 
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/scratch_directory.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/crash_trials.hpp"
 #include "storage/durable_file.hpp"
@@ -46,25 +46,6 @@ int usage_error(const std::string& message) {
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
-
-// A scratch folder removed on scope exit (unless --keep), so an interrupted eval leaves nothing.
-class Scratch {
- public:
-  Scratch(const std::string& base, bool keep) : keep_(keep) {
-    const fs::path parent = base.empty() ? fs::temp_directory_path() : fs::path(base);
-    path_ = parent / ("facebooth-eval-storage-" + random_token(8));
-  }
-  ~Scratch() {
-    if (keep_) return;
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-  bool keep_;
-};
 
 Result<std::uintmax_t> folder_bytes(const fs::path& dir) {
   std::uintmax_t total = 0;
@@ -387,16 +368,15 @@ int run_eval_storage(const ParsedOptions& options) {
   if (*trials < 0 || *commits < 1 || *frames < 1) {
     return report_failure({"--trials must be >= 0, --commits and --frames-per-capture >= 1"});
   }
-  Scratch scratch(options.get("scratch"), options.flag("keep"));
-  std::error_code ec;
-  fs::create_directories(scratch.path(), ec);
-  if (ec) return report_failure({"cannot create " + scratch.path().string() + ": " + ec.message()});
+  auto scratch = ScratchDirectory::create("facebooth-eval-storage-", options.get("scratch"),
+                                          options.flag("keep"));
+  if (!scratch) return report_failure(scratch.error());
   nlohmann::json result;
-  result["scratch"] = scratch.path().string();
+  result["scratch"] = scratch->path().string();
 
   // 1. SIGKILL crash trials.
   CrashTrialOptions crash;
-  crash.root = scratch.path() / "crash-store";
+  crash.root = scratch->path() / "crash-store";
   crash.trials = static_cast<int>(*trials);
   crash.seed = static_cast<std::uint64_t>(*seed);
   std::cerr << "eval storage: " << crash.trials << " SIGKILL crash trials...\n";
@@ -422,7 +402,7 @@ int run_eval_storage(const ParsedOptions& options) {
   std::vector<double> commit_ms;
   std::uint64_t capture_bytes = 0;
   {
-    auto store = SessionStore::open(scratch.path() / "latency-store");
+    auto store = SessionStore::open(scratch->path() / "latency-store");
     if (!store) return report_failure(store.error());
     auto subject = store->add_subject("latency");
     if (!subject) return report_failure(subject.error());
@@ -470,7 +450,7 @@ int run_eval_storage(const ParsedOptions& options) {
   subject_options.seed = static_cast<std::uint64_t>(*seed);
   auto subject = make_synthetic_subject(*model, subject_options);
   if (!subject) return report_failure(subject.error());
-  const fs::path store_root = scratch.path() / "subject-store";
+  const fs::path store_root = scratch->path() / "subject-store";
   SessionId session = 0;
   {
     auto store = SessionStore::open(store_root);
@@ -507,7 +487,7 @@ int run_eval_storage(const ParsedOptions& options) {
     std::cerr << "eval storage: export " << to_string(format) << "...\n";
     ExportRequest request;
     request.format = format;
-    request.out = scratch.path() / "exports" / to_string(format);
+    request.out = scratch->path() / "exports" / to_string(format);
     auto summary = export_content(*content, request);
     if (!summary) return report_failure(summary.error());
     exports[to_string(format)] = summary_json(*summary);
@@ -519,7 +499,7 @@ int run_eval_storage(const ParsedOptions& options) {
       "reading the session (rig, 20 meshes, 20 captures, checksums verified) plus writing all "
       "four formats (facewarehouse, glb, obj, ply) of one full subject";
   start = Clock::now();
-  auto imported = import_facewarehouse(scratch.path() / "exports" / "facewarehouse");
+  auto imported = import_facewarehouse(scratch->path() / "exports" / "facewarehouse");
   if (!imported) return report_failure(imported.error());
   result["facewarehouse_import_s"] = seconds_since(start);
   result["facewarehouse_import_exact"] =

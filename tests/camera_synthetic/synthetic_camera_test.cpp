@@ -12,26 +12,15 @@
 
 #include "storage/asset_files.hpp"
 #include "tests/common/allocation_counter.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
 
 using std::chrono::milliseconds;
 
-const FaceModel& model() {
-  static const FaceModel loaded = [] {
-    auto m = load_face_model(std::filesystem::path(FB_DATA_DIR) / "facemodel.fbfm");
-    if (!m) {
-      ADD_FAILURE() << m.error().message;
-      return FaceModel{};
-    }
-    return std::move(*m);
-  }();
-  return loaded;
-}
-
 std::unique_ptr<SyntheticCamera> make(const SyntheticOptions& options) {
-  auto camera = make_synthetic_camera(model(), options);
+  auto camera = make_synthetic_camera(test::face_model(), options);
   EXPECT_TRUE(camera.ok()) << (camera.ok() ? "" : camera.error().message);
   if (!camera) return nullptr;
   EXPECT_TRUE((*camera)->start().ok());
@@ -143,12 +132,12 @@ TEST(SyntheticCamera, BadUrisGiveClearErrors) {
 }
 
 TEST(SyntheticCamera, ExpressionSpecParsesNamesAndWeights) {
-  auto weights = parse_expression_spec("jawOpen:0.6+mouthSmile_L", model());
+  auto weights = parse_expression_spec("jawOpen:0.6+mouthSmile_L", test::face_model());
   ASSERT_TRUE(weights.ok()) << weights.error().message;
-  ASSERT_EQ(weights->size(), static_cast<std::size_t>(model().expression_count));
-  EXPECT_FLOAT_EQ((*weights)[model().expression_index("jawOpen")], 0.6f);
-  EXPECT_FLOAT_EQ((*weights)[model().expression_index("mouthSmile_L")], 1.0f);
-  auto neutral = parse_expression_spec("neutral", model());
+  ASSERT_EQ(weights->size(), static_cast<std::size_t>(test::face_model().expression_count));
+  EXPECT_FLOAT_EQ((*weights)[test::face_model().expression_index("jawOpen")], 0.6f);
+  EXPECT_FLOAT_EQ((*weights)[test::face_model().expression_index("mouthSmile_L")], 1.0f);
+  auto neutral = parse_expression_spec("neutral", test::face_model());
   ASSERT_TRUE(neutral.ok());
   for (float w : *neutral) EXPECT_EQ(w, 0.0f);
 }
@@ -156,24 +145,25 @@ TEST(SyntheticCamera, ExpressionSpecParsesNamesAndWeights) {
 // Guide expressions (data/guide_expressions.json) are accepted by name: `expr=smile` is the
 // recipe the kiosk shows, scaled by an optional weight and combinable with shapes.
 TEST(SyntheticCamera, ExpressionSpecAcceptsGuideExpressions) {
-  auto guide = load_guide_expressions(model());
+  auto guide = load_guide_expressions(test::face_model());
   ASSERT_TRUE(guide.ok()) << guide.error().message;
   const int smile = guide->find("smile");
   ASSERT_GE(smile, 0);
-  auto recipe = guide_weights(guide->expressions[static_cast<std::size_t>(smile)], model());
+  auto recipe =
+      guide_weights(guide->expressions[static_cast<std::size_t>(smile)], test::face_model());
   ASSERT_TRUE(recipe.ok());
-  auto weights = parse_expression_spec("smile:0.5+jawOpen:0.25", model(), &*guide);
+  auto weights = parse_expression_spec("smile:0.5+jawOpen:0.25", test::face_model(), &*guide);
   ASSERT_TRUE(weights.ok()) << weights.error().message;
   int recipe_shapes = 0;
-  const int jaw = model().expression_index("jawOpen");
+  const int jaw = test::face_model().expression_index("jawOpen");
   for (std::size_t j = 0; j < weights->size(); ++j) {
     const float expected = 0.5f * (*recipe)[j] + (static_cast<int>(j) == jaw ? 0.25f : 0.0f);
-    EXPECT_FLOAT_EQ((*weights)[j], expected) << model().expression_names[j];
+    EXPECT_FLOAT_EQ((*weights)[j], expected) << test::face_model().expression_names[j];
     recipe_shapes += (*recipe)[j] > 0.0f;
   }
   EXPECT_GE(recipe_shapes, 2);  // a smile is more than one shape
 
-  auto unknown = parse_expression_spec("smiel", model(), &*guide);
+  auto unknown = parse_expression_spec("smiel", test::face_model(), &*guide);
   ASSERT_FALSE(unknown.ok());
   EXPECT_NE(unknown.error().message.find("guide expressions: neutral"), std::string::npos)
       << unknown.error().message;
@@ -221,8 +211,10 @@ TEST(SyntheticCamera, TruthIsConsistentWithRenderedDepth) {
   ASSERT_EQ(*camera->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
   const FrameTruth& truth = *camera->truth();
   ASSERT_EQ(truth.landmarks_3d.size(), 68u);
-  EXPECT_EQ(truth.identity_coeffs.size(), static_cast<std::size_t>(model().identity_count));
-  EXPECT_EQ(truth.expression_weights.size(), static_cast<std::size_t>(model().expression_count));
+  EXPECT_EQ(truth.identity_coeffs.size(),
+            static_cast<std::size_t>(test::face_model().identity_count));
+  EXPECT_EQ(truth.expression_weights.size(),
+            static_cast<std::size_t>(test::face_model().expression_count));
 
   // Landmark centroid sits at (0, 0, 700) in the rest pose.
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -276,7 +268,7 @@ TEST(SyntheticCamera, TruthIsConsistentWithRenderedDepth) {
 // A personal expression basis replaces the generic one: twice the generic shapes at weight 0.5
 // render the generic face at weight 1, and the truth landmarks follow the personal shapes.
 TEST(SyntheticCamera, PersonalExpressionBasisIsRendered) {
-  const int jaw = model().expression_index("jawOpen");
+  const int jaw = test::face_model().expression_index("jawOpen");
   ASSERT_GE(jaw, 0);
   auto first_frame = [&](const SyntheticOptions& options, std::vector<Eigen::Vector3f>& mesh) {
     auto camera = make(options);
@@ -288,11 +280,12 @@ TEST(SyntheticCamera, PersonalExpressionBasisIsRendered) {
   SyntheticOptions generic;
   generic.motion = SyntheticMotion::kStatic;
   generic.frame_count = 1;
-  generic.expression_weights.assign(static_cast<std::size_t>(model().expression_count), 0.0f);
+  generic.expression_weights.assign(static_cast<std::size_t>(test::face_model().expression_count),
+                                    0.0f);
   generic.expression_weights[static_cast<std::size_t>(jaw)] = 1.0f;
   SyntheticOptions personal = generic;
   personal.expression_weights[static_cast<std::size_t>(jaw)] = 0.5f;
-  personal.personal_expression_basis = model().expression_basis;
+  personal.personal_expression_basis = test::face_model().expression_basis;
   for (float& v : personal.personal_expression_basis) v *= 2.0f;
   std::vector<Eigen::Vector3f> generic_mesh, personal_mesh;
   const auto generic_lm = first_frame(generic, generic_mesh);
@@ -311,7 +304,7 @@ TEST(SyntheticCamera, PersonalExpressionBasisIsRendered) {
 
   SyntheticOptions wrong = personal;
   wrong.personal_expression_basis.resize(12);
-  auto bad = make_synthetic_camera(model(), wrong);
+  auto bad = make_synthetic_camera(test::face_model(), wrong);
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("personal_expression_basis"), std::string::npos);
 }
@@ -381,9 +374,9 @@ TEST(SyntheticCamera, SteadyStateFramesDoNotAllocate) {
   SyntheticOptions options;
   options.frame_count = 6;
   // An expression track exercises the per-frame mesh update too.
-  std::vector<float> weights(static_cast<std::size_t>(model().expression_count), 0.0f);
+  std::vector<float> weights(static_cast<std::size_t>(test::face_model().expression_count), 0.0f);
   for (int i = 0; i < 6; ++i) {
-    weights[model().expression_index("jawOpen")] = 0.1f * i;
+    weights[test::face_model().expression_index("jawOpen")] = 0.1f * i;
     options.expression_track.push_back(weights);
   }
   auto camera = make(options);
@@ -404,7 +397,8 @@ TEST(SyntheticCamera, SteadyStateFramesDoNotAllocate) {
   if (test::allocation_counting_available()) {
     EXPECT_EQ(allocations, 0);
   }
-  EXPECT_FLOAT_EQ(camera->truth()->expression_weights[model().expression_index("jawOpen")], 0.5f);
+  EXPECT_FLOAT_EQ(
+      camera->truth()->expression_weights[test::face_model().expression_index("jawOpen")], 0.5f);
 }
 
 TEST(SyntheticCamera, MeasureFramesPerSecond) {

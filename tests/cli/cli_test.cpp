@@ -1,37 +1,24 @@
 // The facebooth CLI as a user runs it: exit codes, messages, and the files it writes.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
+#include "tests/common/run_command.hpp"
+
 namespace {
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-};
+using fb::test::CommandRun;
 
 // `out` holds stdout and stderr together, or stdout alone (a JSON printer's output) when
 // with_stderr is false.
-RunResult run_cli(const std::string& arguments, bool with_stderr = true) {
-  const std::string command =
-      std::string(FB_CLI_PATH) + " " + arguments + (with_stderr ? " 2>&1" : " 2>/dev/null");
-  RunResult result;
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
-  if (!pipe) return result;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe.get()) != nullptr)
-    result.out += buffer.data();
-  const int status = pclose(pipe.release());
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
+CommandRun run_cli(const std::string& arguments, bool with_stderr = true) {
+  return fb::test::run_command(
+      std::string(FB_CLI_PATH) + " " + arguments,
+      with_stderr ? fb::test::Stderr::kMerged : fb::test::Stderr::kDropped);
 }
 
 class CliTest : public ::testing::Test {

@@ -1,40 +1,26 @@
 // The storage commands end to end through the real facebooth binary: export from the face
 // model and from a stored session, import, store info, and the eval storage output contract.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "storage/asset_files.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "storage/session_store.hpp"
+#include "tests/common/run_command.hpp"
 
 namespace fb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Run {
-  int exit_code = -1;
-  std::string out;  // stdout only; stderr goes to the test log
-};
-
-Run facebooth(const std::string& args) {
-  Run r;
-  const std::string command = std::string(FB_CLI_PATH) + " " + args;
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
-  if (!pipe) return r;
-  char buf[4096];
-  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) r.out.append(buf, n);
-  const int status = ::pclose(pipe.release());
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+// stdout only; stderr goes to the test log.
+test::CommandRun facebooth(const std::string& args) {
+  return test::run_command(std::string(FB_CLI_PATH) + " " + args, test::Stderr::kToLog);
 }
 
 class StorageCli : public ::testing::Test {

@@ -2,9 +2,7 @@
 // and its import, glTF checked by the Khronos validator and loaded by assimp, OBJ/PLY,
 // manifests with checksums, and exports that are never visible half-written.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <memory>
@@ -19,28 +17,15 @@
 #include "storage/export/mesh_files.hpp"
 #include "storage/export/png_file.hpp"
 #include "storage/export/synthetic_subject.hpp"
+#include "tests/common/run_command.hpp"
 
 namespace fb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;
-};
-
-CommandResult run(const std::string& command) {
-  CommandResult result;
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen((command + " 2>&1").c_str(), "r"), ::pclose);
-  if (!pipe) return result;
-  char buf[4096];
-  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) {
-    result.output.append(buf, n);
-  }
-  const int status = ::pclose(pipe.release());
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
+test::CommandRun run(const std::string& command) {
+  return test::run_command(command, test::Stderr::kMerged);
 }
 
 class Export : public ::testing::Test {
@@ -233,9 +218,9 @@ TEST_F(Export, GlbPassesTheKhronosValidatorAndLoadsInAssimp) {
          "install --prefix <build>/node gltf-validator";
   const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
                              FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
-  ASSERT_EQ(validated.exit_code, 0) << validated.output;
-  auto report = nlohmann::json::parse(validated.output, nullptr, false);
-  ASSERT_FALSE(report.is_discarded()) << validated.output;
+  ASSERT_EQ(validated.exit_code, 0) << validated.out;
+  auto report = nlohmann::json::parse(validated.out, nullptr, false);
+  ASSERT_FALSE(report.is_discarded()) << validated.out;
   std::cout << "gltf-validator " << report["validatorVersion"] << ": " << report["numErrors"]
             << " errors, " << report["numWarnings"] << " warnings, " << report["numInfos"]
             << " infos\n";
@@ -243,9 +228,9 @@ TEST_F(Export, GlbPassesTheKhronosValidatorAndLoadsInAssimp) {
 
   if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
   const auto info = run(std::string(FB_ASSIMP_PATH) + " info " + glb.string());
-  ASSERT_EQ(info.exit_code, 0) << info.output;
-  EXPECT_NE(info.output.find(std::to_string(subject_->rig.vertex_count())), std::string::npos)
-      << info.output;
+  ASSERT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_NE(info.out.find(std::to_string(subject_->rig.vertex_count())), std::string::npos)
+      << info.out;
 }
 
 TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
@@ -271,10 +256,9 @@ TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
     if (std::string(FB_ASSIMP_PATH).empty()) continue;
     const auto info =
         run(std::string(FB_ASSIMP_PATH) + " info " + (summary.path / ("neutral." + ext)).string());
-    ASSERT_EQ(info.exit_code, 0) << info.output;
-    EXPECT_NE(info.output.find(std::to_string(subject_->rig.triangles.size() / 3)),
-              std::string::npos)
-        << info.output;
+    ASSERT_EQ(info.exit_code, 0) << info.out;
+    EXPECT_NE(info.out.find(std::to_string(subject_->rig.triangles.size() / 3)), std::string::npos)
+        << info.out;
   }
 }
 

@@ -9,18 +9,10 @@
 #include "algo/fitting/face_fit.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "storage/asset_files.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
-
-const FaceModel& model() {
-  static const FaceModel m = [] {
-    auto r = load_face_model();
-    EXPECT_TRUE(r.ok());
-    return r.ok() ? std::move(*r) : FaceModel{};
-  }();
-  return m;
-}
 
 PinholeIntrinsics kinect() {
   PinholeIntrinsics k;
@@ -37,7 +29,7 @@ RigidPose truth_pose(const std::vector<float>& mesh, double yaw_deg = 8.0) {
       Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX())) *
       Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY()));
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (auto v : model().landmark_vertices)
+  for (auto v : test::face_model().landmark_vertices)
     c += Eigen::Vector3d(mesh[3 * v], mesh[3 * v + 1], mesh[3 * v + 2]);
   c /= 68;
   p.translation = Eigen::Vector3d(0, 0, 700) - p.rotation * c;
@@ -46,15 +38,15 @@ RigidPose truth_pose(const std::vector<float>& mesh, double yaw_deg = 8.0) {
 
 std::vector<float> face(const std::vector<float>& identity,
                         const std::vector<float>& weights = {}) {
-  std::vector<float> m(static_cast<std::size_t>(model().vertex_count) * 3);
-  model().evaluate(identity, weights, m);
+  std::vector<float> m(static_cast<std::size_t>(test::face_model().vertex_count) * 3);
+  test::face_model().evaluate(identity, weights, m);
   return m;
 }
 
 std::vector<float> random_identity(unsigned seed, float scale = 1.0f) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> n(0, scale);
-  std::vector<float> c(static_cast<std::size_t>(model().identity_count));
+  std::vector<float> c(static_cast<std::size_t>(test::face_model().identity_count));
   for (auto& x : c) x = n(rng);
   return c;
 }
@@ -63,12 +55,12 @@ FitTarget render_target(const std::vector<float>& mesh, const RigidPose& pose,
                         double landmark_noise_px = 0.0, unsigned seed = 1) {
   FitTarget t;
   t.intrinsics = kinect();
-  std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(model().vertex_count));
-  for (int i = 0; i < model().vertex_count; ++i)
+  std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(test::face_model().vertex_count));
+  for (int i = 0; i < test::face_model().vertex_count; ++i)
     v[i] = pose.apply({mesh[3 * i], mesh[3 * i + 1], mesh[3 * i + 2]}).cast<float>();
   RasterBuffers rb;
   rb.reset(640, 480);
-  EXPECT_TRUE(rasterize(t.intrinsics, v, model().triangles, RasterOptions{}, rb).ok());
+  EXPECT_TRUE(rasterize(t.intrinsics, v, test::face_model().triangles, RasterOptions{}, rb).ok());
   t.depth_mm.resize(640, 480);
   for (int y = 0; y < 480; ++y)
     for (int x = 0; x < 640; ++x)
@@ -76,7 +68,7 @@ FitTarget render_target(const std::vector<float>& mesh, const RigidPose& pose,
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0, landmark_noise_px);
   for (int l = 0; l < 68; ++l) {
-    const Eigen::Vector3d p = v[model().landmark_vertices[l]].cast<double>();
+    const Eigen::Vector3d p = v[test::face_model().landmark_vertices[l]].cast<double>();
     FitLandmark& lm = t.landmarks[l];
     lm.valid = true;
     lm.pixel = t.intrinsics.project(p);
@@ -96,15 +88,15 @@ TEST(Fitting, NeutralFitRecoversIdentityAndPose) {
   const auto truth = face(identity);
   const RigidPose pose = truth_pose(truth);
   const FitTarget target = render_target(truth, pose, 1.0);
-  auto fit = fit_neutral(model(), target);
+  auto fit = fit_neutral(test::face_model(), target);
   ASSERT_TRUE(fit.ok()) << fit.error().message;
   const double initial = mean_vertex_distance(fit->initial_vertices, fit->camera_from_model, truth,
-                                              pose, model().fitting_vertices);
+                                              pose, test::face_model().fitting_vertices);
   const double refined = mean_vertex_distance(fit->vertices, fit->camera_from_model, truth, pose,
-                                              model().fitting_vertices);
+                                              test::face_model().fitting_vertices);
   const auto mean_face = face({});
   const double untouched =
-      mean_vertex_distance(mean_face, pose, truth, pose, model().fitting_vertices);
+      mean_vertex_distance(mean_face, pose, truth, pose, test::face_model().fitting_vertices);
   std::printf(
       "neutral: mean face %.2f mm, step 1 %.3f mm, refined %.3f mm; RMS to depth %.3f -> %.3f mm; "
       "pose %.3f deg; %.0f + %.0f ms\n",
@@ -118,18 +110,19 @@ TEST(Fitting, NeutralFitRecoversIdentityAndPose) {
   for (int k = 0; k < 5; ++k)
     EXPECT_NEAR(fit->identity_coeffs[k], identity[k], 0.5) << "mode " << k;
   // Per-vertex residuals are reported for the face.
-  ASSERT_EQ(fit->vertex_residual_mm.size(), static_cast<std::size_t>(model().vertex_count));
+  ASSERT_EQ(fit->vertex_residual_mm.size(),
+            static_cast<std::size_t>(test::face_model().vertex_count));
   EXPECT_GT(fit->depth_correspondences, 3000);
 }
 
 TEST(Fitting, RefinementReducesResidual) {
   // A face outside the PCA span (identity + an expression the neutral fit cannot explain).
-  std::vector<float> w(static_cast<std::size_t>(model().expression_count), 0.0f);
-  w[model().expression_index("cheekPuff_L")] = 0.6f;
+  std::vector<float> w(static_cast<std::size_t>(test::face_model().expression_count), 0.0f);
+  w[test::face_model().expression_index("cheekPuff_L")] = 0.6f;
   const auto truth = face(random_identity(5), w);
   const RigidPose pose = truth_pose(truth, -5.0);
   const FitTarget target = render_target(truth, pose);
-  auto fit = fit_neutral(model(), target);
+  auto fit = fit_neutral(test::face_model(), target);
   ASSERT_TRUE(fit.ok()) << fit.error().message;
   std::printf("RMS to depth: %.3f -> %.3f mm\n", fit->rms_to_depth_mm_initial,
               fit->rms_to_depth_mm);
@@ -138,18 +131,18 @@ TEST(Fitting, RefinementReducesResidual) {
 }
 
 TEST(Fitting, DeformationTransferReproducesKnownDeformation) {
-  std::vector<float> w(static_cast<std::size_t>(model().expression_count), 0.0f);
-  w[model().expression_index("jawOpen")] = 0.6f;
-  w[model().expression_index("mouthSmile_L")] = 0.5f;
+  std::vector<float> w(static_cast<std::size_t>(test::face_model().expression_count), 0.0f);
+  w[test::face_model().expression_index("jawOpen")] = 0.6f;
+  w[test::face_model().expression_index("mouthSmile_L")] = 0.5f;
   const auto g0 = face({});
   const auto gi = face({}, w);
   // Onto G0 itself: the transfer must give Gi back.
   {
-    auto tr = ExpressionTransfer::create(model(), g0, g0);
+    auto tr = ExpressionTransfer::create(test::face_model(), g0, g0);
     ASSERT_TRUE(tr.ok()) << tr.error().message;
     auto s = tr->transfer(gi);
     ASSERT_TRUE(s.ok());
-    const double err = mean_vertex_distance(*s, {}, gi, {}, model().fitting_vertices);
+    const double err = mean_vertex_distance(*s, {}, gi, {}, test::face_model().fitting_vertices);
     std::printf("transfer onto G0: mean %.4f mm\n", err);
     EXPECT_LT(err, 0.05);
   }
@@ -160,36 +153,38 @@ TEST(Fitting, DeformationTransferReproducesKnownDeformation) {
     const auto id = random_identity(9);
     const auto s0 = face(id);
     const auto truth = face(id, w);
-    auto tr = ExpressionTransfer::create(model(), s0, g0);
+    auto tr = ExpressionTransfer::create(test::face_model(), s0, g0);
     ASSERT_TRUE(tr.ok());
     auto s = tr->transfer(gi);
     ASSERT_TRUE(s.ok());
-    const double err = mean_vertex_distance(*s, {}, truth, {}, model().fitting_vertices);
-    const double moved = mean_vertex_distance(s0, {}, truth, {}, model().fitting_vertices);
+    const double err = mean_vertex_distance(*s, {}, truth, {}, test::face_model().fitting_vertices);
+    const double moved =
+        mean_vertex_distance(s0, {}, truth, {}, test::face_model().fitting_vertices);
     std::printf("transfer onto identity: mean %.3f mm (expression moves %.3f mm)\n", err, moved);
     EXPECT_LT(err, 0.5 * moved);
   }
 }
 
 TEST(Fitting, ExpressionFitFromTransfer) {
-  std::vector<float> w(static_cast<std::size_t>(model().expression_count), 0.0f);
-  w[model().expression_index("jawOpen")] = 0.4f;
-  w[model().expression_index("browInnerUp_L")] = 0.8f;
-  w[model().expression_index("browInnerUp_R")] = 0.8f;
+  std::vector<float> w(static_cast<std::size_t>(test::face_model().expression_count), 0.0f);
+  w[test::face_model().expression_index("jawOpen")] = 0.4f;
+  w[test::face_model().expression_index("browInnerUp_L")] = 0.8f;
+  w[test::face_model().expression_index("browInnerUp_R")] = 0.8f;
   const auto id = random_identity(11);
   const auto neutral_truth = face(id);
-  auto neutral = fit_neutral(model(), render_target(neutral_truth, truth_pose(neutral_truth)));
+  auto neutral =
+      fit_neutral(test::face_model(), render_target(neutral_truth, truth_pose(neutral_truth)));
   ASSERT_TRUE(neutral.ok());
-  auto tr = ExpressionTransfer::create(model(), neutral->vertices, face({}));
+  auto tr = ExpressionTransfer::create(test::face_model(), neutral->vertices, face({}));
   ASSERT_TRUE(tr.ok());
   const auto truth = face(id, w);
   const RigidPose pose = truth_pose(truth, 4.0);
-  auto fit = fit_expression(model(), *tr, face({}, w), render_target(truth, pose, 1.0));
+  auto fit = fit_expression(test::face_model(), *tr, face({}, w), render_target(truth, pose, 1.0));
   ASSERT_TRUE(fit.ok()) << fit.error().message;
   const double vi = mean_vertex_distance(fit->initial_vertices, fit->camera_from_model, truth, pose,
-                                         model().fitting_vertices);
+                                         test::face_model().fitting_vertices);
   const double vr = mean_vertex_distance(fit->vertices, fit->camera_from_model, truth, pose,
-                                         model().fitting_vertices);
+                                         test::face_model().fitting_vertices);
   std::printf("expression: start %.3f mm, refined %.3f mm, RMS %.3f -> %.3f mm, %.0f ms\n", vi, vr,
               fit->rms_to_depth_mm_initial, fit->rms_to_depth_mm, fit->times.total_ms());
   // One hard case (jaw open 0.4 + brows, 4 deg off the neutral's pose, noiseless render): the
@@ -205,22 +200,22 @@ TEST(Fitting, WrongLandmarkHasBoundedEffectAndCorrectionRefits) {
   const auto truth = face(random_identity(13));
   const RigidPose pose = truth_pose(truth);
   FitTarget target = render_target(truth, pose);
-  auto base = fit_neutral(model(), target);
+  auto base = fit_neutral(test::face_model(), target);
   ASSERT_TRUE(base.ok());
   // The operator drags the nose tip (30) 20 px off: the fit moves, but boundedly.
   const Eigen::Vector2d moved = target.landmarks[30].pixel + Eigen::Vector2d(20, 0);
   const LandmarkCorrection corr{30, moved, false};
   ASSERT_TRUE(apply_corrections(target, std::span(&corr, 1)).ok());
   EXPECT_TRUE(target.landmarks[30].point.has_value());
-  auto refit = fit_neutral(model(), target, {}, &*base);
+  auto refit = fit_neutral(test::face_model(), target, {}, &*base);
   ASSERT_TRUE(refit.ok());
   const double change =
       mean_vertex_distance(refit->vertices, refit->camera_from_model, base->vertices,
-                           base->camera_from_model, model().fitting_vertices);
+                           base->camera_from_model, test::face_model().fitting_vertices);
   const double err = mean_vertex_distance(refit->vertices, refit->camera_from_model, truth, pose,
-                                          model().fitting_vertices);
-  const Eigen::Vector3d nose_before = base->camera_vertex(model().landmark_vertices[30]);
-  const Eigen::Vector3d nose_after = refit->camera_vertex(model().landmark_vertices[30]);
+                                          test::face_model().fitting_vertices);
+  const Eigen::Vector3d nose_before = base->camera_vertex(test::face_model().landmark_vertices[30]);
+  const Eigen::Vector3d nose_after = refit->camera_vertex(test::face_model().landmark_vertices[30]);
   std::printf("20 px wrong nose tip: mean change %.3f mm, error %.3f mm, nose moved %.2f mm\n",
               change, err, (nose_after - nose_before).norm());
   EXPECT_GT((nose_after - nose_before).norm(), 0.2);  // the correction is honoured
@@ -237,7 +232,7 @@ TEST(Fitting, BadInputGivesClearErrors) {
   auto r = prepare_fit_target(empty);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("depth map is empty"), std::string::npos);
-  EXPECT_FALSE(fit_neutral(model(), empty).ok());
+  EXPECT_FALSE(fit_neutral(test::face_model(), empty).ok());
 
   const auto truth = face({});
   FitTarget no_face = render_target(truth, truth_pose(truth));
@@ -254,7 +249,7 @@ TEST(Fitting, BadInputGivesClearErrors) {
   r = prepare_fit_target(no_depth);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("depth"), std::string::npos) << r.error().message;
-  auto f = fit_neutral(model(), no_depth);
+  auto f = fit_neutral(test::face_model(), no_depth);
   ASSERT_FALSE(f.ok());
 }
 

@@ -7,6 +7,7 @@
 
 #include "algo/guide/guide_expressions.hpp"
 #include "storage/asset_files.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
@@ -16,15 +17,6 @@ std::string read_guide_file() {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
-}
-
-const FaceModel& model() {
-  static const FaceModel m = [] {
-    auto r = load_face_model();
-    EXPECT_TRUE(r.ok());
-    return r.ok() ? std::move(*r) : FaceModel{};
-  }();
-  return m;
 }
 
 TEST(Guide, CommittedRecipesParseAndReferenceModelShapes) {
@@ -39,15 +31,17 @@ TEST(Guide, CommittedRecipesParseAndReferenceModelShapes) {
   for (int i = 0; i < 20; ++i) {
     EXPECT_EQ(guide->expressions[i].id, i);
     EXPECT_EQ(guide->expressions[i].name, names[i]);
-    if (i > 0) EXPECT_FALSE(guide->expressions[i].weights.empty()) << names[i];
+    if (i > 0) {
+      EXPECT_FALSE(guide->expressions[i].weights.empty()) << names[i];
+    }
   }
-  auto ok = validate_guide(*guide, model());
+  auto ok = validate_guide(*guide, test::face_model());
   EXPECT_TRUE(ok.ok()) << (ok.ok() ? "" : ok.error().message);
   // Every non-neutral guide mesh differs from G0; G0 is the model's mean face.
-  auto g0 = guide_mesh(guide->expressions[0], model());
+  auto g0 = guide_mesh(guide->expressions[0], test::face_model());
   ASSERT_TRUE(g0.ok());
   for (int i = 1; i < 20; ++i) {
-    auto gi = guide_mesh(guide->expressions[i], model());
+    auto gi = guide_mesh(guide->expressions[i], test::face_model());
     ASSERT_TRUE(gi.ok());
     double max_move = 0;
     for (std::size_t k = 0; k < gi->size(); ++k)
@@ -84,7 +78,7 @@ TEST(Guide, BadTextGivesClearErrors) {
       head +
       R"({"id":0,"name":"neutral","weights":{}},{"id":1,"name":"a","weights":{"notAShape":0.5}}]})");
   ASSERT_TRUE(unknown.ok());
-  auto v = validate_guide(*unknown, model());
+  auto v = validate_guide(*unknown, test::face_model());
   ASSERT_FALSE(v.ok());
   EXPECT_NE(v.error().message.find("notAShape"), std::string::npos);
 }

@@ -12,18 +12,10 @@
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/rigging/example_rigging.hpp"
 #include "storage/asset_files.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
-
-const FaceModel& model() {
-  static const FaceModel m = [] {
-    auto r = load_face_model();
-    EXPECT_TRUE(r.ok());
-    return r.ok() ? std::move(*r) : FaceModel{};
-  }();
-  return m;
-}
 
 const GuideSet& guide() {
   static const GuideSet g = [] {
@@ -38,19 +30,19 @@ const GuideSet& guide() {
 }
 
 std::vector<float> face(std::span<const float> identity, std::span<const float> weights) {
-  std::vector<float> m(static_cast<std::size_t>(model().vertex_count) * 3);
-  model().evaluate(identity, weights, m);
+  std::vector<float> m(static_cast<std::size_t>(test::face_model().vertex_count) * 3);
+  test::face_model().evaluate(identity, weights, m);
   return m;
 }
 
 double mean_error(std::span<const float> a, std::span<const float> b) {
   double s = 0;
-  for (auto v : model().fitting_vertices) {
+  for (auto v : test::face_model().fitting_vertices) {
     const double dx = a[3 * v] - b[3 * v], dy = a[3 * v + 1] - b[3 * v + 1],
                  dz = a[3 * v + 2] - b[3 * v + 2];
     s += std::sqrt(dx * dx + dy * dy + dz * dz);
   }
-  return s / static_cast<double>(model().fitting_vertices.size());
+  return s / static_cast<double>(test::face_model().fitting_vertices.size());
 }
 
 struct Subject {
@@ -61,11 +53,11 @@ struct Subject {
 };
 
 Subject make_subject(unsigned seed) {
-  const int n = model().fitting_expression_count;
+  const int n = test::face_model().fitting_expression_count;
   Subject s;
   std::mt19937 rng(seed);
   std::normal_distribution<float> normal(0, 1);
-  s.identity.resize(static_cast<std::size_t>(model().identity_count));
+  s.identity.resize(static_cast<std::size_t>(test::face_model().identity_count));
   for (auto& x : s.identity) x = normal(rng);
   s.generic.push_back(face({}, {}));
   for (int j = 0; j < n; ++j) {
@@ -74,7 +66,7 @@ Subject make_subject(unsigned seed) {
     s.generic.push_back(face({}, w));
   }
   for (const auto& ge : guide().expressions) {
-    auto w = guide_weights(ge, model());
+    auto w = guide_weights(ge, test::face_model());
     EXPECT_TRUE(w.ok());
     w->resize(static_cast<std::size_t>(n));
     s.examples.push_back(face(s.identity, *w));
@@ -85,7 +77,7 @@ Subject make_subject(unsigned seed) {
 
 RigInput input_of(const Subject& s) {
   RigInput in;
-  in.triangles = model().triangles;
+  in.triangles = test::face_model().triangles;
   in.generic_neutral = s.generic[0];
   for (std::size_t j = 1; j < s.generic.size(); ++j) in.generic_shapes.emplace_back(s.generic[j]);
   for (const auto& e : s.examples) in.examples.emplace_back(e);
@@ -102,7 +94,7 @@ struct HeldOut {
 template <class TruthOf>
 HeldOut score_mixes(const RigResult& rig, const Subject& s, std::span<const float> neutral,
                     TruthOf&& truth_of, unsigned seed) {
-  const int n = model().fitting_expression_count;
+  const int n = test::face_model().fitting_expression_count;
   const std::vector<std::vector<float>> generic_shapes(s.generic.begin() + 1, s.generic.end());
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0, 1);
@@ -123,14 +115,14 @@ HeldOut score_mixes(const RigResult& rig, const Subject& s, std::span<const floa
 }
 
 TEST(Rigging, GroundTruthExamplesMeetTheTargets) {
-  ASSERT_GT(model().vertex_count, 0);
+  ASSERT_GT(test::face_model().vertex_count, 0);
   ASSERT_EQ(guide().expressions.size(), 20u);
   const Subject s = make_subject(7);
   RigOptions options;
-  options.weight_vertices = model().fitting_vertices;
+  options.weight_vertices = test::face_model().fitting_vertices;
   auto rig = rig_subject(input_of(s), options);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
-  const int n = model().fitting_expression_count;
+  const int n = test::face_model().fitting_expression_count;
   ASSERT_EQ(rig->shapes.size(), static_cast<std::size_t>(n));
 
   double train = 0;
@@ -155,9 +147,9 @@ TEST(Rigging, GroundTruthExamplesMeetTheTargets) {
 // deltas are then wrong by the personal part; the rig, given the exact examples, must recover it.
 TEST(Rigging, PersonalShapesFromTransferBeatTheGenericDeltas) {
   Subject s = make_subject(5);
-  const int n = model().fitting_expression_count;
+  const int n = test::face_model().fitting_expression_count;
   const auto neutral = face(s.identity, {});
-  auto transfer = ExpressionTransfer::create(model(), neutral, s.generic[0]);
+  auto transfer = ExpressionTransfer::create(test::face_model(), neutral, s.generic[0]);
   ASSERT_TRUE(transfer.ok()) << transfer.error().message;
   std::vector<std::vector<float>> personal;  // true B_1 .. B_n (full shapes)
   for (int j = 1; j <= n; ++j) {
@@ -168,7 +160,7 @@ TEST(Rigging, PersonalShapesFromTransferBeatTheGenericDeltas) {
   for (std::size_t i = 0; i < s.examples.size(); ++i)
     s.examples[i] = evaluate_rig(neutral, personal, s.weights[i]);
   RigOptions options;
-  options.weight_vertices = model().fitting_vertices;
+  options.weight_vertices = test::face_model().fitting_vertices;
   auto rig = rig_subject(input_of(s), options);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
 

@@ -4,13 +4,10 @@
 // what the store holds. Also `--rig-from-store`: a subject with a stored rig is tracked without
 // calibration; a subject without one falls back to calibrating.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "algo/tracking/arkit.hpp"
@@ -18,27 +15,16 @@
 #include "storage/export/livelink_csv.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "storage/session_store.hpp"
+#include "tests/common/run_command.hpp"
 
 namespace fb {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Run {
-  int exit_code = -1;
-  std::string out;  // stdout only; stderr goes to the test log
-};
-
-Run facebooth(const std::string& args) {
-  Run r;
-  const std::string command = std::string(FB_CLI_PATH) + " " + args;
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(::popen(command.c_str(), "r"), ::pclose);
-  if (!pipe) return r;
-  char buf[4096];
-  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;) r.out.append(buf, n);
-  const int status = ::pclose(pipe.release());
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+// stdout only; stderr goes to the test log.
+test::CommandRun facebooth(const std::string& args) {
+  return test::run_command(std::string(FB_CLI_PATH) + " " + args, test::Stderr::kToLog);
 }
 
 class TrackStoreCli : public ::testing::Test {

@@ -21,21 +21,10 @@
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 #include "storage/asset_files.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
-
-const FaceModel& model() {
-  static const FaceModel loaded = [] {
-    auto m = load_face_model(std::filesystem::path(FB_DATA_DIR) / "facemodel.fbfm");
-    if (!m) {
-      ADD_FAILURE() << m.error().message;
-      return FaceModel{};
-    }
-    return std::move(*m);
-  }();
-  return loaded;
-}
 
 int free_udp_port() {
   const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
@@ -155,15 +144,15 @@ TEST(VmcOsc, OscdumpReceivesTheTakeValues) {
   o.seed = 4;
   o.frame_count = 6;
   o.motion = SyntheticMotion::kStatic;
-  o.expression_weights.assign(model().expression_count, 0.0f);
-  o.expression_weights[model().expression_index("jawOpen")] = 0.5f;
-  o.expression_weights[model().expression_index("mouthSmile_L")] = 0.6f;
-  auto camera = make_synthetic_camera(model(), o);
+  o.expression_weights.assign(test::face_model().expression_count, 0.0f);
+  o.expression_weights[test::face_model().expression_index("jawOpen")] = 0.5f;
+  o.expression_weights[test::face_model().expression_index("mouthSmile_L")] = 0.6f;
+  auto camera = make_synthetic_camera(test::face_model(), o);
   ASSERT_TRUE(camera.ok()) << camera.error().message;
   ASSERT_TRUE((*camera)->start().ok());
-  auto tracker = FaceTracker::create(model(), (*camera)->info().depth_intrinsics);
+  auto tracker = FaceTracker::create(test::face_model(), (*camera)->info().depth_intrinsics);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
-  auto mapping = make_arkit_mapping(model());
+  auto mapping = make_arkit_mapping(test::face_model());
   ASSERT_TRUE(mapping.ok());
   RgbdFrame frame;
   TrackReport report;

@@ -16,23 +16,12 @@
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/allocation_counter.hpp"
+#include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
 
 constexpr double kDeg = 180.0 / std::numbers::pi;
-
-const FaceModel& model() {
-  static const FaceModel loaded = [] {
-    auto m = load_face_model(std::filesystem::path(FB_DATA_DIR) / "facemodel.fbfm");
-    if (!m) {
-      ADD_FAILURE() << m.error().message;
-      return FaceModel{};
-    }
-    return std::move(*m);
-  }();
-  return loaded;
-}
 
 struct Frames {
   std::vector<DepthImage> depth;
@@ -42,7 +31,7 @@ struct Frames {
 
 Frames render(const SyntheticOptions& options) {
   Frames out;
-  auto camera = make_synthetic_camera(model(), options);
+  auto camera = make_synthetic_camera(test::face_model(), options);
   EXPECT_TRUE(camera.ok()) << (camera.ok() ? "" : camera.error().message);
   if (!camera) return out;
   EXPECT_TRUE((*camera)->start().ok());
@@ -79,7 +68,8 @@ void noisy_landmarks(const FrameTruth& truth, std::mt19937& rng,
 // listed shape rises linearly to its peak over `rise` frames and stays there.
 std::vector<std::vector<float>> ramp_track(int frames, int start, int rise,
                                            std::initializer_list<std::pair<int, float>> peaks) {
-  std::vector<std::vector<float>> track(frames, std::vector<float>(model().expression_count, 0.0f));
+  std::vector<std::vector<float>> track(
+      frames, std::vector<float>(test::face_model().expression_count, 0.0f));
   for (int f = start; f < frames; ++f) {
     const float s = std::min(1.0f, static_cast<float>(f - start) / static_cast<float>(rise));
     for (const auto& [shape, peak] : peaks) track[f][shape] = peak * s;
@@ -92,7 +82,7 @@ std::vector<std::vector<float>> ramp_track(int frames, int start, int rise,
 template <class OnFrame>
 void track_frames(const Frames& frames, const TrackerOptions& options, std::uint32_t noise_seed,
                   OnFrame on_frame) {
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   TrackReport report;
   std::mt19937 rng(noise_seed);
@@ -117,7 +107,7 @@ void track_scene(const SyntheticOptions& scene, const TrackerOptions& options,
 }
 
 TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
-  auto mapping = make_arkit_mapping(model());
+  auto mapping = make_arkit_mapping(test::face_model());
   ASSERT_TRUE(mapping.ok()) << mapping.error().message;
   const auto index = [](std::string_view name) {
     return static_cast<int>(std::find(kArkitNames.begin(), kArkitNames.end(), name) -
@@ -127,30 +117,31 @@ TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
   EXPECT_EQ(kArkitNames.back(), "tongueOut");
   const auto& s = mapping->sources;
   EXPECT_EQ(s[index("tongueOut")][0], -1);
-  EXPECT_EQ(s[index("eyeBlinkLeft")][0], model().expression_index("eyeBlink_L"));
-  EXPECT_EQ(s[index("jawOpen")][0], model().expression_index("jawOpen"));
-  EXPECT_EQ(s[index("browInnerUp")][0], model().expression_index("browInnerUp_L"));
-  EXPECT_EQ(s[index("browInnerUp")][1], model().expression_index("browInnerUp_R"));
-  EXPECT_EQ(s[index("cheekPuff")][1], model().expression_index("cheekPuff_R"));
+  EXPECT_EQ(s[index("eyeBlinkLeft")][0], test::face_model().expression_index("eyeBlink_L"));
+  EXPECT_EQ(s[index("jawOpen")][0], test::face_model().expression_index("jawOpen"));
+  EXPECT_EQ(s[index("browInnerUp")][0], test::face_model().expression_index("browInnerUp_L"));
+  EXPECT_EQ(s[index("browInnerUp")][1], test::face_model().expression_index("browInnerUp_R"));
+  EXPECT_EQ(s[index("cheekPuff")][1], test::face_model().expression_index("cheekPuff_R"));
   // Every fitting shape is used exactly once.
-  std::vector<int> used(model().fitting_expression_count, 0);
+  std::vector<int> used(test::face_model().fitting_expression_count, 0);
   for (const auto& pair : s)
     for (int j : pair)
       if (j >= 0) ++used[j];
-  for (int j = 0; j < model().fitting_expression_count; ++j) EXPECT_EQ(used[j], 1) << j;
+  for (int j = 0; j < test::face_model().fitting_expression_count; ++j) EXPECT_EQ(used[j], 1) << j;
   // "_L" is the subject's left = model +X: eyeBlink_L moves vertices with x > 0.
-  const auto shape = model().expression_shape(model().expression_index("eyeBlink_L"));
+  const auto shape =
+      test::face_model().expression_shape(test::face_model().expression_index("eyeBlink_L"));
   double weighted_x = 0, total = 0;
-  for (int v = 0; v < model().face_vertex_count; ++v) {
+  for (int v = 0; v < test::face_model().face_vertex_count; ++v) {
     const double d = Eigen::Vector3d(shape[3 * v], shape[3 * v + 1], shape[3 * v + 2]).norm();
-    weighted_x += d * model().neutral[3 * v];
+    weighted_x += d * test::face_model().neutral[3 * v];
     total += d;
   }
   EXPECT_GT(weighted_x / total, 10.0);
   // Merged curves average their halves; to_model inverts.
-  std::vector<float> w(model().fitting_expression_count, 0.0f);
-  w[model().expression_index("browInnerUp_L")] = 0.2f;
-  w[model().expression_index("browInnerUp_R")] = 0.6f;
+  std::vector<float> w(test::face_model().fitting_expression_count, 0.0f);
+  w[test::face_model().expression_index("browInnerUp_L")] = 0.2f;
+  w[test::face_model().expression_index("browInnerUp_R")] = 0.6f;
   std::array<float, kArkitShapeCount> arkit{};
   mapping->to_arkit(w, arkit);
   EXPECT_NEAR(arkit[index("browInnerUp")], 0.4f, 1e-6f);
@@ -188,13 +179,13 @@ TEST(Tracker, KnownIdentityExpressionWithNoise) {
   o.seed = 3;
   o.motion = SyntheticMotion::kStatic;
   o.frame_count = 12;
-  o.expression_weights.assign(model().expression_count, 0.0f);
-  o.expression_weights[model().expression_index("jawOpen")] = 0.5f;
-  o.expression_weights[model().expression_index("mouthSmile_L")] = 0.6f;
-  o.expression_weights[model().expression_index("browInnerUp_R")] = 0.4f;
+  o.expression_weights.assign(test::face_model().expression_count, 0.0f);
+  o.expression_weights[test::face_model().expression_index("jawOpen")] = 0.5f;
+  o.expression_weights[test::face_model().expression_index("mouthSmile_L")] = 0.6f;
+  o.expression_weights[test::face_model().expression_index("browInnerUp_R")] = 0.4f;
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 12u);
-  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
   TrackReport report;
@@ -211,13 +202,13 @@ TEST(Tracker, KnownIdentityExpressionWithNoise) {
   for (int j = 0; j < report.shape_count; ++j)
     mae += std::abs(report.weights[j] - t.expression_weights[j]);
   mae /= report.shape_count;
-  EXPECT_NEAR(report.weights[model().expression_index("jawOpen")], 0.5f, 0.1f);
-  EXPECT_NEAR(report.weights[model().expression_index("mouthSmile_L")], 0.6f, 0.1f);
+  EXPECT_NEAR(report.weights[test::face_model().expression_index("jawOpen")], 0.5f, 0.1f);
+  EXPECT_NEAR(report.weights[test::face_model().expression_index("mouthSmile_L")], 0.6f, 0.1f);
   // browInnerUp_R moves the brow along the forehead (tangential to the depth), a small depth
   // signal: a constant L1 prior held it at 0.06 for 0.4 (MAE 0.0075); scaled by the shape's
   // signal and relaxed on the shapes it turns on: 0.31 (MAE 0.0018).
   EXPECT_LT(mae, 0.004);
-  EXPECT_NEAR(report.weights[model().expression_index("browInnerUp_R")], 0.4f, 0.15f);
+  EXPECT_NEAR(report.weights[test::face_model().expression_index("browInnerUp_R")], 0.4f, 0.15f);
   EXPECT_LT(rotation_error_deg(report.camera_from_model, t.camera_from_model), 0.5);
   const Eigen::Vector3d c = t.landmarks_3d[30];  // nose tip, camera frame
   const Eigen::Vector3d c_model = t.camera_from_model.inverse().apply(c);
@@ -238,14 +229,14 @@ LidFrameErrors track_lids(const TrackerOptions& options) {
   SyntheticOptions o;
   o.seed = 17;
   o.frame_count = 30;
-  o.expression_weights.assign(model().expression_count, 0.0f);
-  o.expression_weights[model().expression_index("eyeWide_R")] = 0.7f;
-  o.expression_weights[model().expression_index("browDown_L")] = 0.3f;
-  o.expression_weights[model().expression_index("jawOpen")] = 0.3f;
+  o.expression_weights.assign(test::face_model().expression_count, 0.0f);
+  o.expression_weights[test::face_model().expression_index("eyeWide_R")] = 0.7f;
+  o.expression_weights[test::face_model().expression_index("browDown_L")] = 0.3f;
+  o.expression_weights[test::face_model().expression_index("jawOpen")] = 0.3f;
   const Frames frames = render(o);
   LidFrameErrors e;
   EXPECT_EQ(frames.depth.size(), 30u);
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
   EXPECT_TRUE(tracker.ok()) << tracker.error().message;
   if (!tracker || frames.depth.empty()) return e;
   EXPECT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
@@ -258,11 +249,13 @@ LidFrameErrors track_lids(const TrackerOptions& options) {
     (*tracker)->track(frames.depth[f], f / 30.0, &landmarks, report);
     EXPECT_EQ(report.state, TrackState::kTracking) << "frame " << f;
     if (f < 5) continue;  // the temporal term eases in from the neutral start
-    e.eye_wide_mean += std::abs(report.weights[model().expression_index("eyeWide_R")] - 0.7f) /
-                       static_cast<float>(frames.depth.size() - 5);
-    e.brow_lowest = std::min(e.brow_lowest, report.weights[model().expression_index("browDown_L")]);
+    e.eye_wide_mean +=
+        std::abs(report.weights[test::face_model().expression_index("eyeWide_R")] - 0.7f) /
+        static_cast<float>(frames.depth.size() - 5);
+    e.brow_lowest =
+        std::min(e.brow_lowest, report.weights[test::face_model().expression_index("browDown_L")]);
     for (int j = 0; j < report.shape_count; ++j)
-      if (is_gaze_shape(model().expression_names[j]))
+      if (is_gaze_shape(test::face_model().expression_names[j]))
         e.gaze_worst = std::max(e.gaze_worst, report.weights[j]);
   }
   return e;
@@ -295,8 +288,8 @@ PairScene track_rising_brow_and_lid(std::uint64_t seed, float antagonist_weight)
   o.seed = seed;
   o.frame_count = 50;
   o.expression_track = ramp_track(o.frame_count, 14, 20,
-                                  {{model().expression_index("browDown_L"), 0.6f},
-                                   {model().expression_index("eyeWide_R"), 0.4f}});
+                                  {{test::face_model().expression_index("browDown_L"), 0.6f},
+                                   {test::face_model().expression_index("eyeWide_R"), 0.4f}});
   TrackerOptions options;
   options.antagonist_weight = antagonist_weight;
   // The identity from depth alone: its misfit is what made the pair stand in here (the landmark
@@ -312,8 +305,9 @@ PairScene track_rising_brow_and_lid(std::uint64_t seed, float antagonist_weight)
               [&](int f, const FrameTruth& truth, const TrackReport& report) {
                 if (f < 14) return;
                 for (const auto& [a, b] : pairs)
-                  out.coactivation += std::min(report.weights[model().expression_index(a)],
-                                               report.weights[model().expression_index(b)]);
+                  out.coactivation +=
+                      std::min(report.weights[test::face_model().expression_index(a)],
+                               report.weights[test::face_model().expression_index(b)]);
                 for (int j = 0; j < report.shape_count; ++j)
                   out.weight_mae += std::abs(report.weights[j] - truth.expression_weights[j]) /
                                     report.shape_count;
@@ -345,22 +339,22 @@ TEST(Tracker, StoredRigReplacesIdentityAndShapes) {
   o.seed = 4;
   o.motion = SyntheticMotion::kStatic;
   o.frame_count = 10;
-  o.expression_weights.assign(model().expression_count, 0.0f);
-  const int jaw = model().expression_index("jawOpen");
+  o.expression_weights.assign(test::face_model().expression_count, 0.0f);
+  const int jaw = test::face_model().expression_index("jawOpen");
   o.expression_weights[jaw] = 0.5f;
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 10u);
-  const std::size_t size = 3 * static_cast<std::size_t>(model().vertex_count);
+  const std::size_t size = 3 * static_cast<std::size_t>(test::face_model().vertex_count);
   std::vector<float> neutral(size);
-  model().evaluate(frames.truth[0].identity_coeffs, {}, neutral);
+  test::face_model().evaluate(frames.truth[0].identity_coeffs, {}, neutral);
   std::vector<float> jaw_shape(size);
-  const auto delta = model().expression_shape(jaw);
+  const auto delta = test::face_model().expression_shape(jaw);
   for (std::size_t i = 0; i < size; ++i) jaw_shape[i] = neutral[i] + 2.0f * delta[i];
   TrackerRig rig;
   rig.neutral = neutral;
   rig.shapes.emplace_back(jaw, jaw_shape);
 
-  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   ASSERT_TRUE((*tracker)->set_rig(rig).ok());
   EXPECT_TRUE((*tracker)->calibrated());
@@ -399,7 +393,7 @@ TEST(Tracker, CalibratesAndFollowsAHeadTurn) {
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 40u);
   TrackerOptions options;
-  auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   TrackReport report;
   std::vector<RigidPose> estimate, truth;
@@ -484,20 +478,20 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
   o.pitch_amplitude_deg = 6.0;
   // Neutral while the tracker calibrates the identity, then the mouth opens and smiles.
   o.expression_track = ramp_track(o.frame_count, 12, 10,
-                                  {{model().expression_index("jawOpen"), 0.3f},
-                                   {model().expression_index("mouthSmile_L"), 0.5f}});
+                                  {{test::face_model().expression_index("jawOpen"), 0.3f},
+                                   {test::face_model().expression_index("mouthSmile_L"), 0.5f}});
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 46u);
   std::vector<int> upper;
-  for (int j = 0; j < model().fitting_expression_count; ++j) {
-    const std::string& name = model().expression_names[j];
+  for (int j = 0; j < test::face_model().fitting_expression_count; ++j) {
+    const std::string& name = test::face_model().expression_names[j];
     if (name.starts_with("brow") || name.starts_with("eyeWide") || name.starts_with("eyeSquint"))
       upper.push_back(j);
   }
   ASSERT_GE(upper.size(), 8u);
   std::vector<int> lower;  // the shapes under the plate: they hold their value
-  for (int j = 0; j < model().fitting_expression_count; ++j) {
-    const std::string& name = model().expression_names[j];
+  for (int j = 0; j < test::face_model().fitting_expression_count; ++j) {
+    const std::string& name = test::face_model().expression_names[j];
     if (name.starts_with("mouth") || name.starts_with("jaw")) lower.push_back(j);
   }
   double worst_lower = 0.0;  // of the last run
@@ -506,7 +500,7 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
   unsigned noise_seed = 5;  // of the landmark noise
   auto run = [&](const TrackerOptions& options, bool with_landmarks, double& worst_upper,
                  double& worst_rotation, int& recovery, int& misdetected_used) {
-    auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+    auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
     ASSERT_TRUE(tracker.ok()) << tracker.error().message;
     TrackReport report;
     worst_upper = worst_rotation = worst_lower = 0.0;
@@ -632,7 +626,7 @@ NeutralHold hold_neutral(std::uint64_t seed, bool depth_offsets) {
   SyntheticOptions o;
   o.seed = seed;
   o.frame_count = 40;
-  o.expression_weights.assign(model().expression_count, 0.0f);
+  o.expression_weights.assign(test::face_model().expression_count, 0.0f);
   TrackerOptions options;
   options.calibrate_depth_offsets = depth_offsets;
   // The identity from depth alone, whose misses the offsets are for (with the landmark rows in
@@ -648,7 +642,7 @@ NeutralHold hold_neutral(std::uint64_t seed, bool depth_offsets) {
                 }
                 n += report.shape_count;
               });
-  EXPECT_GT(n, 20 * model().fitting_expression_count) << "seed " << seed;
+  EXPECT_GT(n, 20 * test::face_model().fitting_expression_count) << "seed " << seed;
   out.mean_weight /= std::max(n, 1);
   return out;
 }
@@ -679,15 +673,16 @@ TEST(Tracker, CalibratedLandmarkOffsetsAbsorbADetectorBias) {
   o.frame_count = 30;
   o.yaw_amplitude_deg = 8.0;
   o.pitch_amplitude_deg = 4.0;
-  const int jaw = model().expression_index("jawOpen");
-  o.expression_track.assign(o.frame_count, std::vector<float>(model().expression_count, 0.0f));
+  const int jaw = test::face_model().expression_index("jawOpen");
+  o.expression_track.assign(o.frame_count,
+                            std::vector<float>(test::face_model().expression_count, 0.0f));
   for (int f = 14; f < o.frame_count; ++f) o.expression_track[f][jaw] = 0.3f;
   const Frames frames = render(o);
   ASSERT_EQ(frames.depth.size(), 30u);
   auto run = [&](bool offsets, double& mae, double& brow_down) {
     TrackerOptions options;
     options.calibrate_landmark_offsets = offsets;
-    auto tracker = FaceTracker::create(model(), frames.intrinsics, options);
+    auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
     ASSERT_TRUE(tracker.ok()) << tracker.error().message;
     std::mt19937 rng(3);
     std::normal_distribution<float> noise(0.0f, 1.0f);
@@ -710,8 +705,8 @@ TEST(Tracker, CalibratedLandmarkOffsetsAbsorbADetectorBias) {
       for (int j = 0; j < report.shape_count; ++j)
         sum += std::abs(report.weights[j] - t.expression_weights[j]);
       mae += sum / report.shape_count;
-      brow_down += report.weights[model().expression_index("browDown_L")] +
-                   report.weights[model().expression_index("browDown_R")];
+      brow_down += report.weights[test::face_model().expression_index("browDown_L")] +
+                   report.weights[test::face_model().expression_index("browDown_R")];
       ++scored;
     }
     ASSERT_GE(scored, 10);
@@ -732,7 +727,7 @@ TEST(Tracker, CalibratedLandmarkOffsetsAbsorbADetectorBias) {
 // Bad input never crashes; it is reported.
 TEST(Tracker, BadInputIsReported) {
   PinholeIntrinsics k{640, 480, 580.0, 580.0, 319.5, 239.5};
-  auto tracker = FaceTracker::create(model(), k);
+  auto tracker = FaceTracker::create(test::face_model(), k);
   ASSERT_TRUE(tracker.ok());
   TrackReport report;
   DepthImage wrong;
@@ -761,7 +756,7 @@ TEST(Tracker, BadInputIsReported) {
 std::vector<float> atypical_identity(std::uint32_t seed, float scale) {
   std::mt19937 rng(seed);
   std::normal_distribution<float> draw(0.0f, scale);
-  std::vector<float> identity(static_cast<std::size_t>(model().identity_count));
+  std::vector<float> identity(static_cast<std::size_t>(test::face_model().identity_count));
   for (float& c : identity) c = draw(rng);
   return identity;
 }
@@ -848,7 +843,7 @@ TEST(Tracker, AHeadSizedEllipsoidIsNotAFace) {
       }
     }
     auto frames_found = [&](const TrackerOptions& options) {
-      auto tracker = FaceTracker::create(model(), k, options);
+      auto tracker = FaceTracker::create(test::face_model(), k, options);
       EXPECT_TRUE(tracker.ok());
       TrackReport report;
       int found = 0;
@@ -899,7 +894,7 @@ TEST(Tracker, LossAndReacquisition) {
   o.motion = SyntheticMotion::kStatic;
   o.frame_count = 4;
   const Frames frames = render(o);
-  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics);
   ASSERT_TRUE(tracker.ok());
   ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
   TrackReport report;
@@ -934,7 +929,7 @@ TEST(Tracker, SteadyStateDoesNotAllocate) {
   o.motion = SyntheticMotion::kStatic;
   o.frame_count = 8;
   const Frames frames = render(o);
-  auto tracker = FaceTracker::create(model(), frames.intrinsics);
+  auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics);
   ASSERT_TRUE(tracker.ok());
   ASSERT_TRUE((*tracker)->set_identity(frames.truth[0].identity_coeffs).ok());
   std::vector<Eigen::Vector2f> points(68);
@@ -971,7 +966,7 @@ TEST(Tracker, CalibrationFindsTheHeadFrameFromAFewDegreesOff) {
     o.pitch_amplitude_deg = 10.0;
     const Frames frames = render(o);
     ASSERT_EQ(frames.depth.size(), 24u);
-    auto tracker = FaceTracker::create(model(), frames.intrinsics, TrackerOptions{});
+    auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, TrackerOptions{});
     ASSERT_TRUE(tracker.ok()) << tracker.error().message;
     TrackReport report;
     double sum = 0;
@@ -998,12 +993,12 @@ TEST(Tracker, NoisierLandmarkSourceCountsLess) {
   o.yaw_amplitude_deg = 15.0;
   o.pitch_amplitude_deg = 8.0;
   o.expression_track = ramp_track(50, 12, 15,
-                                  {{model().expression_index("mouthSmile_L"), 0.6f},
-                                   {model().expression_index("browInnerUp_R"), 0.5f},
-                                   {model().expression_index("jawOpen"), 0.3f}});
+                                  {{test::face_model().expression_index("mouthSmile_L"), 0.6f},
+                                   {test::face_model().expression_index("browInnerUp_R"), 0.5f},
+                                   {test::face_model().expression_index("jawOpen"), 0.3f}});
   const Frames frames = render(o);
   auto weight_mae = [&](float stated_noise_px) {
-    auto tracker = FaceTracker::create(model(), frames.intrinsics);
+    auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics);
     EXPECT_TRUE(tracker.ok());
     if (!tracker) return 1.0;
     std::mt19937 rng(4);

@@ -30,6 +30,7 @@
 #include "algo/render/rasterizer.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/stats.hpp"
 #include "host/cli/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
 
@@ -134,17 +135,6 @@ Result<void> write_png(const std::filesystem::path& path, const cv::Mat& image) 
 // ---------------------------------------------------------------------------------------------
 // facebooth eval fit
 
-struct Stats {
-  std::vector<double> v;
-  void add(double x) {
-    if (std::isfinite(x)) v.push_back(x);
-  }
-  double mean() const {
-    return v.empty() ? NAN : std::accumulate(v.begin(), v.end(), 0.0) / v.size();
-  }
-  double max() const { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
-};
-
 Result<std::vector<int>> parse_expression_list(const std::string& text, const GuideSet& guide) {
   std::vector<int> out;
   if (text.empty() || text == "all") {
@@ -200,12 +190,12 @@ int run_eval_fit(const ParsedOptions& options) {
     detector.emplace(std::move(*d));
   }
 
-  Stats rms_init, rms_ref, ne_init, ne_ref, ne_noise, ee_init, ee_ref, erms_ref, lm_err,
+  Samples rms_init, rms_ref, ne_init, ne_ref, ne_noise, ee_init, ee_ref, erms_ref, lm_err,
       lm_err_interior, lm_detect_fail, neutral_ms, expr_ms, lm_ms_track, lm_ms_full, lift_err;
   int detections = 0, detection_attempts = 0;
   nlohmann::json per_subject = nlohmann::json::array();
   nlohmann::json per_expression = nlohmann::json::object();
-  std::map<int, Stats> expr_err;
+  std::map<int, Samples> expr_err;
   const FaceBox box = default_face_box(640, 480);
   const double scale = 3.0;
   for (long long s = 0; s < *identities; ++s) {
@@ -388,11 +378,11 @@ int run_eval_fit(const ParsedOptions& options) {
   out["neutral_vertex_error_mm_initial"] = ne_init.mean();
   out["neutral_vertex_error_mm"] = ne_ref.mean();
   out["neutral_vertex_error_mm_worst"] = ne_ref.max();
-  if (!ne_noise.v.empty()) {
+  if (!ne_noise.empty()) {
     out["robustness_noise_px"] = *robust_noise;
     out["neutral_vertex_error_mm_with_robustness_noise"] = ne_noise.mean();
   }
-  if (!ee_ref.v.empty()) {
+  if (!ee_ref.empty()) {
     out["expression_vertex_error_mm_initial"] = ee_init.mean();
     out["expression_vertex_error_mm"] = ee_ref.mean();
     out["expression_vertex_error_mm_worst"] = ee_ref.max();
@@ -422,7 +412,7 @@ int run_eval_fit(const ParsedOptions& options) {
                             {"expression_vertex_error_mm", 1.5}};
   out["targets"] = targets;
   out["meets_targets"] =
-      rms_ref.mean() <= 0.3 && ne_ref.mean() <= 1.0 && (ee_ref.v.empty() || ee_ref.mean() <= 1.5);
+      rms_ref.mean() <= 0.3 && ne_ref.mean() <= 1.0 && (ee_ref.empty() || ee_ref.mean() <= 1.5);
   out["per_subject"] = per_subject;
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
@@ -450,7 +440,7 @@ int run_bench_fit(const ParsedOptions& options) {
   if (options.get("dlib") != "off") {
     auto det = load_detector(options.get("shape-predictor"));
     if (!det) return report_failure(det.error());
-    Stats full, tracked;
+    Samples full, tracked;
     for (long long r = 0; r < *repeats; ++r) {
       det->reset_tracking();
       const auto t0 = Clock::now();
@@ -465,7 +455,7 @@ int run_bench_fit(const ParsedOptions& options) {
     }
     out["landmark_ms"] = tracked.mean();
     out["landmark_ms_full_image"] = full.mean();
-    out["landmark_tracked_frames"] = tracked.v.size();
+    out["landmark_tracked_frames"] = tracked.values().size();
   }
   auto target = make_fit_target(*neutral_cap, neutral_cap->truth_color_px, false);
   if (!target) return report_failure(target.error());
@@ -497,7 +487,7 @@ int run_bench_fit(const ParsedOptions& options) {
   const double subject_setup_ms = ms_since(tf0);
   out["transfer_factorization_ms"] = subject_setup_ms;
   out["refine_factorization_ms"] = transfer->refine_system().factorization_ms();
-  Stats expr, dt;
+  Samples expr, dt;
   const int n_expr = static_cast<int>(std::min<long long>(guide->expressions.size(), 4));
   for (int e = 1; e < n_expr; ++e) {
     auto w = guide_weights(guide->expressions[static_cast<std::size_t>(e)], *model);

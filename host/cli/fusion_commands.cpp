@@ -23,6 +23,7 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/scratch_directory.hpp"
+#include "host/cli/stats.hpp"
 
 namespace fb::cli {
 namespace {
@@ -309,13 +310,6 @@ struct DepthErrors {
   int face_pixels = 0;
   cv::Mat fused_error, raw_error;  // CV_32F, NaN where no value
 };
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const std::size_t n = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + n, v.end());
-  return v[n];
-}
 
 DepthErrors depth_errors(const Sequence& seq, const SurfaceView& fused, const cv::Mat& region) {
   DepthErrors e;

@@ -26,6 +26,7 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/rig_session.hpp"
+#include "host/cli/stats.hpp"
 #include "host/cli/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
@@ -39,18 +40,6 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
-
-struct Stats {
-  std::vector<double> v;
-  void add(double x) {
-    if (std::isfinite(x)) v.push_back(x);
-  }
-  double mean() const {
-    return v.empty() ? NAN : std::accumulate(v.begin(), v.end(), 0.0) / v.size();
-  }
-  double max() const { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
-  double min() const { return v.empty() ? NAN : *std::min_element(v.begin(), v.end()); }
-};
 
 // Mean distance over `subset` between mesh a (mapped by `a_to_b`) and mesh b.
 double mean_distance(std::span<const float> a, std::span<const float> b,
@@ -529,7 +518,7 @@ Result<SubjectTruth> subject_truth(const FaceModel& model, const std::vector<flo
 }
 
 struct RigScore {
-  Stats train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
+  Samples train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
       input_error, input_delta, guide_delta, seconds;
 };
 
@@ -643,7 +632,7 @@ int run_eval_rig(const ParsedOptions& options) {
       auto rig = rig_subject(input, o);
       bar.reset();
       if (!rig) return rig.failure();
-      Stats train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
+      Samples train, train_guide, train_truth, heldout, baseline, heldout_delta, baseline_delta,
           input_err, input_delta, guide_delta;
       for (std::size_t i = 1; i < examples.size(); ++i) {
         train.add(mean_distance(evaluate_rig(rig->neutral, rig->shapes, rig->weights[i]),
@@ -1003,7 +992,7 @@ int run_eval_model(const ParsedOptions& options) {
     model = make_bilinear_model(*built, *face_model, bootstrap_expression_names(*face_model), "{}");
     out["landmark_fit_model"] = "bootstrap built in memory at the default knobs";
   }
-  Stats fit_px, fit_truth_px, joint_px, mesh_mm, joint_mesh_mm, fit_ms;
+  Samples fit_px, fit_truth_px, joint_px, mesh_mm, joint_mesh_mm, fit_ms;
   std::mt19937_64 rng(static_cast<std::uint64_t>(*seed) * 13 + 5);
   const int per_subject = static_cast<int>(*images);
   Progress lbar("eval model: landmark fits", static_cast<long long>(test_ids.size()));
@@ -1039,7 +1028,7 @@ int run_eval_model(const ParsedOptions& options) {
       truths.push_back(lt);
     }
     auto score = [&](const LandmarkFit& fit, std::span<const float> w_id, const ImageLandmarks& l,
-                     const ImageLandmarks& lt, Stats& given, Stats* vs_truth, Stats& mesh) {
+                     const ImageLandmarks& lt, Samples& given, Samples* vs_truth, Samples& mesh) {
       std::vector<float> mesh_fit(static_cast<std::size_t>(model.coordinate_count()));
       model.evaluate(w_id, fit.w_exp, mesh_fit);
       double sg = 0, st = 0;
@@ -1073,7 +1062,7 @@ int run_eval_model(const ParsedOptions& options) {
   out["landmark_fit_error_vs_true_points_px"] = fit_truth_px.mean();
   out["landmark_fit_mesh_error_mm_similarity_aligned"] = mesh_mm.mean();
   out["landmark_fit_ms"] = fit_ms.mean();
-  if (!joint_px.v.empty()) {
+  if (!joint_px.empty()) {
     out["joint_fit_images"] = per_subject;
     out["joint_landmark_fit_error_px"] = joint_px.mean();
     out["joint_fit_mesh_error_mm_similarity_aligned"] = joint_mesh_mm.mean();
@@ -1118,7 +1107,7 @@ int run_bench_rig(const ParsedOptions& options) {
   }
   for (const auto& e : examples) input.examples.emplace_back(e);
   input.example_weights = weights;
-  Stats rig_s, build_s, serialize_s, parse_s;
+  Samples rig_s, build_s, serialize_s, parse_s;
   for (long long r = 0; r < *repeats; ++r) {
     std::cerr << "bench rig: repeat " << r + 1 << "/" << *repeats << "\n";
     const auto t0 = Clock::now();

@@ -12,6 +12,7 @@
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/scratch_directory.hpp"
+#include "host/cli/stats.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/crash_trials.hpp"
 #include "storage/durable_file.hpp"
@@ -349,13 +350,6 @@ int run_store_info(const ParsedOptions& options) {
 
 // ---------------------------------------------------------------------------------------------
 // facebooth eval storage
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(p * (v.size() - 1) + 0.5));
-  return v[i];
-}
 
 int run_eval_storage(const ParsedOptions& options) {
   auto trials = options.get_int("trials");

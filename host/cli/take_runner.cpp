@@ -24,22 +24,6 @@ double thread_cpu_ms() {
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
-Stats stats_of(std::vector<double> v) {
-  Stats s;
-  if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
-  s.count = static_cast<int>(v.size());
-  s.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-  s.median = v[v.size() / 2];
-  s.p95 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size())))];
-  s.max = v.back();
-  return s;
-}
-
-nlohmann::json to_json(const Stats& s) {
-  return {{"mean", s.mean}, {"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"n", s.count}};
-}
-
 Result<LandmarkDetector> load_landmark_detector(const std::string& option) {
   const std::filesystem::path path = option.empty() ? kShapePredictor : option;
   std::ifstream in(path, std::ios::binary);

@@ -14,6 +14,7 @@
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
+#include "host/cli/stats.hpp"
 #include "host/cli/synthetic_take.hpp"
 
 namespace fb::cli {
@@ -21,13 +22,6 @@ namespace fb::cli {
 using Clock = std::chrono::steady_clock;
 double ms_between(Clock::time_point a, Clock::time_point b);
 double thread_cpu_ms();  // CPU time of the calling thread
-
-struct Stats {
-  double mean = 0, median = 0, p95 = 0, max = 0;
-  int count = 0;
-};
-Stats stats_of(std::vector<double> v);
-nlohmann::json to_json(const Stats& s);
 
 inline constexpr const char* kShapePredictor =
     "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";

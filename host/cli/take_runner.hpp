@@ -1,6 +1,6 @@
 // What `eval track`, `bench track` and `track` share: running the tracker over a rendered
 // synthetic take frame by frame (errors against the truth, stage times, thread CPU time, the
-// frame-to-OSC latency), dlib loading, the `--set` tracker overrides and small statistics.
+// frame-to-OSC latency), dlib loading and the `--set` tracker overrides.
 #pragma once
 
 #include <chrono>

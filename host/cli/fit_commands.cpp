@@ -455,7 +455,7 @@ int run_bench_fit(const ParsedOptions& options) {
     }
     out["landmark_ms"] = tracked.mean();
     out["landmark_ms_full_image"] = full.mean();
-    out["landmark_tracked_frames"] = tracked.values().size();
+    out["landmark_tracked_frames"] = tracked.size();
   }
   auto target = make_fit_target(*neutral_cap, neutral_cap->truth_color_px, false);
   if (!target) return report_failure(target.error());

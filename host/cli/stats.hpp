@@ -26,15 +26,14 @@ class Samples {
   void add(double x) {
     if (std::isfinite(x)) v_.push_back(x);
   }
-  const std::vector<double>& values() const { return v_; }
   bool empty() const { return v_.empty(); }
+  std::size_t size() const { return v_.size(); }
   double mean() const {
     return v_.empty() ? NAN
                       : std::accumulate(v_.begin(), v_.end(), 0.0) / static_cast<double>(v_.size());
   }
   double max() const { return v_.empty() ? NAN : *std::max_element(v_.begin(), v_.end()); }
   double min() const { return v_.empty() ? NAN : *std::min_element(v_.begin(), v_.end()); }
-  double quantile(double q) const { return v_.empty() ? NAN : percentile(v_, q); }
 
  private:
   std::vector<double> v_;

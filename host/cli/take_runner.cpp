@@ -10,7 +10,9 @@
 #include <numeric>
 #include <span>
 #include <string_view>
+#include <type_traits>
 #include <utility>
+#include <variant>
 
 namespace fb::cli {
 
@@ -35,96 +37,58 @@ Result<LandmarkDetector> load_landmark_detector(const std::string& option) {
 }
 
 Result<TrackerOptions> tracker_overrides(const std::string& text) {
-  using Setter = void (*)(TrackerOptions&, double);
-  static constexpr std::pair<std::string_view, Setter> kSetters[] = {
-      {"temporal_frames",
-       [](TrackerOptions& o, double v) { o.temporal_frames = static_cast<int>(v); }},
-      {"temporal_range_mm",
-       [](TrackerOptions& o, double v) { o.temporal_range_mm = static_cast<float>(v); }},
-      {"spatial_radius_px",
-       [](TrackerOptions& o, double v) { o.spatial_radius_px = static_cast<int>(v); }},
-      {"spatial_range_mm",
-       [](TrackerOptions& o, double v) { o.spatial_range_mm = static_cast<float>(v); }},
-      {"temporal_decay",
-       [](TrackerOptions& o, double v) { o.temporal_decay = static_cast<float>(v); }},
-      {"temporal_weight",
-       [](TrackerOptions& o, double v) { o.temporal_weight = static_cast<float>(v); }},
-      {"sparsity", [](TrackerOptions& o, double v) { o.sparsity = static_cast<float>(v); }},
-      {"sparsity_signal_power",
-       [](TrackerOptions& o, double v) { o.sparsity_signal_power = static_cast<float>(v); }},
-      {"support_sparsity",
-       [](TrackerOptions& o, double v) { o.support_sparsity = static_cast<float>(v); }},
-      {"stale_temporal_floor",
-       [](TrackerOptions& o, double v) { o.stale_temporal_floor = static_cast<float>(v); }},
-      {"ridge", [](TrackerOptions& o, double v) { o.ridge = static_cast<float>(v); }},
-      {"landmark_weight",
-       [](TrackerOptions& o, double v) { o.landmark_weight = static_cast<float>(v); }},
-      {"weight_iterations",
-       [](TrackerOptions& o, double v) { o.weight_iterations = static_cast<int>(v); }},
-      {"icp_gate_mm", [](TrackerOptions& o, double v) { o.icp_gate_mm = static_cast<float>(v); }},
-      {"identity_prior",
-       [](TrackerOptions& o, double v) { o.identity_prior = static_cast<float>(v); }},
-      {"calibrate_depth_offsets",
-       [](TrackerOptions& o, double v) { o.calibrate_depth_offsets = v != 0.0; }},
-      {"max_depth_offset_mm",
-       [](TrackerOptions& o, double v) { o.max_depth_offset_mm = static_cast<float>(v); }},
-      {"antagonist_weight",
-       [](TrackerOptions& o, double v) { o.antagonist_weight = static_cast<float>(v); }},
-      {"calibration_frames",
-       [](TrackerOptions& o, double v) { o.calibration_frames = static_cast<int>(v); }},
-      {"calibration_rounds",
-       [](TrackerOptions& o, double v) { o.calibration_rounds = static_cast<int>(v); }},
-      {"level_gain", [](TrackerOptions& o, double v) { o.pose_filter.level_gain = v; }},
-      {"trend_gain", [](TrackerOptions& o, double v) { o.pose_filter.trend_gain = v; }},
-      {"rest_level_gain", [](TrackerOptions& o, double v) { o.pose_filter.rest_level_gain = v; }},
-      {"sample_spacing_mm",
-       [](TrackerOptions& o, double v) { o.sample_spacing_mm = static_cast<float>(v); }},
-      {"extra_samples_per_shape",
-       [](TrackerOptions& o, double v) { o.extra_samples_per_shape = static_cast<int>(v); }},
-      {"hole_margin_mm",
-       [](TrackerOptions& o, double v) { o.hole_margin_mm = static_cast<float>(v); }},
-      {"hold_gaze_shapes", [](TrackerOptions& o, double v) { o.hold_gaze_shapes = v != 0; }},
-      {"on_shape_sparsity",
-       [](TrackerOptions& o, double v) { o.on_shape_sparsity = static_cast<float>(v); }},
-      {"on_shape_min_weight",
-       [](TrackerOptions& o, double v) { o.on_shape_min_weight = static_cast<float>(v); }},
-      {"on_shape_max_signal",
-       [](TrackerOptions& o, double v) { o.on_shape_max_signal = static_cast<float>(v); }},
-      {"weak_shape_fraction",
-       [](TrackerOptions& o, double v) { o.weak_shape_fraction = static_cast<float>(v); }},
-      {"weak_shape_ridge",
-       [](TrackerOptions& o, double v) { o.weak_shape_ridge = static_cast<float>(v); }},
-      {"keep_identity_rigid",
-       [](TrackerOptions& o, double v) { o.keep_identity_rigid = v != 0.0; }},
-      {"weight_tukey_k",
-       [](TrackerOptions& o, double v) { o.weight_tukey_k = static_cast<float>(v); }},
-      {"weight_min_gate_mm",
-       [](TrackerOptions& o, double v) { o.weight_min_gate_mm = static_cast<float>(v); }},
-      {"calibrate_landmark_offsets",
-       [](TrackerOptions& o, double v) { o.calibrate_landmark_offsets = v != 0.0; }},
-      {"max_landmark_offset_mm",
-       [](TrackerOptions& o, double v) { o.max_landmark_offset_mm = static_cast<float>(v); }},
-      {"max_hidden_landmark_fraction",
-       [](TrackerOptions& o, double v) { o.max_hidden_landmark_fraction = static_cast<float>(v); }},
-      {"landmark_huber_px",
-       [](TrackerOptions& o, double v) { o.landmark_huber_px = static_cast<float>(v); }},
-      {"calibration_landmark_weight",
-       [](TrackerOptions& o, double v) { o.calibration_landmark_weight = static_cast<float>(v); }},
-      {"uncalibrated_max_rms_mm",
-       [](TrackerOptions& o, double v) { o.uncalibrated_max_rms_mm = static_cast<float>(v); }},
-      {"icp_iterations",
-       [](TrackerOptions& o, double v) { o.icp_iterations = static_cast<int>(v); }},
-      {"pose_refine_iterations",
-       [](TrackerOptions& o, double v) { o.pose_refine_iterations = static_cast<int>(v); }},
-      {"icp_converged_rad",
-       [](TrackerOptions& o, double v) { o.icp_converged_rad = static_cast<float>(v); }},
-      {"icp_converged_mm",
-       [](TrackerOptions& o, double v) { o.icp_converged_mm = static_cast<float>(v); }},
-      {"hidden_hold", [](TrackerOptions& o, double v) { o.hidden_hold = static_cast<float>(v); }},
-      {"occluder_margin_mm",
-       [](TrackerOptions& o, double v) { o.occluder_margin_mm = static_cast<float>(v); }},
-      {"occluder_radius_px",
-       [](TrackerOptions& o, double v) { o.occluder_radius_px = static_cast<int>(v); }},
+  // Each key is the option's own name; ints take the value truncated, booleans 0 / 1.
+  using Field = std::variant<float TrackerOptions::*, int TrackerOptions::*, bool TrackerOptions::*,
+                             double PoseFilterOptions::*>;
+  static const std::pair<std::string_view, Field> kFields[] = {
+      {"temporal_frames", &TrackerOptions::temporal_frames},
+      {"temporal_range_mm", &TrackerOptions::temporal_range_mm},
+      {"spatial_radius_px", &TrackerOptions::spatial_radius_px},
+      {"spatial_range_mm", &TrackerOptions::spatial_range_mm},
+      {"temporal_decay", &TrackerOptions::temporal_decay},
+      {"temporal_weight", &TrackerOptions::temporal_weight},
+      {"sparsity", &TrackerOptions::sparsity},
+      {"sparsity_signal_power", &TrackerOptions::sparsity_signal_power},
+      {"support_sparsity", &TrackerOptions::support_sparsity},
+      {"stale_temporal_floor", &TrackerOptions::stale_temporal_floor},
+      {"ridge", &TrackerOptions::ridge},
+      {"landmark_weight", &TrackerOptions::landmark_weight},
+      {"weight_iterations", &TrackerOptions::weight_iterations},
+      {"icp_gate_mm", &TrackerOptions::icp_gate_mm},
+      {"identity_prior", &TrackerOptions::identity_prior},
+      {"calibrate_depth_offsets", &TrackerOptions::calibrate_depth_offsets},
+      {"max_depth_offset_mm", &TrackerOptions::max_depth_offset_mm},
+      {"antagonist_weight", &TrackerOptions::antagonist_weight},
+      {"calibration_frames", &TrackerOptions::calibration_frames},
+      {"calibration_rounds", &TrackerOptions::calibration_rounds},
+      {"level_gain", &PoseFilterOptions::level_gain},
+      {"trend_gain", &PoseFilterOptions::trend_gain},
+      {"rest_level_gain", &PoseFilterOptions::rest_level_gain},
+      {"sample_spacing_mm", &TrackerOptions::sample_spacing_mm},
+      {"extra_samples_per_shape", &TrackerOptions::extra_samples_per_shape},
+      {"hole_margin_mm", &TrackerOptions::hole_margin_mm},
+      {"hold_gaze_shapes", &TrackerOptions::hold_gaze_shapes},
+      {"on_shape_sparsity", &TrackerOptions::on_shape_sparsity},
+      {"on_shape_min_weight", &TrackerOptions::on_shape_min_weight},
+      {"on_shape_max_signal", &TrackerOptions::on_shape_max_signal},
+      {"weak_shape_fraction", &TrackerOptions::weak_shape_fraction},
+      {"weak_shape_ridge", &TrackerOptions::weak_shape_ridge},
+      {"keep_identity_rigid", &TrackerOptions::keep_identity_rigid},
+      {"weight_tukey_k", &TrackerOptions::weight_tukey_k},
+      {"weight_min_gate_mm", &TrackerOptions::weight_min_gate_mm},
+      {"calibrate_landmark_offsets", &TrackerOptions::calibrate_landmark_offsets},
+      {"max_landmark_offset_mm", &TrackerOptions::max_landmark_offset_mm},
+      {"max_hidden_landmark_fraction", &TrackerOptions::max_hidden_landmark_fraction},
+      {"landmark_huber_px", &TrackerOptions::landmark_huber_px},
+      {"calibration_landmark_weight", &TrackerOptions::calibration_landmark_weight},
+      {"uncalibrated_max_rms_mm", &TrackerOptions::uncalibrated_max_rms_mm},
+      {"icp_iterations", &TrackerOptions::icp_iterations},
+      {"pose_refine_iterations", &TrackerOptions::pose_refine_iterations},
+      {"icp_converged_rad", &TrackerOptions::icp_converged_rad},
+      {"icp_converged_mm", &TrackerOptions::icp_converged_mm},
+      {"hidden_hold", &TrackerOptions::hidden_hold},
+      {"occluder_margin_mm", &TrackerOptions::occluder_margin_mm},
+      {"occluder_radius_px", &TrackerOptions::occluder_radius_px},
   };
   TrackerOptions o;
   std::size_t start = 0;
@@ -140,14 +104,25 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
     const double v = std::strtod(item.c_str() + eq + 1, &parsed_end);
     if (parsed_end == item.c_str() + eq + 1 || *parsed_end != '\0')
       return fail("--set: '" + item + "' needs a number after '='");
-    const auto* setter = std::find_if(std::begin(kSetters), std::end(kSetters),
-                                      [&](const auto& s) { return s.first == key; });
-    if (setter == std::end(kSetters)) {
+    const auto* field = std::find_if(std::begin(kFields), std::end(kFields),
+                                     [&](const auto& f) { return f.first == key; });
+    if (field == std::end(kFields)) {
       std::string known;
-      for (const auto& s : kSetters) known += (known.empty() ? "" : ", ") + std::string(s.first);
+      for (const auto& f : kFields) known += (known.empty() ? "" : ", ") + std::string(f.first);
       return fail("--set: unknown key '" + std::string(key) + "' (known: " + known + ")");
     }
-    setter->second(o, v);
+    std::visit(
+        [&](auto member) {
+          if constexpr (std::is_same_v<decltype(member), double PoseFilterOptions::*>) {
+            o.pose_filter.*member = v;
+          } else if constexpr (std::is_same_v<decltype(member), bool TrackerOptions::*>) {
+            o.*member = v != 0.0;
+          } else {
+            using T = std::remove_reference_t<decltype(o.*member)>;
+            o.*member = static_cast<T>(v);
+          }
+        },
+        field->second);
   }
   return o;
 }

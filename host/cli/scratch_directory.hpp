@@ -24,9 +24,10 @@ class ScratchDirectory {
     std::error_code ec;
     std::filesystem::create_directories(dir.path_, ec);
     if (ec) {
+      const std::string message = "cannot create the scratch folder " + dir.path_.string() + ": " +
+                                  ec.message() + " (it needs a writable folder with free space)";
       dir.path_.clear();  // nothing of ours to remove
-      return fail("cannot create the scratch folder " + (base / prefix).string() +
-                  "...: " + ec.message() + " (is the disk full or read-only?)");
+      return fail(message);
     }
     return dir;
   }

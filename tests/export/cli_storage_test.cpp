@@ -139,6 +139,17 @@ TEST_F(StorageCli, ExportTakeAsLiveLinkCsvAndModelFile) {
   EXPECT_EQ(facebooth("export --take 1 --model 1 --out " + (dir_ / "x").string()).exit_code, 2);
 }
 
+TEST_F(StorageCli, EvalStorageRefusesAScratchFolderItCannotCreate) {
+  const auto r = test::run_command(
+      std::string(FB_CLI_PATH) + " eval storage --json --trials 0 --scratch /dev/null/x",
+      test::Stderr::kMerged);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("cannot create the scratch folder /dev/null/x/facebooth-eval-storage-"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("writable folder"), std::string::npos) << r.out;
+}
+
 TEST_F(StorageCli, EvalStorageFollowsTheOutputContract) {
   auto r =
       facebooth("eval storage --json --trials 4 --commits 2 --frames-per-capture 2 --scratch " +

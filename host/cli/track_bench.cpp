@@ -5,7 +5,6 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <iostream>
@@ -17,6 +16,7 @@
 #include "host/cli/take_runner.hpp"
 #include "host/cli/tracking_commands.hpp"
 #include "storage/asset_files.hpp"
+#include "storage/durable_file.hpp"
 
 namespace fb::cli {
 namespace {
@@ -25,31 +25,23 @@ namespace {
 // latency figure leave through the real network stack to a real (if silent) destination.
 class SinkSocket {
  public:
-  SinkSocket() {
-    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
-    if (fd_ < 0) return;
+  SinkSocket() : fd_(::socket(AF_INET, SOCK_DGRAM, 0)) {
+    if (!fd_.valid()) return;
     sockaddr_in addr{};
     addr.sin_family = AF_INET;
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     addr.sin_port = 0;
     socklen_t len = sizeof(addr);
-    if (::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0 ||
-        ::getsockname(fd_, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-      ::close(fd_);
-      fd_ = -1;
-      return;
+    if (::bind(fd_.get(), reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0 ||
+        ::getsockname(fd_.get(), reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+      return;  // port() stays 0; the socket closes with fd_
     }
     port_ = ntohs(addr.sin_port);
   }
-  ~SinkSocket() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  SinkSocket(const SinkSocket&) = delete;
-  SinkSocket& operator=(const SinkSocket&) = delete;
   int port() const { return port_; }
 
  private:
-  int fd_ = -1;
+  UniqueFd fd_;
   int port_ = 0;
 };
 

@@ -116,6 +116,24 @@ TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
   EXPECT_EQ(json.at("replay_frames").get<int>(), 5);
 }
 
+// bench track's output contract (issue 6): every figure present, a time, and measured on
+// the frames asked for. No timing threshold: timing is a benchmark's business.
+TEST_F(CliTest, BenchTrackPrintsItsContractFields) {
+  const auto result = run_cli("bench track --json --frames 60", false);
+  ASSERT_EQ(result.exit_code, 0) << result.out;
+  const auto json = nlohmann::json::parse(result.out);
+  EXPECT_EQ(json.at("frames").get<int>(), 60);
+  for (const char* key : {"ms_per_frame", "ms_per_frame_with_landmarks",
+                          "ms_per_frame_landmark_rows", "latency_ms", "dlib_ms_per_frame"}) {
+    ASSERT_TRUE(json.at(key).is_number()) << key;
+    EXPECT_GT(json.at(key).get<double>(), 0.0) << key;
+  }
+  // Detection and the landmark rows come on top of the depth-only work of the same frames.
+  EXPECT_GT(json.at("ms_per_frame_with_landmarks").get<double>(),
+            json.at("dlib_ms_per_frame").get<double>());
+  EXPECT_EQ(run_cli("bench track --frames 59").exit_code, 1);
+}
+
 }  // namespace
 
 // The take design's calibration window is an eval option; values that leave the takes no

@@ -112,30 +112,28 @@ int run_bench_track(const ParsedOptions& options) {
     const std::string key = mode == "none"    ? "without_landmarks"
                             : mode == "truth" ? "with_truth_landmarks"
                                               : "with_dlib_landmarks";
-    result[key] = {{"tracker_ms", to_json(stats_of(total))},
-                   {"smooth_ms", to_json(stats_of(smooth))},
-                   {"icp_ms", to_json(stats_of(icp))},
-                   {"weights_ms", to_json(stats_of(weights))},
-                   {"thread_cpu_ms", to_json(stats_of(cpu))},
-                   {"latency_ms", to_json(stats_of(latency))},
-                   {"steady_frames", steady},
-                   {"calibration_ms", calibration_ms}};
+    const Summary total_s = stats_of(total), cpu_s = stats_of(cpu), latency_s = stats_of(latency);
+    result[key] = {{"tracker_ms", to_json(total_s)},   {"smooth_ms", to_json(stats_of(smooth))},
+                   {"icp_ms", to_json(stats_of(icp))}, {"weights_ms", to_json(stats_of(weights))},
+                   {"thread_cpu_ms", to_json(cpu_s)},  {"latency_ms", to_json(latency_s)},
+                   {"steady_frames", steady},          {"calibration_ms", calibration_ms}};
     if (mode == "none") {
-      result["ms_per_frame"] = stats_of(total).mean;
+      result["ms_per_frame"] = total_s.mean;
       result["calibration_ms"] = calibration_ms;
-      result["ms_per_frame_cpu"] = stats_of(cpu).mean;
-      result["latency_ms_without_landmarks"] = stats_of(latency).mean;
+      result["ms_per_frame_cpu"] = cpu_s.mean;
+      result["latency_ms_without_landmarks"] = latency_s.mean;
     } else if (mode == "truth") {
-      result["ms_per_frame_landmark_rows"] = stats_of(total).mean;
-      result["latency_ms_truth_landmarks"] = stats_of(latency).mean;
+      result["ms_per_frame_landmark_rows"] = total_s.mean;
+      result["latency_ms_truth_landmarks"] = latency_s.mean;
     } else {
-      result[key]["dlib_ms"] = to_json(stats_of(landmark));
+      const Summary landmark_s = stats_of(landmark);
+      result[key]["dlib_ms"] = to_json(landmark_s);
       result[key]["frames_with_detection"] = detected;
       result["ms_per_frame_with_landmarks"] = stats_of(with_detection).mean;
-      result["ms_per_frame_with_landmarks_cpu"] = stats_of(cpu).mean;
-      result["dlib_ms_per_frame"] = stats_of(landmark).mean;
-      result["latency_ms"] = stats_of(latency).mean;
-      result["latency_ms_p95"] = stats_of(latency).p95;
+      result["ms_per_frame_with_landmarks_cpu"] = cpu_s.mean;
+      result["dlib_ms_per_frame"] = landmark_s.mean;
+      result["latency_ms"] = latency_s.mean;
+      result["latency_ms_p95"] = latency_s.p95;
     }
   }
   auto tracker = FaceTracker::create(model, take->intrinsics, *overrides);

@@ -16,7 +16,7 @@ struct CommandRun {
 };
 
 enum class Stderr {
-  kMerged,   // into `out` after stdout's lines, as a user sees them
+  kMerged,   // into `out`, interleaved with stdout as a terminal shows them
   kToLog,    // left on the test's stderr (the CTest log)
   kDropped,  // discarded: `out` is exactly what a JSON printer wrote
 };

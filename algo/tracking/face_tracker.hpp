@@ -282,6 +282,22 @@ struct TrackerRig {
   std::vector<std::pair<int, std::span<const float>>> shapes;
 };
 
+// Blendshapes that depend on who is tracked. In a bilinear model (FaceWarehouse eq. 10,
+// V = C x_2 w_id x_3 w_exp) every subject has their own expression deltas, so once calibration
+// has fitted the identity the tracker asks this source for the subject's deltas instead of
+// keeping the model's fixed ones (issue 6: "fit identity ... and build their blendshapes").
+class SubjectBlendshapes {
+ public:
+  virtual ~SubjectBlendshapes() = default;
+  // `identity`: the calibrated coefficients of the tracker's FaceModel (sigma units).
+  // `deltas`: column-major, 3 * vertices.size() rows (xyz per vertex, model frame, mm) by the
+  // model's fitting shapes; on entry it holds the model's deltas, and the source overwrites
+  // the columns of the shapes it knows.
+  virtual void subject_deltas(std::span<const float> identity,
+                              std::span<const std::uint32_t> vertices,
+                              std::span<float> deltas) const = 0;
+};
+
 struct TrackTimes {
   double smooth_ms = 0.0;     // ring buffer + temporal smoothing in the face box
   double icp_ms = 0.0;        // rigid ICP
@@ -324,6 +340,10 @@ class FaceTracker {
   // for the fitting shapes they name; fitting shapes the rig lacks keep the model's delta.
   // identity() is all zeros afterwards (a rig has no identity coefficients).
   Result<void> set_rig(const TrackerRig& rig);
+  // Builds the subject's own blendshapes from `source` whenever an identity is set (by
+  // calibration or set_identity()); nullptr goes back to the model's. Not owned: it must
+  // outlive the tracker. A stored rig (set_rig) takes precedence.
+  void set_subject_blendshapes(const SubjectBlendshapes* source);
   // Forgets the subject and the pose: the next frames search and calibrate again.
   void reset();
 

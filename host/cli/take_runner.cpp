@@ -14,6 +14,8 @@
 #include <utility>
 #include <variant>
 
+#include "storage/durable_file.hpp"
+
 namespace fb::cli {
 
 double ms_between(Clock::time_point a, Clock::time_point b) {
@@ -138,10 +140,36 @@ double rotation_error_deg(const RigidPose& a, const RigidPose& b) {
   return Eigen::AngleAxisd(a.rotation.conjugate() * b.rotation).angle() * kDeg;
 }
 
+std::string BilinearSubjectModel::describe() const {
+  return "bilinear model " + path + " (" + std::to_string(bilinear.id_knobs) + " x " +
+         std::to_string(bilinear.exp_knobs) + " knobs, " +
+         std::to_string(tracking.face.identity_count) + " identity modes)";
+}
+
+Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
+    const std::string& path, const FaceModel& topology) {
+  auto bytes = read_file_bytes(path);
+  if (!bytes) return bytes.failure();
+  auto parsed = parse_bilinear_model(std::as_bytes(std::span(*bytes)));
+  if (!parsed) return fail(path + ": " + parsed.error().message);
+  auto out = std::make_unique<BilinearSubjectModel>();
+  out->path = path;
+  out->bilinear = std::move(*parsed);
+  auto tracking = make_bilinear_tracking_model(out->bilinear, topology);
+  if (!tracking) return fail(path + ": " + tracking.error().message);
+  out->tracking = std::move(*tracking);
+  out->blendshapes.emplace(out->bilinear, out->tracking);
+  return out;
+}
+
 Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMapping& mapping,
                                           const RenderedTake& take, const RunOptions& run) {
-  auto tracker = FaceTracker::create(model, take.intrinsics, run.tracker);
+  if (run.bilinear != nullptr && run.known_identity)
+    return fail("a known identity is in the face model's modes, not a bilinear model's");
+  const FaceModel& tracker_model = run.bilinear ? run.bilinear->tracking.face : model;
+  auto tracker = FaceTracker::create(tracker_model, take.intrinsics, run.tracker);
   if (!tracker) return tracker.failure();
+  if (run.bilinear != nullptr) (*tracker)->set_subject_blendshapes(&*run.bilinear->blendshapes);
   if (run.known_identity && !take.frames.empty()) {
     if (auto r = (*tracker)->set_identity(take.frames[0].truth.identity_coeffs); !r) {
       return r.failure();

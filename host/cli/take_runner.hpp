@@ -4,13 +4,17 @@
 #pragma once
 
 #include <chrono>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "algo/bilinear/bilinear_model.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
 #include "algo/tracking/arkit.hpp"
+#include "algo/tracking/bilinear_subject.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
@@ -28,6 +32,19 @@ inline constexpr const char* kShapePredictor =
 // dlib's detector + 68-point predictor (Debian libdlib-data), ~1 s to deserialise. An empty
 // option means kShapePredictor.
 Result<LandmarkDetector> load_landmark_detector(const std::string& option);
+
+// A bilinear model file (`facebooth model build`) for the tracker: identity calibration in its
+// identity space and the subject's own blendshapes. Held behind a pointer: the blendshape
+// source refers to the two models.
+struct BilinearSubjectModel {
+  std::string path;
+  BilinearModel bilinear;
+  BilinearTrackingModel tracking;
+  std::optional<BilinearBlendshapes> blendshapes;
+  std::string describe() const;  // for reports: the file and its knobs
+};
+Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
+    const std::string& path, const FaceModel& topology);
 
 // --set key=value[,key=value...]: tracker options by their TrackerOptions names (booleans as
 // 0 / 1), for side-by-side runs of two option sets.
@@ -58,6 +75,9 @@ struct RunOptions {
   bool known_identity = false;          // load the true identity instead of calibrating
   VmcSender* sender = nullptr;
   std::vector<float>* identity_out = nullptr;  // the tracker's identity after the take
+  // Calibrate with a bilinear model instead of the face model's identity PCA (not with
+  // known_identity, whose coefficients are the face model's).
+  const BilinearSubjectModel* bilinear = nullptr;
   TrackerOptions tracker;
 };
 

@@ -27,13 +27,15 @@ namespace {
 // front-facing face vertices: how far the calibrated face's frame sits from the true one. Depth
 // of the front of the face cannot tell this apart from a head pose (the gauge of the absolute
 // pose), so it predicts the constant offset between estimated and true poses.
+// `estimate` is in `estimate_model`'s identity modes (the face model's or a bilinear model's).
 std::pair<double, double> identity_rigid_offset(const FaceModel& model,
                                                 std::span<const float> truth,
+                                                const FaceModel& estimate_model,
                                                 std::span<const float> estimate,
                                                 const Eigen::Vector3d& centre) {
   std::vector<float> a(static_cast<std::size_t>(3 * model.vertex_count)), b(a.size());
   model.evaluate(truth, {}, a);
-  model.evaluate(estimate, {}, b);
+  estimate_model.evaluate(estimate, {}, b);
   std::vector<std::uint32_t> vertices;
   for (auto v : model.fitting_vertices) {
     if (static_cast<int>(v) < model.face_vertex_count && model.neutral[3 * v + 2] > 0.0f)
@@ -305,6 +307,20 @@ int run_eval_track(const ParsedOptions& options) {
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return report_failure(mapping.error());
   const int k = model.fitting_expression_count;
+  // --model: the tracker calibrates with a bilinear model (the takes stay the face model's).
+  std::unique_ptr<BilinearSubjectModel> bilinear;
+  if (const std::string file = options.get("model"); !file.empty()) {
+    if (occluder_identity == "known") {
+      return report_failure(
+          {"--occluder-identity known loads the face model's true identity; "
+           "it cannot be combined with --model"});
+    }
+    std::cerr << "eval track: loading the bilinear model " << file << "...\n";
+    auto loaded = load_bilinear_subject_model(file, model);
+    if (!loaded) return report_failure(loaded.error());
+    bilinear = std::move(*loaded);
+  }
+  const FaceModel& tracker_model = bilinear ? bilinear->tracking.face : model;
   const std::string landmark_source = options.get("landmarks");
   if (landmark_source != "truth" && landmark_source != "dlib") {
     return report_failure({"--landmarks must be truth or dlib"});
@@ -341,14 +357,15 @@ int run_eval_track(const ParsedOptions& options) {
     run.tracker = *overrides;
     run.landmarks = true;
     run.dlib = dlib ? &*dlib : nullptr;
+    run.bilinear = bilinear.get();
     std::vector<float> calibrated_identity;
     run.identity_out = &calibrated_identity;
     auto a = run_take(model, *mapping, *take, run);
     if (!a) return report_failure(a.error());
     run.identity_out = nullptr;
     const auto [offset_deg, offset_mm] =
-        identity_rigid_offset(model, take->frames[0].truth.identity_coeffs, calibrated_identity,
-                              take->take.face_centre_model);
+        identity_rigid_offset(model, take->frames[0].truth.identity_coeffs, tracker_model,
+                              calibrated_identity, take->take.face_centre_model);
     const RigidPose gauge = calibration_gauge(*a);
     const double gauge_deg = Eigen::AngleAxisd(gauge.rotation).angle() * kDeg;
     const double gauge_mm =
@@ -364,7 +381,8 @@ int run_eval_track(const ParsedOptions& options) {
     auto b = run_take(model, *mapping, *take, run);
     if (!b) return report_failure(b.error());
     run.landmarks = true;
-    run.known_identity = true;
+    run.known_identity = true;  // the face model's true identity (the reference for the solve)
+    run.bilinear = nullptr;
     auto c = run_take(model, *mapping, *take, run);
     if (!c) return report_failure(c.error());
     score(*take, *c, known, k);
@@ -404,6 +422,7 @@ int run_eval_track(const ParsedOptions& options) {
   RunOptions occluder_run;
   occluder_run.tracker = *overrides;
   occluder_run.known_identity = occluder_identity == "known";
+  occluder_run.bilinear = bilinear.get();
   for (long long i = 0; i < *occluder_takes_count; ++i) {
     TakeSpec ospec = design;
     ospec.seed = static_cast<std::uint64_t>(*occluder_seed + i);
@@ -434,6 +453,7 @@ int run_eval_track(const ParsedOptions& options) {
   result["absolute_pose_error_mm"] = wl["absolute_pose_error_mm"];
   result["with_landmarks"] = wl;
   result["known_identity"] = score_json(known, model);
+  result["subject_model"] = bilinear ? bilinear->describe() : "face model identity PCA";
   result["depth_only"] = dl;
   result["occluder"] = {
       {"takes", occluder_takes},
@@ -532,6 +552,10 @@ Command eval_track_command() {
          "the occluder takes' subject: calibrated by the tracker (as on the device), or the "
          "true identity loaded (tells calibration error from the solve's own)",
          "calibrated"},
+        {"model", "FILE",
+         "calibrate with this bilinear model (`facebooth model build`) and track with the "
+         "subject's own blendshapes from it, instead of the face model's identity PCA",
+         ""},
         {"landmarks", "truth|dlib",
          "landmarks of the with-landmarks runs: ground truth + 1.5 px noise, or dlib on the "
          "synthetic colour render",

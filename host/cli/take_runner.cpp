@@ -146,10 +146,26 @@ std::string BilinearSubjectModel::describe() const {
          std::to_string(tracking.face.identity_count) + " identity modes)";
 }
 
+std::string BilinearSubjectModel::limitation() const {
+  int named = 0;
+  for (int row : tracking.expression_row) named += row >= 0 ? 1 : 0;
+  if (bilinear.exp_knobs >= named) return "";
+  // u_e - u_0 of `named` shapes in exp_knobs dimensions: the blendshapes are linearly dependent.
+  return "the model keeps " + std::to_string(bilinear.exp_knobs) + " expression knobs for " +
+         std::to_string(named) + " blendshapes, so the subject's blendshapes span only " +
+         std::to_string(bilinear.exp_knobs) +
+         " dimensions and the weights are not unique; for tracking, build it with "
+         "`facebooth model build --exp-knobs " +
+         std::to_string(bilinear.expression_count) + "`";
+}
+
 Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
     const std::string& path, const FaceModel& topology) {
   auto bytes = read_file_bytes(path);
-  if (!bytes) return bytes.failure();
+  if (!bytes) {
+    return fail(bytes.error().message +
+                " (a bilinear model is written by `facebooth model build --out FILE`)");
+  }
   auto parsed = parse_bilinear_model(std::as_bytes(std::span(*bytes)));
   if (!parsed) return fail(path + ": " + parsed.error().message);
   auto out = std::make_unique<BilinearSubjectModel>();

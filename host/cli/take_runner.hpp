@@ -42,6 +42,8 @@ struct BilinearSubjectModel {
   BilinearTrackingModel tracking;
   std::optional<BilinearBlendshapes> blendshapes;
   std::string describe() const;  // for reports: the file and its knobs
+  // Why tracking with this model may be worse than with the face model (empty: no reason).
+  std::string limitation() const;
 };
 Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
     const std::string& path, const FaceModel& topology);

@@ -319,6 +319,8 @@ int run_eval_track(const ParsedOptions& options) {
     auto loaded = load_bilinear_subject_model(file, model);
     if (!loaded) return report_failure(loaded.error());
     bilinear = std::move(*loaded);
+    if (const std::string note = bilinear->limitation(); !note.empty())
+      std::cerr << "eval track: note: " << note << "\n";
   }
   const FaceModel& tracker_model = bilinear ? bilinear->tracking.face : model;
   const std::string landmark_source = options.get("landmarks");
@@ -454,6 +456,8 @@ int run_eval_track(const ParsedOptions& options) {
   result["with_landmarks"] = wl;
   result["known_identity"] = score_json(known, model);
   result["subject_model"] = bilinear ? bilinear->describe() : "face model identity PCA";
+  if (bilinear && !bilinear->limitation().empty())
+    result["subject_model_limitation"] = bilinear->limitation();
   result["depth_only"] = dl;
   result["occluder"] = {
       {"takes", occluder_takes},

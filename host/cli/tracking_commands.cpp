@@ -172,16 +172,31 @@ int run_track(const ParsedOptions& options) {
   const CameraInfo info = (*camera)->info();
   TrackerOptions tracker_options;
   tracker_options.calibration_frames = static_cast<int>(*calibration);
-  auto tracker = FaceTracker::create(model, info.depth_intrinsics, tracker_options);
+  // --model: calibrate in a bilinear model's identity space and track with the subject's own
+  // blendshapes from it (a stored rig, when loaded, still takes precedence).
+  std::unique_ptr<BilinearSubjectModel> bilinear;
+  if (const std::string file = options.get("model"); !file.empty()) {
+    std::cerr << "track: loading the bilinear model " << file << "...\n";
+    auto loaded = load_bilinear_subject_model(file, model);
+    if (!loaded) return report_failure(loaded.error());
+    bilinear = std::move(*loaded);
+    if (const std::string note = bilinear->limitation(); !note.empty())
+      std::cerr << "track: note: " << note << "\n";
+  }
+  auto tracker = FaceTracker::create(bilinear ? bilinear->tracking.face : model,
+                                     info.depth_intrinsics, tracker_options);
   if (!tracker) return report_failure(tracker.error());
-  std::string subject_model = "identity calibrated on the first frames";
+  if (bilinear) (*tracker)->set_subject_blendshapes(&*bilinear->blendshapes);
+  std::string subject_model = bilinear ? "identity calibrated on the first frames with the " +
+                                             bilinear->describe() +
+                                             ", the subject's own blendshapes from it"
+                                       : "identity calibrated on the first frames";
   if (rig) {
     if (auto r = (*tracker)->set_rig(rig->view); !r) return report_failure(r.error());
     subject_model =
         "stored rig " + std::to_string(rig->id) + " (" + std::to_string(rig->matched) + " shapes)";
   } else if (rig_from_store) {
-    subject_model = "subject " + std::to_string(*subject) +
-                    " has no stored rig: identity calibrated on the first frames";
+    subject_model = "subject " + std::to_string(*subject) + " has no stored rig: " + subject_model;
   }
   std::vector<float> take_values;
   int take_frames = 0;
@@ -403,6 +418,11 @@ std::vector<Command> tracking_commands() {
           ""},
          {"frames", "N", "stop after N frames (0 = until the stream ends)", "0"},
          {"calibration-frames", "N", "frames for the identity fit", "10"},
+         {"model", "FILE",
+          "calibrate with this bilinear model (`facebooth model build`; FaceWarehouse 4.3) and "
+          "track with the subject's own blendshapes from it, instead of the face model's "
+          "identity PCA and generic blendshapes",
+          ""},
          {"landmarks", "dlib|truth|none",
           "2D landmarks in the weight solve: dlib on the colour image every frame, ground truth "
           "+ noise (synthetic camera only), or none",

@@ -171,3 +171,55 @@ TEST_F(CliTest, EvalTrackOccluderTakesCanLoadTheTrueIdentity) {
   EXPECT_EQ(take.at("take").at("frames_scored").get<int>(), 130);
   EXPECT_LE(take.at("occluded_unaffected_weight_error").get<double>(), 0.05);
 }
+
+// Calibration with a bilinear model (`facebooth model build`): `track` and `eval track` take
+// --model, report which subject model they used, and meet the weight and pose figures
+// on a take; a model whose expression knobs cannot hold the blendshapes is tracked with a note
+// saying so; a file that is not a model is refused.
+TEST_F(CliTest, TrackAndEvalTrackCalibrateWithABilinearModel) {
+  const std::string model = (dir_ / "tracking.fbbm").string();
+  ASSERT_EQ(run_cli("model build --from-face-model --identities 40 --id-knobs 20 --exp-knobs 54 "
+                    "--out " +
+                    model)
+                .exit_code,
+            0);
+  const auto eval =
+      run_cli("eval track --json --seeds 1 --frames 60 --occluder-takes 1 --model " + model, false);
+  ASSERT_EQ(eval.exit_code, 0) << eval.out;
+  const auto json = nlohmann::json::parse(eval.out);
+  EXPECT_NE(json.at("subject_model").get<std::string>().find("20 x 54 knobs"), std::string::npos)
+      << json.at("subject_model");
+  EXPECT_FALSE(json.contains("subject_model_limitation"));
+  EXPECT_LE(json.at("weight_mae").get<double>(), 0.03);  // 0.0157 on this take
+  EXPECT_LE(json.at("pose_error_deg").get<double>(), 0.5);
+  EXPECT_LE(json.at("pose_error_mm").get<double>(), 1.0);
+  const auto known = run_cli("eval track --occluder-identity known --model " + model);
+  EXPECT_EQ(known.exit_code, 1);
+  EXPECT_NE(known.out.find("cannot be combined with --model"), std::string::npos) << known.out;
+
+  const auto track = run_cli("track --camera synthetic:seed=5,frames=30 --model " + model, false);
+  ASSERT_EQ(track.exit_code, 0) << track.out;
+  const auto tracked = nlohmann::json::parse(track.out);
+  EXPECT_TRUE(tracked.at("calibrated").get<bool>());
+  EXPECT_NE(tracked.at("subject_model").get<std::string>().find("subject's own blendshapes"),
+            std::string::npos)
+      << tracked.at("subject_model");
+
+  const std::string small = (dir_ / "small.fbbm").string();
+  ASSERT_EQ(run_cli("model build --from-face-model --identities 6 --id-knobs 4 --exp-knobs 5 "
+                    "--out " +
+                    small)
+                .exit_code,
+            0);
+  const auto noted = run_cli("track --camera synthetic:seed=5,frames=12 --model " + small);
+  EXPECT_EQ(noted.exit_code, 0) << noted.out;
+  EXPECT_NE(noted.out.find("keeps 5 expression knobs for 53 blendshapes"), std::string::npos)
+      << noted.out;
+
+  const std::string junk = (dir_ / "junk.fbbm").string();
+  std::ofstream(junk) << "not a model";
+  const auto refused = run_cli("track --camera synthetic:seed=5,frames=12 --model " + junk);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.out.find("rebuild it with `facebooth model build"), std::string::npos)
+      << refused.out;
+}

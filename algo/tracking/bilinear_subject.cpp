@@ -133,6 +133,13 @@ Result<BilinearTrackingModel> make_bilinear_tracking_model(const BilinearModel& 
     std::copy(delta.data(), delta.data() + n3,
               face.expression_basis.begin() + static_cast<std::ptrdiff_t>(j * n3));
   }
+  if (std::none_of(out.expression_row.begin(), out.expression_row.end(),
+                   [](int row) { return row >= 0; })) {
+    return fail("none of the bilinear model's " + std::to_string(bilinear.expression_count - 1) +
+                " expressions is named like one of the face model's fitting shapes (e.g. '" +
+                topology.expression_names.front() +
+                "'); build it from rigs in the face model's shape names");
+  }
   return out;
 }
 

@@ -149,10 +149,17 @@ std::string BilinearSubjectModel::describe() const {
 std::string BilinearSubjectModel::limitation() const {
   int named = 0;
   for (int row : tracking.expression_row) named += row >= 0 ? 1 : 0;
-  if (bilinear.exp_knobs >= named) return "";
+  const int shapes = static_cast<int>(tracking.expression_row.size());
+  std::string note;
+  if (named < shapes) {
+    note = std::to_string(shapes - named) + " of the face model's " + std::to_string(shapes) +
+           " fitting shapes are not in the model and keep the generic blendshapes";
+  }
+  if (bilinear.exp_knobs >= named) return note;
   // u_e - u_0 of `named` shapes in exp_knobs dimensions: the blendshapes are linearly dependent.
-  return "the model keeps " + std::to_string(bilinear.exp_knobs) + " expression knobs for " +
-         std::to_string(named) + " blendshapes, so the subject's blendshapes span only " +
+  return (note.empty() ? "" : note + "; ") + "the model keeps " +
+         std::to_string(bilinear.exp_knobs) + " expression knobs for " + std::to_string(named) +
+         " blendshapes, so the subject's blendshapes span only " +
          std::to_string(bilinear.exp_knobs) +
          " dimensions and the weights are not unique; for tracking, build it with "
          "`facebooth model build --exp-knobs " +

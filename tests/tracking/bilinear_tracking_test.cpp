@@ -111,6 +111,15 @@ TEST(BilinearSubject, TrackingModelAndDeltasReproduceTheBilinearModel) {
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.error().message.find("100 vertices"), std::string::npos)
       << refused.error().message;
+  // So is a model whose expressions are none of the face model's shapes.
+  BilinearModel unnamed = bilinear;
+  for (std::size_t e = 1; e < unnamed.expression_names.size(); ++e)
+    unnamed.expression_names[e] = "pose_" + std::to_string(e);
+  auto nameless = make_bilinear_tracking_model(unnamed, face);
+  ASSERT_FALSE(nameless.ok());
+  EXPECT_NE(nameless.error().message.find("none of the bilinear model's 53 expressions"),
+            std::string::npos)
+      << nameless.error().message;
 }
 
 // Reads jawOpen and mouthSmile_L on the last frames of a take of the training subject kSubject

@@ -83,23 +83,10 @@ Result<BilinearTrackingModel> make_bilinear_tracking_model(const BilinearModel& 
   // neutral(w) = M w with M = C x_3 u_0 (3V x Kid).
   const Eigen::MatrixXf neutral_per_knob = contract_expression(bilinear, bilinear.expression_row(0),
                                                                n3, [](std::size_t x) { return x; });
+  // The topology, names and vertex subsets are the face model's; neutral and bases are replaced.
   FaceModel& face = out.face;
-  face = FaceModel{};
-  face.vertex_count = topology.vertex_count;
-  face.face_vertex_count = topology.face_vertex_count;
+  face = topology;
   face.identity_count = static_cast<int>(kept.size());
-  face.expression_count = topology.expression_count;
-  face.fitting_expression_count = topology.fitting_expression_count;
-  face.expression_names = topology.expression_names;
-  face.triangles = topology.triangles;
-  face.landmark_vertices = topology.landmark_vertices;
-  face.rigid_landmarks = topology.rigid_landmarks;
-  face.right_jawline = topology.right_jawline;
-  face.left_jawline = topology.left_jawline;
-  face.right_extended_jawline = topology.right_extended_jawline;
-  face.left_extended_jawline = topology.left_extended_jawline;
-  face.fitting_vertices = topology.fitting_vertices;
-  face.rigid_vertices = topology.rigid_vertices;
   face.provenance = "bilinear model (" + std::to_string(kid) + " x " +
                     std::to_string(bilinear.exp_knobs) + " knobs) over the face model's topology";
   const Eigen::VectorXf neutral = neutral_per_knob * mean;

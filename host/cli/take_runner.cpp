@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <numeric>
 #include <span>
 #include <string_view>
@@ -167,7 +168,8 @@ std::string BilinearSubjectModel::limitation() const {
 }
 
 Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
-    const std::string& path, const FaceModel& topology) {
+    const std::string& path, const FaceModel& topology, const std::string& command) {
+  std::cerr << command << ": loading the bilinear model " << path << "...\n";
   auto bytes = read_file_bytes(path);
   if (!bytes) {
     return fail(bytes.error().message +
@@ -182,6 +184,8 @@ Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
   if (!tracking) return fail(path + ": " + tracking.error().message);
   out->tracking = std::move(*tracking);
   out->blendshapes.emplace(out->bilinear, out->tracking);
+  if (const std::string note = out->limitation(); !note.empty())
+    std::cerr << command << ": note: " << note << "\n";
   return out;
 }
 

@@ -45,8 +45,10 @@ struct BilinearSubjectModel {
   // Why tracking with this model may be worse than with the face model (empty: no reason).
   std::string limitation() const;
 };
+// Prints "<command>: loading ..." (the file can be 700 MB) and, after it, limitation() when
+// there is one.
 Result<std::unique_ptr<BilinearSubjectModel>> load_bilinear_subject_model(
-    const std::string& path, const FaceModel& topology);
+    const std::string& path, const FaceModel& topology, const std::string& command);
 
 // --set key=value[,key=value...]: tracker options by their TrackerOptions names (booleans as
 // 0 / 1), for side-by-side runs of two option sets.

@@ -315,12 +315,9 @@ int run_eval_track(const ParsedOptions& options) {
           {"--occluder-identity known loads the face model's true identity; "
            "it cannot be combined with --model"});
     }
-    std::cerr << "eval track: loading the bilinear model " << file << "...\n";
-    auto loaded = load_bilinear_subject_model(file, model);
+    auto loaded = load_bilinear_subject_model(file, model, "eval track");
     if (!loaded) return report_failure(loaded.error());
     bilinear = std::move(*loaded);
-    if (const std::string note = bilinear->limitation(); !note.empty())
-      std::cerr << "eval track: note: " << note << "\n";
   }
   const FaceModel& tracker_model = bilinear ? bilinear->tracking.face : model;
   const std::string landmark_source = options.get("landmarks");

@@ -176,12 +176,9 @@ int run_track(const ParsedOptions& options) {
   // blendshapes from it (a stored rig, when loaded, still takes precedence).
   std::unique_ptr<BilinearSubjectModel> bilinear;
   if (const std::string file = options.get("model"); !file.empty()) {
-    std::cerr << "track: loading the bilinear model " << file << "...\n";
-    auto loaded = load_bilinear_subject_model(file, model);
+    auto loaded = load_bilinear_subject_model(file, model, "track");
     if (!loaded) return report_failure(loaded.error());
     bilinear = std::move(*loaded);
-    if (const std::string note = bilinear->limitation(); !note.empty())
-      std::cerr << "track: note: " << note << "\n";
   }
   auto tracker = FaceTracker::create(bilinear ? bilinear->tracking.face : model,
                                      info.depth_intrinsics, tracker_options);

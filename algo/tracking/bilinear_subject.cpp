@@ -9,23 +9,47 @@
 namespace fb {
 namespace {
 
-// C x_3 v over the listed coordinates: out (coords x id_knobs, column-major) with
-// out(x, a) = sum_b C[coord_x, a, b] v_b.
-template <typename CoordinateOf>
-Eigen::MatrixXf contract_expression(const BilinearModel& m, std::span<const float> v,
-                                    std::size_t coords, CoordinateOf coordinate_of) {
+// C x_3 u: 3V x Kid, column a = sum_b u_b C[:, a, b] (a neutral or an expression per identity
+// knob).
+Eigen::MatrixXf contract_expression(const BilinearModel& m, std::span<const float> u) {
   const std::size_t n = static_cast<std::size_t>(m.coordinate_count());
-  Eigen::MatrixXf out = Eigen::MatrixXf::Zero(static_cast<Eigen::Index>(coords), m.id_knobs);
+  Eigen::MatrixXf out = Eigen::MatrixXf::Zero(static_cast<Eigen::Index>(n), m.id_knobs);
   for (int b = 0; b < m.exp_knobs; ++b) {
-    if (v[static_cast<std::size_t>(b)] == 0.0f) continue;
+    const float ub = u[static_cast<std::size_t>(b)];
+    if (ub == 0.0f) continue;
     for (int a = 0; a < m.id_knobs; ++a) {
       const float* block = m.core.data() + (static_cast<std::size_t>(b) * m.id_knobs + a) * n;
-      float* column = out.col(a).data();
-      for (std::size_t x = 0; x < coords; ++x)
-        column[x] += v[static_cast<std::size_t>(b)] * block[coordinate_of(x)];
+      out.col(a) += ub * Eigen::Map<const Eigen::VectorXf>(block, static_cast<Eigen::Index>(n));
     }
   }
   return out;
+}
+
+// C x_2 w at `coords` coordinates, coordinate_of(x) being the x-th one's index into 3V:
+// coords x Kexp, E(x, b) = sum_a w_a C[coordinate_of(x), a, b].
+template <typename CoordinateOf>
+Eigen::MatrixXf contract_identity(const BilinearModel& m, std::span<const float> w,
+                                  std::size_t coords, CoordinateOf coordinate_of) {
+  const std::size_t n = static_cast<std::size_t>(m.coordinate_count());
+  Eigen::MatrixXf out = Eigen::MatrixXf::Zero(static_cast<Eigen::Index>(coords), m.exp_knobs);
+  for (int b = 0; b < m.exp_knobs; ++b) {
+    float* column = out.col(b).data();
+    for (int a = 0; a < m.id_knobs; ++a) {
+      const float wa = w[static_cast<std::size_t>(a)];
+      const float* block = m.core.data() + (static_cast<std::size_t>(b) * m.id_knobs + a) * n;
+      for (std::size_t x = 0; x < coords; ++x) column[x] += wa * block[coordinate_of(x)];
+    }
+  }
+  return out;
+}
+
+// u_e - u_0: expression e's knobs relative to the neutral's.
+Eigen::VectorXf expression_offset(const BilinearModel& m, int e) {
+  const auto ue = m.expression_row(e), u0 = m.expression_row(0);
+  Eigen::VectorXf du(m.exp_knobs);
+  for (int b = 0; b < m.exp_knobs; ++b)
+    du[b] = ue[static_cast<std::size_t>(b)] - u0[static_cast<std::size_t>(b)];
+  return du;
 }
 
 }  // namespace
@@ -81,8 +105,8 @@ Result<BilinearTrackingModel> make_bilinear_tracking_model(const BilinearModel& 
   }
 
   // neutral(w) = M w with M = C x_3 u_0 (3V x Kid).
-  const Eigen::MatrixXf neutral_per_knob = contract_expression(bilinear, bilinear.expression_row(0),
-                                                               n3, [](std::size_t x) { return x; });
+  const Eigen::MatrixXf neutral_per_knob =
+      contract_expression(bilinear, bilinear.expression_row(0));
   // The topology, names and vertex subsets are the face model's; neutral and bases are replaced.
   FaceModel& face = out.face;
   face = topology;
@@ -94,17 +118,11 @@ Result<BilinearTrackingModel> make_bilinear_tracking_model(const BilinearModel& 
   const Eigen::MatrixXf modes = neutral_per_knob * out.knobs_per_mode;
   face.identity_basis.assign(modes.data(), modes.data() + modes.size());
 
-  // Expression deltas of the mean identity: C x_2 w_mean x_3 (u_e - u_0).
+  // Expression deltas of the mean identity, (C x_2 w_mean)(u_e - u_0); shapes the bilinear
+  // model does not name keep the topology's.
   out.expression_row.assign(static_cast<std::size_t>(face.fitting_expression_count), -1);
-  face.expression_basis = topology.expression_basis;
-  Eigen::MatrixXf per_exp_knob(static_cast<Eigen::Index>(n3), bilinear.exp_knobs);  // C x_2 w
-  for (int b = 0; b < bilinear.exp_knobs; ++b) {
-    std::vector<float> unit(static_cast<std::size_t>(bilinear.exp_knobs), 0.0f);
-    unit[static_cast<std::size_t>(b)] = 1.0f;
-    per_exp_knob.col(b) =
-        contract_expression(bilinear, unit, n3, [](std::size_t x) { return x; }) * mean;
-  }
-  const auto u0 = bilinear.expression_row(0);
+  const Eigen::MatrixXf per_exp_knob =
+      contract_identity(bilinear, out.mean_identity, n3, [](std::size_t x) { return x; });
   for (int j = 0; j < face.expression_count; ++j) {
     const auto& name = face.expression_names[static_cast<std::size_t>(j)];
     const auto it =
@@ -112,11 +130,7 @@ Result<BilinearTrackingModel> make_bilinear_tracking_model(const BilinearModel& 
     if (it == bilinear.expression_names.end()) continue;
     const int e = static_cast<int>(it - bilinear.expression_names.begin());
     if (j < face.fitting_expression_count) out.expression_row[static_cast<std::size_t>(j)] = e;
-    const auto ue = bilinear.expression_row(e);
-    Eigen::VectorXf du(bilinear.exp_knobs);
-    for (int b = 0; b < bilinear.exp_knobs; ++b)
-      du[b] = ue[static_cast<std::size_t>(b)] - u0[static_cast<std::size_t>(b)];
-    const Eigen::VectorXf delta = per_exp_knob * du;
+    const Eigen::VectorXf delta = per_exp_knob * expression_offset(bilinear, e);
     std::copy(delta.data(), delta.data() + n3,
               face.expression_basis.begin() + static_cast<std::ptrdiff_t>(j * n3));
   }
@@ -145,30 +159,16 @@ std::vector<float> BilinearBlendshapes::knobs(std::span<const float> identity) c
 void BilinearBlendshapes::subject_deltas(std::span<const float> identity,
                                          std::span<const std::uint32_t> vertices,
                                          std::span<float> deltas) const {
-  // Per listed coordinate x: E(x, b) = sum_a C[x, a, b] w_a, then delta_j = E (u_e(j) - u_0).
-  const BilinearModel& m = bilinear_;
-  const std::vector<float> w = knobs(identity);
-  const std::size_t coords = 3 * vertices.size(),
-                    n = static_cast<std::size_t>(m.coordinate_count());
-  Eigen::MatrixXf e = Eigen::MatrixXf::Zero(static_cast<Eigen::Index>(coords), m.exp_knobs);
-  for (int b = 0; b < m.exp_knobs; ++b) {
-    float* column = e.col(b).data();
-    for (int a = 0; a < m.id_knobs; ++a) {
-      const float wa = w[static_cast<std::size_t>(a)];
-      const float* block = m.core.data() + (static_cast<std::size_t>(b) * m.id_knobs + a) * n;
-      for (std::size_t x = 0; x < coords; ++x) column[x] += wa * block[3 * vertices[x / 3] + x % 3];
-    }
-  }
-  const auto u0 = m.expression_row(0);
-  Eigen::VectorXf du(m.exp_knobs);
+  // delta_j = (C x_2 w)(u_e(j) - u_0) at the listed vertices only.
+  const std::size_t coords = 3 * vertices.size();
+  const Eigen::MatrixXf e =
+      contract_identity(bilinear_, knobs(identity), coords,
+                        [&](std::size_t x) { return 3 * vertices[x / 3] + x % 3; });
   for (std::size_t j = 0; j < tracking_.expression_row.size(); ++j) {
     const int row = tracking_.expression_row[j];
     if (row < 0 || (j + 1) * coords > deltas.size()) continue;
-    const auto ue = m.expression_row(row);
-    for (int b = 0; b < m.exp_knobs; ++b)
-      du[b] = ue[static_cast<std::size_t>(b)] - u0[static_cast<std::size_t>(b)];
     Eigen::Map<Eigen::VectorXf>(deltas.data() + j * coords, static_cast<Eigen::Index>(coords)) =
-        e * du;
+        e * expression_offset(bilinear_, row);
   }
 }
 

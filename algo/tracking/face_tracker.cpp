@@ -135,7 +135,6 @@ struct FaceTracker::State {
   RowMatrix model_expression_at_landmarks;
   bool custom_rig = false;
   const SubjectBlendshapes* subject_blendshapes = nullptr;  // see set_subject_blendshapes()
-  std::vector<float> subject_scratch;                       // its column-major output
 
   // The subject's rig (rebuilt by build_rig()).
   std::vector<float> identity;           // m coefficients
@@ -226,7 +225,8 @@ struct FaceTracker::State {
     expression_at_landmarks = model_expression_at_landmarks;
     custom_rig = false;
   }
-  // The subject's own deltas for the identity in `identity` (mesh_scratch holds its neutral).
+  // With a subject_blendshapes source: its deltas for the identity in `identity` (mesh_scratch
+  // holds that identity's neutral).
   void build_subject_blendshapes();
   void update_current() {
     // current = base + B w over the shapes with w_j != 0 (w >= 0 with an L1 prior: most are
@@ -331,25 +331,20 @@ void FaceTracker::State::build_rig(std::span<const float> coefficients, const Tw
 }
 
 void FaceTracker::State::build_subject_blendshapes() {
-  use_model_expressions();
   if (subject_blendshapes == nullptr) return;
-  const FaceModel& m = *model;
+  use_model_expressions();  // the source overwrites the shapes it knows
   auto build = [&](auto& matrix, std::span<const std::uint32_t> vertices) {
-    const auto rows = static_cast<std::size_t>(matrix.rows());
-    subject_scratch.resize(rows * static_cast<std::size_t>(k));
-    for (int j = 0; j < k; ++j) {
-      for (std::size_t r = 0; r < rows; ++r) {
-        subject_scratch[static_cast<std::size_t>(j) * rows + r] =
-            matrix(static_cast<Eigen::Index>(r), j);
-      }
-    }
-    subject_blendshapes->subject_deltas(identity, vertices, subject_scratch);
-    matrix = Eigen::Map<const Eigen::MatrixXf>(subject_scratch.data(), matrix.rows(), k);
+    ColMatrix deltas = matrix;  // the layout SubjectBlendshapes writes
+    subject_blendshapes->subject_deltas(
+        identity, vertices,
+        std::span<float>(deltas.data(), static_cast<std::size_t>(deltas.size())));
+    matrix = deltas;
   };
   build(expression_at_samples, sample_vertices);
-  build(expression_at_landmarks, m.landmark_vertices);
+  build(expression_at_landmarks, model->landmark_vertices);
   custom_rig = true;  // reset() and the next identity start from the model's deltas again
   finish_rig();
+  update_current();
 }
 
 void FaceTracker::State::finish_rig() {
@@ -1097,10 +1092,7 @@ float FaceTracker::State::calibrate() {
   // stays the model's (absolute pose) instead of moving by the removed motion. The stored
   // frames are re-tracked with it.
   rebuild(options.keep_identity_rigid);
-  if (subject_blendshapes != nullptr) {
-    build_subject_blendshapes();
-    update_current();
-  }
+  build_subject_blendshapes();
   float rms_sum = 0.0f;
   for (int f = 0; f < calib_count; ++f) {
     rms_sum += icp(calib_depth[static_cast<std::size_t>(f)], calib_box[static_cast<std::size_t>(f)],
@@ -1422,10 +1414,7 @@ Result<void> FaceTracker::set_identity(std::span<const float> coefficients) {
   s.use_model_expressions();
   s.landmark_offset.setZero();  // measured by calibration only
   s.build_rig(coefficients);
-  if (s.subject_blendshapes != nullptr) {
-    s.build_subject_blendshapes();
-    s.update_current();
-  }
+  s.build_subject_blendshapes();
   s.calibrated = true;
   s.calib_count = 0;
   return success();

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "algo/tracking/rig_view.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 #include "firmware/streaming/live_json.hpp"
 #include "storage/asset_files.hpp"
@@ -391,25 +392,67 @@ Result<void> Daemon::Impl::start_tracking() {
   auto t = FaceTracker::create(model, preview_camera->info().depth_intrinsics);
   if (!t) return t.failure();
   tracker = std::move(*t);
-  std::vector<float> identity;
-  std::int64_t from_session = 0;
-  {
-    std::lock_guard lock(identity_mutex);
-    identity = subject_identity;
-    from_session = identity_session;
-  }
-  std::string identity_note;
-  if (!identity.empty()) {
-    identity_note = "neutral fit of session " + std::to_string(from_session);
-    if (auto ok = tracker->set_identity(identity); !ok) return ok.failure();
-  } else {
-    // No neutral fit yet: the tracker starts from the mean face and calibrates the identity on
-    // its first frames.
-    identity_note = "mean face, calibrated on the first frames (no neutral fit yet)";
-  }
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return mapping.failure();
   arkit = *mapping;
+  take_values.clear();
+  take_frames = 0;
+  {
+    std::lock_guard lock(status_mutex);
+    take_session = status.session;
+  }
+  std::optional<StoredRig> rig;
+  {
+    std::lock_guard lock(records_mutex);
+    if (take_session == 0) {
+      if (auto all = records->sessions(); all && !all->empty()) take_session = all->back().id;
+    }
+    if (take_session != 0) {
+      auto found = records->subject_rig(take_session);
+      if (found) {
+        rig = std::move(*found);
+      } else {
+        std::fprintf(stderr, "faceboothd: tracking without the stored rig: %s\n",
+                     found.error().message.c_str());
+      }
+    }
+  }
+  std::string identity_note;
+  if (rig) {
+    // The subject's rig from the host (their own neutral and blendshapes, FaceWarehouse 4.2)
+    // wins over the quick neutral fit, as `facebooth track --rig-from-store` does on the host.
+    const TrackerRig view =
+        tracker_rig_view(rig->data.neutral, rig->data.shape_names, rig->data.shapes, model, *arkit);
+    auto set = view.shapes.empty()
+                   ? Result<void>(fail("none of its shape names is a tracked blendshape"))
+                   : tracker->set_rig(view);
+    if (set) {
+      identity_note = "stored rig " + std::to_string(rig->id) + " of subject " +
+                      std::to_string(rig->subject) + " (" + std::to_string(view.shapes.size()) +
+                      " of its " + std::to_string(rig->data.shape_count()) + " shapes tracked)";
+    } else {
+      std::fprintf(stderr, "faceboothd: stored rig %lld not used: %s\n",
+                   static_cast<long long>(rig->id), set.error().message.c_str());
+      rig.reset();
+    }
+  }
+  if (!rig) {
+    std::vector<float> identity;
+    std::int64_t from_session = 0;
+    {
+      std::lock_guard lock(identity_mutex);
+      identity = subject_identity;
+      from_session = identity_session;
+    }
+    if (!identity.empty()) {
+      identity_note = "neutral fit of session " + std::to_string(from_session);
+      if (auto ok = tracker->set_identity(identity); !ok) return ok.failure();
+    } else {
+      // No neutral fit yet: the tracker starts from the mean face and calibrates the identity
+      // on its first frames.
+      identity_note = "mean face, calibrated on the first frames (no neutral fit yet)";
+    }
+  }
   const std::string target = !config.streaming.vmc_target.empty() ? config.streaming.vmc_target
                                                                   : config.streaming.osc_target;
   vmc.reset();
@@ -420,21 +463,11 @@ Result<void> Daemon::Impl::start_tracking() {
     if (!sender) return sender.failure();
     vmc = std::move(*sender);
   }
-  take_values.clear();
-  take_frames = 0;
-  {
-    std::lock_guard lock(status_mutex);
-    take_session = status.session;
-  }
-  if (take_session == 0) {
-    std::lock_guard lock(records_mutex);
-    if (auto all = records->sessions(); all && !all->empty()) take_session = all->back().id;
-  }
   update_status([&](StatusData& s) {
     s.tracking_identity = identity_note;
     s.vmc_datagrams = 0;
   });
-  std::fprintf(stderr, "faceboothd: tracking with %s identity, VMC %s\n", identity_note.c_str(),
+  std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", identity_note.c_str(),
                target.empty() ? "off" : target.c_str());
   return success();
 }

@@ -299,5 +299,8 @@ Result<OffloadInfo> SessionRecords::offload_info(std::int64_t) {
 Result<std::int64_t> SessionRecords::add_rig(std::int64_t, const RigData&) {
   return fail(unsupported(*this, "rigs"));
 }
+Result<std::optional<StoredRig>> SessionRecords::subject_rig(std::int64_t) {
+  return std::optional<StoredRig>{};
+}
 
 }  // namespace fb

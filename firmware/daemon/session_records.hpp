@@ -76,6 +76,13 @@ struct OffloadInfo {
   int rigs = 0;             // rigs stored for the session's subject from this session
 };
 
+// A rig stored for a subject (uploaded by the host after rigging one of their sessions).
+struct StoredRig {
+  std::int64_t id = 0;
+  std::int64_t subject = 0;
+  RigData data;
+};
+
 class SessionRecords {
  public:
   virtual ~SessionRecords() = default;
@@ -111,6 +118,8 @@ class SessionRecords {
   virtual Result<OffloadInfo> offload_info(std::int64_t session);
   // Stores a rig uploaded by the host for the session's subject; returns its id.
   virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig);
+  // The newest rig of the session's subject, from any of their sessions (nullopt: none).
+  virtual Result<std::optional<StoredRig>> subject_rig(std::int64_t session);
 };
 
 // The SQLite store when this build has it, else the file store; both under `data_dir`.

@@ -145,6 +145,20 @@ class StoreRecords : public SessionRecords {
     if (!s) return s.failure();
     return store_.add_rig(s->subject, session, rig);
   }
+  Result<std::optional<StoredRig>> subject_rig(std::int64_t session) override {
+    auto s = store_.session(session);
+    if (!s) return s.failure();
+    auto rigs = store_.rigs(s->subject);
+    if (!rigs) return rigs.failure();
+    if (rigs->empty()) return std::optional<StoredRig>{};
+    StoredRig out;
+    out.id = rigs->front().id;  // newest first
+    out.subject = s->subject;
+    auto data = store_.read_rig(out.id);
+    if (!data) return data.failure();
+    out.data = std::move(*data);
+    return std::optional<StoredRig>(std::move(out));
+  }
 
  private:
   RecordSession convert(const SessionInfo& s) {

@@ -18,6 +18,7 @@
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
+#include "algo/tracking/rig_view.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/live_json.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
@@ -88,22 +89,9 @@ Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, Sub
                 "; the tracker needs a rig in the face model's topology (drop --rig-from-store "
                 "to calibrate the identity instead)");
   }
-  out.view.neutral = out.data.neutral;
-  for (int s = 0; s < out.data.shape_count(); ++s) {
-    const std::string& name = out.data.shape_names[static_cast<std::size_t>(s)];
-    int index = model.expression_index(name);
-    if (index < 0) {
-      for (int a = 0; a < kArkitShapeCount; ++a) {
-        const auto& src = mapping.sources[static_cast<std::size_t>(a)];
-        if ((kArkitNames[a] == name || kLiveLinkNames[a] == name) && src[0] >= 0 && src[1] < 0) {
-          index = src[0];
-        }
-      }
-    }
-    if (index < 0 || index >= model.fitting_expression_count) continue;
-    out.view.shapes.emplace_back(index, out.data.shapes[static_cast<std::size_t>(s)]);
-    ++out.matched;
-  }
+  out.view =
+      tracker_rig_view(out.data.neutral, out.data.shape_names, out.data.shapes, model, mapping);
+  out.matched = static_cast<int>(out.view.shapes.size());
   return std::optional<LoadedRig>(std::move(out));
 }
 

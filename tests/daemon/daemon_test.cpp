@@ -473,6 +473,72 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   EXPECT_NEAR(tz, 700.0f, 150.0f);
 }
 
+// Tracking mode with a rig the host uploaded for the subject: the tracker uses the subject's
+// own neutral and blendshapes (no calibration), as `facebooth track --rig-from-store` does. The
+// synthetic subject (mean identity) holds jawOpen 0.6; the rig's jawOpen moves the face twice as
+// far as the model's, so tracking with the rig reads about 0.3.
+TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
+  auto model = load_face_model();
+  ASSERT_TRUE(model);
+  DaemonConfig c = config();
+  c.camera.uri = "synthetic:seed=4,identity=neutral,motion=static,expr=jawOpen:0.6";
+  c.session.resume = false;  // the session below is not finished: start idle, not in its guide
+  RigId rig_id = 0;
+  SubjectId subject = 0;
+  {
+    auto store = SessionStore::open(c.storage.data_dir / "store");
+    ASSERT_TRUE(store) << store.error().message;
+    auto added = store->add_subject("rigged");
+    ASSERT_TRUE(added);
+    subject = *added;
+    auto session = store->create_session(subject, {"neutral"});
+    ASSERT_TRUE(session);
+    RigData rig;
+    rig.neutral = model->neutral;
+    rig.triangles = model->triangles;
+    const int jaw = model->expression_index("jawOpen");
+    ASSERT_GE(jaw, 0);
+    const auto delta = model->expression_shape(jaw);  // the model's jawOpen delta
+    std::vector<float> doubled(model->neutral);       // a rig keeps full positions
+    for (std::size_t i = 0; i < doubled.size(); ++i) doubled[i] += 2.0f * delta[i];
+    rig.shapes = {doubled, std::vector<float>(model->neutral)};
+    rig.shape_names = {"jawOpen", "notAShape"};
+    auto stored = store->add_rig(subject, *session, rig);
+    ASSERT_TRUE(stored) << stored.error().message;
+    rig_id = *stored;
+  }
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  httplib::Client http("127.0.0.1", d->http_port());
+  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
+  auto s = wait_for(*d, [](auto& s) {
+    return s["state"] == "tracking" && s["tracking"]["frames"].template get<int>() >= 30;
+  });
+  EXPECT_EQ(s["tracking"]["identity"].get<std::string>(),
+            "stored rig " + std::to_string(rig_id) + " of subject " + std::to_string(subject) +
+                " (1 of its 2 shapes tracked)");
+  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
+  s = wait_for(*d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
+  d.reset();
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(c.storage.data_dir / "store", ro);
+  ASSERT_TRUE(store);
+  TakeInfo info;
+  auto values = store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+  ASSERT_TRUE(values) << values.error().message;
+  const auto name = std::find(info.shape_names.begin(), info.shape_names.end(), "jawOpen");
+  ASSERT_NE(name, info.shape_names.end());
+  const std::size_t column = 7 + static_cast<std::size_t>(name - info.shape_names.begin());
+  double sum = 0;
+  int n = 0;
+  for (int f = 10; f < info.frame_count; ++f, ++n)
+    sum += (*values)[static_cast<std::size_t>(f * info.stride()) + column];
+  ASSERT_GT(n, 10);
+  EXPECT_NEAR(sum / n, 0.3, 0.08) << "mean jawOpen over " << n << " frames";
+}
+
 TEST_F(DaemonTest, CancelThenResumeAfterRestart) {
   const DaemonConfig c = config();
   std::int64_t session = 0;

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "algo/tracking/arkit.hpp"
+#include "algo/tracking/rig_view.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/allocation_counter.hpp"
@@ -145,6 +146,32 @@ TEST(ArkitMapping, FiftyTwoNamesAndTheModelShapes) {
   std::array<float, kArkitShapeCount> arkit{};
   mapping->to_arkit(w, arkit);
   EXPECT_NEAR(arkit[index("browInnerUp")], 0.4f, 1e-6f);
+}
+
+// A stored rig's shape names (model, ARKit or Live Link Face names) as the tracker's shapes.
+TEST(ArkitMapping, StoredRigShapeNames) {
+  const FaceModel& model = test::face_model();
+  auto mapping = make_arkit_mapping(model);
+  ASSERT_TRUE(mapping.ok()) << mapping.error().message;
+  const int blink = model.expression_index("eyeBlink_L");
+  ASSERT_GE(blink, 0);
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "eyeBlink_L"), blink);
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "eyeBlinkLeft"), blink);
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "EyeBlinkLeft"), blink);
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "browInnerUp"), -1);  // two model shapes
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "tongueOut"), -1);    // none
+  EXPECT_EQ(fitting_shape_for_name(model, *mapping, "noSuchShape"), -1);
+  for (int j = model.fitting_expression_count; j < model.expression_count; ++j)  // not fitted
+    EXPECT_EQ(fitting_shape_for_name(model, *mapping, model.expression_names[j]), -1);
+  const std::vector<float> neutral(model.neutral);
+  const std::vector<std::string> names = {"JawOpen", "cheekPuff", "mouthSmile_R"};
+  const std::vector<std::vector<float>> shapes(3, neutral);
+  const TrackerRig view = tracker_rig_view(neutral, names, shapes, model, *mapping);
+  ASSERT_EQ(view.shapes.size(), 2u);
+  EXPECT_EQ(view.shapes[0].first, model.expression_index("jawOpen"));
+  EXPECT_EQ(view.shapes[0].second.data(), shapes[0].data());
+  EXPECT_EQ(view.shapes[1].first, model.expression_index("mouthSmile_R"));
+  EXPECT_EQ(view.shapes[1].second.data(), shapes[2].data());
 }
 
 TEST(BoundedLsq, MatchesBruteForceOnABox) {

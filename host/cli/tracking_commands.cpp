@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <string>
@@ -95,6 +96,37 @@ Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, Sub
   return std::optional<LoadedRig>(std::move(out));
 }
 
+// The calibrated subject as a rig in the face model's topology: the fitted neutral and, per
+// fitting shape, the neutral plus the subject's delta (`source`'s, e.g. the bilinear model's
+// C x2 w x3 (u_e - u_0), else the model's generic one). Tracking with it needs no calibration.
+RigData calibrated_rig(const FaceModel& face, std::span<const float> identity,
+                       const SubjectBlendshapes* source) {
+  const auto size = static_cast<std::size_t>(3 * face.vertex_count);
+  const int k = face.fitting_expression_count;
+  RigData rig;
+  rig.neutral.resize(size);
+  face.evaluate(identity, {}, rig.neutral);
+  std::vector<float> deltas(size * static_cast<std::size_t>(k));  // column-major, 3V x k
+  for (int j = 0; j < k; ++j) {
+    const auto shape = face.expression_shape(j);
+    std::copy(shape.begin(), shape.end(), deltas.begin() + static_cast<std::ptrdiff_t>(j * size));
+  }
+  if (source != nullptr) {
+    std::vector<std::uint32_t> every(static_cast<std::size_t>(face.vertex_count));
+    std::iota(every.begin(), every.end(), 0u);
+    source->subject_deltas(identity, every, deltas);
+  }
+  for (int j = 0; j < k; ++j) {
+    std::vector<float> shape(rig.neutral);
+    for (std::size_t c = 0; c < size; ++c)
+      shape[c] += deltas[static_cast<std::size_t>(j) * size + c];
+    rig.shapes.push_back(std::move(shape));
+    rig.shape_names.push_back(face.expression_names[static_cast<std::size_t>(j)]);
+  }
+  rig.triangles = face.triangles;
+  return rig;
+}
+
 int run_track(const ParsedOptions& options) {
   const std::string uri = options.get("camera");
   if (uri.empty())
@@ -135,6 +167,15 @@ int run_track(const ParsedOptions& options) {
   }
   if (rig_from_store && !subject) {
     return report_failure({"--rig-from-store needs --subject ID (whose rig to load)"});
+  }
+  const bool save_rig = options.flag("save-rig");
+  if (save_rig && store_path.empty()) {
+    return report_failure({"--save-rig needs --store DIR (where to keep the subject's rig)"});
+  }
+  if (save_rig && rig_from_store) {
+    return report_failure(
+        {"--save-rig stores a calibrated subject; with --rig-from-store "
+         "nothing is calibrated (drop one of them)"});
   }
   if (!store_path.empty()) {
     auto opened = SessionStore::open(store_path);
@@ -346,6 +387,26 @@ int run_track(const ParsedOptions& options) {
   } else if (store) {
     result["take"] = nullptr;  // no frame: nothing to store
   }
+  if (save_rig) {
+    // Only a subject the tracker calibrated itself (a stored rig loaded instead was refused
+    // above, and one that fell back to calibration for want of a rig is calibrated here).
+    if (!(*tracker)->calibrated() || !subject) {
+      std::cout << result.dump(2) << std::endl;
+      return report_failure(
+          {"--save-rig: the subject was never calibrated (no face for "
+           "--calibration-frames frames in a row), so no rig was stored"});
+    }
+    const FaceModel& face = bilinear ? bilinear->tracking.face : model;
+    const RigData saved =
+        calibrated_rig(face, (*tracker)->identity(), bilinear ? &*bilinear->blendshapes : nullptr);
+    auto id = store->add_rig(*subject, std::nullopt, saved);
+    if (!id) return report_failure(id.error());
+    result["rig"] = *id;
+    result["subject"] = *subject;
+    std::cerr << "track: stored the calibrated subject as rig " << *id << " of subject " << *subject
+              << " (" << saved.shape_count() << " shapes); track with it: "
+              << "--store " << store_path << " --subject " << *subject << " --rig-from-store\n";
+  }
   result["subject_model"] = subject_model;
   result["camera"] = uri;
   result["frames"] = read;
@@ -402,6 +463,11 @@ std::vector<Command> tracking_commands() {
          {"rig-from-store", "",
           "track with --subject's newest stored rig (face model topology) instead of "
           "calibrating; falls back to calibration when the subject has no rig",
+          ""},
+         {"save-rig", "",
+          "after the take, store the calibrated subject in --store as their rig (fitted neutral "
+          "and blendshapes: the bilinear model's with --model, else the generic ones), which "
+          "--rig-from-store and the device's tracking mode then use without calibrating",
           ""},
          {"frames", "N", "stop after N frames (0 = until the stream ends)", "0"},
          {"calibration-frames", "N", "frames for the identity fit", "10"},

@@ -225,6 +225,25 @@ class DaemonTest : public ::testing::Test {
     ADD_FAILURE() << "condition never held; last status " << d.status().dump();
     return d.status();
   }
+  // Tracking mode on a started daemon until `frames` frames are tracked; returns that status.
+  nlohmann::json track_frames(Daemon& d, httplib::Client& http, int frames) {
+    EXPECT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
+    return wait_for(d, [frames](auto& s) {
+      return s["state"] == "tracking" && s["tracking"]["frames"].template get<int>() >= frames;
+    });
+  }
+  // Back to capture mode, then the take tracking stored, read from the store at `data_dir`.
+  Result<std::vector<float>> stop_and_read_take(Daemon& d, httplib::Client& http,
+                                                const fs::path& data_dir, TakeInfo& info) {
+    EXPECT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
+    auto s =
+        wait_for(d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
+    StoreOptions ro;
+    ro.read_only = true;
+    auto store = SessionStore::open(data_dir / "store", ro);
+    if (!store) return store.failure();
+    return store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+  }
 
   fs::path dir_;
 };
@@ -434,10 +453,7 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   ASSERT_TRUE(d);
   ASSERT_TRUE(d->start());
   httplib::Client http("127.0.0.1", d->http_port());
-  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
-  auto s = wait_for(*d, [](auto& s) {
-    return s["state"] == "tracking" && s["tracking"]["frames"].template get<int>() >= 45;
-  });
+  auto s = track_frames(*d, http, 45);
   EXPECT_EQ(s["tracking"]["identity"].get<std::string>().rfind("mean face", 0), 0u);
   // Why the tracker has no face, when it has none (TrackReport::loss_reason): empty here.
   ASSERT_TRUE(s["tracking"].contains("reason")) << s.dump();
@@ -456,14 +472,8 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   auto frame = nlohmann::json::parse(live->body);
   EXPECT_TRUE(frame["face"].get<bool>()) << live->body;
   EXPECT_EQ(frame["weights"].size(), 52u);
-  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
-  s = wait_for(*d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
-  StoreOptions ro;
-  ro.read_only = true;
-  auto store = SessionStore::open(c.storage.data_dir / "store", ro);
-  ASSERT_TRUE(store);
   TakeInfo info;
-  auto values = store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+  auto values = stop_and_read_take(*d, http, c.storage.data_dir, info);
   ASSERT_TRUE(values) << values.error().message;
   EXPECT_GE(info.frame_count, 45);
   EXPECT_EQ(info.shape_names.size(), 52u);
@@ -511,22 +521,12 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   ASSERT_TRUE(d);
   ASSERT_TRUE(d->start());
   httplib::Client http("127.0.0.1", d->http_port());
-  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
-  auto s = wait_for(*d, [](auto& s) {
-    return s["state"] == "tracking" && s["tracking"]["frames"].template get<int>() >= 30;
-  });
+  const auto s = track_frames(*d, http, 30);
   EXPECT_EQ(s["tracking"]["identity"].get<std::string>(),
             "stored rig " + std::to_string(rig_id) + " of subject " + std::to_string(subject) +
                 " (1 of its 2 shapes tracked)");
-  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
-  s = wait_for(*d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
-  d.reset();
-  StoreOptions ro;
-  ro.read_only = true;
-  auto store = SessionStore::open(c.storage.data_dir / "store", ro);
-  ASSERT_TRUE(store);
   TakeInfo info;
-  auto values = store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+  auto values = stop_and_read_take(*d, http, c.storage.data_dir, info);
   ASSERT_TRUE(values) << values.error().message;
   const auto name = std::find(info.shape_names.begin(), info.shape_names.end(), "jawOpen");
   ASSERT_NE(name, info.shape_names.end());

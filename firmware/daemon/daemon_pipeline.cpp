@@ -380,6 +380,24 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
 // ---------------------------------------------------------------------------------------------
 // Tracking mode
 
+namespace {
+
+// Tracks with the subject's rig from the host (their own neutral and blendshapes, FaceWarehouse
+// 4.2), as `facebooth track --rig-from-store` does. Returns the status note, or why the rig
+// cannot be used.
+Result<std::string> track_with_rig(FaceTracker& tracker, const StoredRig& rig,
+                                   const FaceModel& model, const ArkitMapping& arkit) {
+  const TrackerRig view =
+      tracker_rig_view(rig.data.neutral, rig.data.shape_names, rig.data.shapes, model, arkit);
+  if (view.shapes.empty()) return fail("none of its shape names is a tracked blendshape");
+  if (auto set = tracker.set_rig(view); !set) return set.failure();
+  return "stored rig " + std::to_string(rig.id) + " of subject " + std::to_string(rig.subject) +
+         " (" + std::to_string(view.shapes.size()) + " of its " +
+         std::to_string(rig.data.shape_count()) + " shapes tracked)";
+}
+
+}  // namespace
+
 Result<void> Daemon::Impl::start_tracking() {
   update_status([](StatusData& s) {
     s.tracking_frames = 0;
@@ -419,20 +437,13 @@ Result<void> Daemon::Impl::start_tracking() {
   }
   std::string identity_note;
   if (rig) {
-    // The subject's rig from the host (their own neutral and blendshapes, FaceWarehouse 4.2)
-    // wins over the quick neutral fit, as `facebooth track --rig-from-store` does on the host.
-    const TrackerRig view =
-        tracker_rig_view(rig->data.neutral, rig->data.shape_names, rig->data.shapes, model, *arkit);
-    auto set = view.shapes.empty()
-                   ? Result<void>(fail("none of its shape names is a tracked blendshape"))
-                   : tracker->set_rig(view);
-    if (set) {
-      identity_note = "stored rig " + std::to_string(rig->id) + " of subject " +
-                      std::to_string(rig->subject) + " (" + std::to_string(view.shapes.size()) +
-                      " of its " + std::to_string(rig->data.shape_count()) + " shapes tracked)";
+    // The subject's own rig wins over the quick neutral fit.
+    auto note = track_with_rig(*tracker, *rig, model, *arkit);
+    if (note) {
+      identity_note = std::move(*note);
     } else {
       std::fprintf(stderr, "faceboothd: stored rig %lld not used: %s\n",
-                   static_cast<long long>(rig->id), set.error().message.c_str());
+                   static_cast<long long>(rig->id), note.error().message.c_str());
       rig.reset();
     }
   }

@@ -486,7 +486,8 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
 // Tracking mode with a rig the host uploaded for the subject: the tracker uses the subject's
 // own neutral and blendshapes (no calibration), as `facebooth track --rig-from-store` does. The
 // synthetic subject (mean identity) holds jawOpen 0.6; the rig's jawOpen moves the face twice as
-// far as the model's, so tracking with the rig reads about 0.3.
+// far as the model's, so tracking with the rig reads about 0.3. A rig it cannot track is not
+// used.
 TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   auto model = load_face_model();
   ASSERT_TRUE(model);
@@ -537,6 +538,27 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
     sum += (*values)[static_cast<std::size_t>(f * info.stride()) + column];
   ASSERT_GT(n, 10);
   EXPECT_NEAR(sum / n, 0.3, 0.08) << "mean jawOpen over " << n << " frames";
+
+  // A newer rig with no shape the tracker knows is not used: tracking falls back to
+  // calibrating (this store has no neutral fit) and the status says so.
+  d.reset();
+  {
+    auto store = SessionStore::open(c.storage.data_dir / "store");
+    ASSERT_TRUE(store) << store.error().message;
+    RigData unknown;
+    unknown.neutral = model->neutral;
+    unknown.triangles = model->triangles;
+    unknown.shapes = {model->neutral};
+    unknown.shape_names = {"notAShape"};
+    ASSERT_TRUE(store->add_rig(subject, std::nullopt, unknown));
+  }
+  d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  httplib::Client again("127.0.0.1", d->http_port());
+  EXPECT_EQ(
+      track_frames(*d, again, 5)["tracking"]["identity"].get<std::string>().rfind("mean face", 0),
+      0u);
 }
 
 TEST_F(DaemonTest, CancelThenResumeAfterRestart) {

@@ -448,10 +448,10 @@ std::vector<Command> tracking_commands() {
         "run the tracker live on a camera; stream VMC over OSC and/or record Live Link CSV",
         "Calibrates the identity on the first frames (hold a neutral face) with the face "
         "model, or with a bilinear model (--model; for tracking build it with --exp-knobs 54), "
-        "or loads the subject's stored rig (--rig-from-store), then tracks. Prints a JSON summary "
-        "at the end "
-        "(with --store: the stored take's id); loss of the face is reported on stderr and "
-        "tracking resumes when the face is found again.",
+        "or loads the subject's stored rig (--rig-from-store), then tracks. Prints a JSON "
+        "summary at the end (with --store: the stored take's id; with --save-rig: the rig's); "
+        "loss of the face is reported on stderr and tracking resumes when the face is found "
+        "again.",
         {{"camera", "URI", "camera URI, e.g. synthetic:frames=300 or freenect:0", ""},
          {"osc", "HOST:PORT", "send VMC (OSC/UDP) here; port 39539 if omitted", ""},
          {"csv", "FILE", "record a Live Link Face CSV take", ""},

@@ -453,8 +453,8 @@ int run_eval_track(const ParsedOptions& options) {
   result["with_landmarks"] = wl;
   result["known_identity"] = score_json(known, model);
   result["subject_model"] = bilinear ? bilinear->describe() : "face model identity PCA";
-  if (bilinear && !bilinear->limitation().empty())
-    result["subject_model_limitation"] = bilinear->limitation();
+  if (const std::string note = bilinear ? bilinear->limitation() : ""; !note.empty())
+    result["subject_model_limitation"] = note;
   result["depth_only"] = dl;
   result["occluder"] = {
       {"takes", occluder_takes},

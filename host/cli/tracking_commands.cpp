@@ -106,11 +106,10 @@ RigData calibrated_rig(const FaceModel& face, std::span<const float> identity,
   RigData rig;
   rig.neutral.resize(size);
   face.evaluate(identity, {}, rig.neutral);
-  std::vector<float> deltas(size * static_cast<std::size_t>(k));  // column-major, 3V x k
-  for (int j = 0; j < k; ++j) {
-    const auto shape = face.expression_shape(j);
-    std::copy(shape.begin(), shape.end(), deltas.begin() + static_cast<std::ptrdiff_t>(j * size));
-  }
+  // The model's deltas of the fitting shapes (expression_basis is column-major, 3V per shape).
+  std::vector<float> deltas(face.expression_basis.begin(),
+                            face.expression_basis.begin() +
+                                static_cast<std::ptrdiff_t>(size * static_cast<std::size_t>(k)));
   if (source != nullptr) {
     std::vector<std::uint32_t> every(static_cast<std::size_t>(face.vertex_count));
     std::iota(every.begin(), every.end(), 0u);
@@ -209,8 +208,8 @@ int run_track(const ParsedOptions& options) {
     if (!loaded) return report_failure(loaded.error());
     bilinear = std::move(*loaded);
   }
-  auto tracker = FaceTracker::create(bilinear ? bilinear->tracking.face : model,
-                                     info.depth_intrinsics, tracker_options);
+  const FaceModel& tracker_model = bilinear ? bilinear->tracking.face : model;
+  auto tracker = FaceTracker::create(tracker_model, info.depth_intrinsics, tracker_options);
   if (!tracker) return report_failure(tracker.error());
   if (bilinear) (*tracker)->set_subject_blendshapes(&*bilinear->blendshapes);
   std::string subject_model = bilinear ? "identity calibrated on the first frames with the " +
@@ -396,9 +395,8 @@ int run_track(const ParsedOptions& options) {
           {"--save-rig: the subject was never calibrated (no face for "
            "--calibration-frames frames in a row), so no rig was stored"});
     }
-    const FaceModel& face = bilinear ? bilinear->tracking.face : model;
-    const RigData saved =
-        calibrated_rig(face, (*tracker)->identity(), bilinear ? &*bilinear->blendshapes : nullptr);
+    const RigData saved = calibrated_rig(tracker_model, (*tracker)->identity(),
+                                         bilinear ? &*bilinear->blendshapes : nullptr);
     auto id = store->add_rig(*subject, std::nullopt, saved);
     if (!id) return report_failure(id.error());
     result["rig"] = *id;

@@ -14,6 +14,7 @@
 #include <Eigen/SVD>
 
 #include "algo/tracking/depth_filter.hpp"
+#include "algo/tracking/weight_uncertainty.hpp"
 
 namespace fb {
 
@@ -195,6 +196,10 @@ struct FaceTracker::State {
   ShapeMatrix h;
   ShapeVector g;
   ShapeMatrix h_hidden;  // imputed rows of the hidden samples, see solve_weights()
+  // TrackerOptions::report_weight_sigma: the frame's Fisher information and what it implies.
+  ShapeMatrix information;
+  ShapeMatrix landmark_gram;
+  ShapeVector weight_sigma;
 
   // Calibration frames.
   std::vector<Image<float>> calib_depth;
@@ -308,6 +313,9 @@ struct FaceTracker::State {
   void calibrate_landmark_offsets();
   void calibrate_depth_offsets();
   void output(TrackReport& report, double time_s);
+  // TrackerOptions::report_weight_sigma, from the frame's last weight solve: its depth rows
+  // [0, depth_rows) with noise depth_sigma_mm, then its landmark rows.
+  void estimate_weight_sigma(int depth_rows, int landmark_rows, float depth_sigma_mm);
 };
 
 void FaceTracker::State::build_rig(std::span<const float> coefficients, const Twist& rigid_offset) {
@@ -683,13 +691,17 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     // the ragged edges around it (a few mm) then get zero weight, while the clean face, whose
     // residual spread is the sensor noise, keeps its full weight.
     float cutoff = options.icp_gate_mm;
-    if (options.weight_tukey_k > 0.0f && found > 16) {
+    float noise_sigma = 0.0f;  // the MAD estimate
+    if ((options.weight_tukey_k > 0.0f || options.report_weight_sigma) && found > 16) {
       for (int f = 0; f < found; ++f)
         abs_scratch[static_cast<std::size_t>(f)] =
             std::abs(found_residual[static_cast<std::size_t>(f)]);
       auto mid = abs_scratch.begin() + found / 2;
       std::nth_element(abs_scratch.begin(), mid, abs_scratch.begin() + found);
-      cutoff = std::clamp(options.weight_tukey_k * 1.4826f * *mid, options.weight_min_gate_mm,
+      noise_sigma = 1.4826f * *mid;
+    }
+    if (options.weight_tukey_k > 0.0f && noise_sigma > 0.0f) {
+      cutoff = std::clamp(options.weight_tukey_k * noise_sigma, options.weight_min_gate_mm,
                           options.icp_gate_mm);
     }
     int count = 0;
@@ -702,6 +714,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       targets[count] = s * found_target[fi];
       ++count;
     }
+    const int depth_rows = count;
     landmarks_used = 0;
     if (landmarks != nullptr && landmarks->points.size() >= 68) {
       const float lw = options.landmark_weight * landmark_scale(*landmarks);
@@ -745,6 +758,8 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     set_gram(rows, 0, count, h);
     g.noalias() = rows.topRows(count).transpose() * targets.head(count);
     if (hidden_rows > 0) set_gram(rows, count, hidden_rows, h_hidden);
+    if (options.report_weight_sigma && final && it == iterations - 1 && noise_sigma > 0.0f)
+      estimate_weight_sigma(depth_rows, count - depth_rows, noise_sigma);
     // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
     // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
     // the whole face would drive it to 0 against the temporal term within a frame or two.
@@ -1189,6 +1204,27 @@ void FaceTracker::State::output(TrackReport& report, double time_s) {
   report.shape_count = k;
   std::fill(report.weights.begin(), report.weights.end(), 0.0f);
   for (int j = 0; j < k; ++j) report.weights[static_cast<std::size_t>(j)] = weights[j];
+  std::fill(report.weight_sigma.begin(), report.weight_sigma.end(), 0.0f);
+  if (options.report_weight_sigma)
+    for (int j = 0; j < k; ++j) report.weight_sigma[static_cast<std::size_t>(j)] = weight_sigma[j];
+}
+
+void FaceTracker::State::estimate_weight_sigma(int depth_rows, int landmark_rows,
+                                               float depth_sigma_mm) {
+  // Fisher information: the depth rows over the MAD noise of this frame's residuals; the
+  // landmark rows carry sqrt(landmark_weight * landmark_scale) and a source's points have
+  // noise_px = landmark_noise_px / sqrt(landmark_scale), so their row noise is
+  // sqrt(landmark_weight) * landmark_noise_px whatever the source. Robust weights stay in the
+  // rows: a down-weighted sample informs less.
+  const float depth_variance = depth_sigma_mm * depth_sigma_mm;
+  set_gram(rows, 0, depth_rows, information);
+  information /= depth_variance;
+  if (landmark_rows > 0) {
+    set_gram(rows, depth_rows, landmark_rows, landmark_gram);
+    information += landmark_gram / (options.landmark_weight * options.landmark_noise_px *
+                                    options.landmark_noise_px);
+  }
+  weight_standard_errors(information, 1e-3f * signal_median / depth_variance, weight_sigma);
 }
 
 FaceTracker::FaceTracker(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -1375,6 +1411,9 @@ Result<std::unique_ptr<FaceTracker>> FaceTracker::create(const FaceModel& model,
   s->previous_weights = ShapeVector::Zero(s->k);
   s->h.resize(s->k, s->k);
   s->h_hidden.resize(s->k, s->k);
+  s->information.resize(s->k, s->k);
+  s->landmark_gram.resize(s->k, s->k);
+  s->weight_sigma = ShapeVector::Zero(s->k);
   s->g.resize(s->k);
   s->rows.resize(n + 2 * 68, s->k);
   s->targets.resize(n + 2 * 68);

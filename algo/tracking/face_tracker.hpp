@@ -197,6 +197,11 @@ struct TrackerOptions {
   bool calibrate_depth_offsets = true;
   float max_depth_offset_mm = 3.0f;
 
+  // Diagnostics: report each weight's data-only standard error (TrackReport::weight_sigma),
+  // the Cramer-Rao bound of the frame's weight solve without its priors. Costs an inversion of
+  // the 53 x 53 information matrix a frame (~0.1 ms); eval track turns it on.
+  bool report_weight_sigma = false;
+
   // --- Loss detection ---
   int min_inliers = 150;
   float min_inlier_fraction = 0.35f;  // of the samples facing the camera inside the image
@@ -315,9 +320,12 @@ struct TrackReport {
   RigidPose raw_camera_from_model;
   int shape_count = 0;
   std::array<float, kMaxTrackedShapes> weights{};  // model fitting-shape order, [0, 1]
-  int samples_used = 0;                            // samples with a depth correspondence
-  int inliers = 0;                                 // of those, within the Tukey cut-off
-  float rms_mm = 0.0f;                             // point-to-plane RMS of the inliers
+  // With TrackerOptions::report_weight_sigma: each weight's standard error from this frame's
+  // data alone (no priors; given the pose), +inf for a shape the data does not see; else 0.
+  std::array<float, kMaxTrackedShapes> weight_sigma{};
+  int samples_used = 0;  // samples with a depth correspondence
+  int inliers = 0;       // of those, within the Tukey cut-off
+  float rms_mm = 0.0f;   // point-to-plane RMS of the inliers
   int landmarks_used = 0;
   int calibration_frames_left = 0;
   TrackTimes times;  // wall clock of the calling thread's work

@@ -92,6 +92,7 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       {"hidden_hold", &TrackerOptions::hidden_hold},
       {"occluder_margin_mm", &TrackerOptions::occluder_margin_mm},
       {"occluder_radius_px", &TrackerOptions::occluder_radius_px},
+      {"report_weight_sigma", &TrackerOptions::report_weight_sigma},
   };
   TrackerOptions o;
   std::size_t start = 0;
@@ -253,6 +254,8 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
       r.abs_error[static_cast<std::size_t>(j)] =
           std::abs(report.weights[static_cast<std::size_t>(j)] - truth);
     }
+    if (run.tracker.report_weight_sigma)
+      r.weight_sigma.assign(report.weight_sigma.begin(), report.weight_sigma.begin() + k);
     const RigidPose& truth_pose = tf.truth.camera_from_model;
     const Eigen::Vector3d c = take.take.face_centre_model;
     r.rotation_error_deg = rotation_error_deg(report.camera_from_model, truth_pose);

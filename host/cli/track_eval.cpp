@@ -12,6 +12,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -161,6 +162,7 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
   if (!otake) return otake.failure();
   RunOptions orun = run;
   orun.landmarks = true;
+  orun.tracker.report_weight_sigma = true;  // what each frame's data allows, see per_frame
   auto ores = run_take(model, mapping, *otake, orun);
   if (!ores) return ores.failure();
   // The control: the same take (motion, weights, landmark noise) without the plate, so the
@@ -209,12 +211,15 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
         worst = j;
     }
     if (worst >= 0) {
-      worst_unaffected.push_back(
-          {{"frame", f},
-           {"unaffected_mae", n ? sum / n : 0.0},
-           {"occluded_shapes", on},
-           {"worst_shape", model.expression_names[static_cast<std::size_t>(worst)]},
-           {"worst_error", r.abs_error[static_cast<std::size_t>(worst)]}});
+      const auto w = static_cast<std::size_t>(worst);
+      worst_unaffected.push_back({{"frame", f},
+                                  {"unaffected_mae", n ? sum / n : 0.0},
+                                  {"occluded_shapes", on},
+                                  {"unoccluded_shapes", n},
+                                  {"worst_shape", model.expression_names[w]},
+                                  {"worst_error", r.abs_error[w]},
+                                  {"worst_shape_data_sigma", r.weight_sigma[w]},
+                                  {"worst_error_in_control", control.abs_error[w]}});
     }
     if (on) occluded_err.push_back(osum / on);
   }
@@ -473,6 +478,33 @@ int run_eval_track(const ParsedOptions& options) {
     result["occluder"]["worst_frame_per_take"] = to_json(stats_of(worst));
     result["occluder"]["takes_over_0_05"] =
         std::count_if(worst.begin(), worst.end(), [](double e) { return e > 0.05; });
+    // Where the misses are: the figure is a mean over the shapes the plate leaves uncovered,
+    // so on a frame that covers all but one or two it is that one shape's error, and a weak
+    // shape (a brow) alone has a per-frame standard error from depth of ~0.1
+    // (worst_shape_data_sigma). Split by how many shapes the mean is over, and every frame
+    // over 0.05 with what its data allowed.
+    nlohmann::json by_count, over = nlohmann::json::array();
+    for (const auto& [name, lo, hi] :
+         {std::tuple{"1_to_2", 1, 2}, std::tuple{"3_or_more", 3, 1000}}) {
+      std::vector<double> errors;
+      for (const auto& t : occluder_takes)
+        for (const auto& f : t["per_frame"])
+          if (const int u = f["unoccluded_shapes"]; u >= lo && u <= hi)
+            errors.push_back(f["unaffected_mae"].get<double>());
+      by_count[name] = {{"frames", errors.size()},
+                        {"max", stats_of(errors).max},
+                        {"frames_over_0_05", std::count_if(errors.begin(), errors.end(),
+                                                           [](double e) { return e > 0.05; })}};
+    }
+    for (const auto& t : occluder_takes)
+      for (const auto& f : t["per_frame"])
+        if (f["unaffected_mae"].get<double>() > 0.05) {
+          nlohmann::json entry = f;
+          entry["take"] = t["seed"];
+          over.push_back(std::move(entry));
+        }
+    result["occluder"]["unaffected_weight_error_by_unoccluded_shapes"] = by_count;
+    result["occluder"]["frames_over_0_05"] = over;
   }
   result["takes"] = takes;
   result["tracker_overrides"] = options.get("set");
@@ -524,6 +556,12 @@ int run_eval_track(const ParsedOptions& options) {
       {"occluded_unaffected_error_added_by_plate",
        "the same, minus the error of the same shapes on the same frame of a control take "
        "(same seed, motion, weights, no plate): what the plate itself adds"},
+      {"occluder_frames_over_0_05",
+       "occluder.frames_over_0_05 lists every such frame, with how many shapes the mean is "
+       "over, its worst shape's error, that shape's error on the control take, and "
+       "worst_shape_data_sigma: the standard error that frame's data alone (depth rows and "
+       "landmarks, no priors) allows that weight; "
+       "occluder.unaffected_weight_error_by_unoccluded_shapes splits the frames by that count"},
       {"occlusion_recovery_frames",
        "frames after the plate leaves until tracking with every "
        "weight within 0.1 and pose within 1 deg / 2 mm (-1 = never)"}};

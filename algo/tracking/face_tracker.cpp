@@ -1215,14 +1215,16 @@ void FaceTracker::State::estimate_weight_sigma(int depth_rows, int landmark_rows
   // landmark rows carry sqrt(landmark_weight * landmark_scale) and a source's points have
   // noise_px = landmark_noise_px / sqrt(landmark_scale), so their row noise is
   // sqrt(landmark_weight) * landmark_noise_px whatever the source. Robust weights stay in the
-  // rows: a down-weighted sample informs less.
+  // rows: a down-weighted sample informs less. `h` holds the Gram matrix of all the rows
+  // (depth and landmarks, before the priors), so only the landmark rows' is built again.
   const float depth_variance = depth_sigma_mm * depth_sigma_mm;
-  set_gram(rows, 0, depth_rows, information);
-  information /= depth_variance;
+  information = h / depth_variance;
   if (landmark_rows > 0) {
     set_gram(rows, depth_rows, landmark_rows, landmark_gram);
-    information += landmark_gram / (options.landmark_weight * options.landmark_noise_px *
-                                    options.landmark_noise_px);
+    information +=
+        landmark_gram *
+        (1.0f / (options.landmark_weight * options.landmark_noise_px * options.landmark_noise_px) -
+         1.0f / depth_variance);
   }
   weight_standard_errors(information, 1e-3f * signal_median / depth_variance, weight_sigma);
 }

@@ -108,6 +108,10 @@ struct StatusData {
   std::string tracking_reason;    // why it has no face then (TrackReport::loss_reason), or ""
   std::string tracking_identity;  // where the tracked identity came from
   long long vmc_datagrams = 0;
+  // Over the last kLatencyWindow tracked frames: from the frame leaving the camera driver to its
+  // VMC datagrams sent (or the weights ready, with VMC off), and the tracker's own share.
+  double tracking_latency_median_ms = 0, tracking_latency_p95_ms = 0;
+  double tracking_ms_median = 0;
   std::int64_t last_take = 0;  // id of the last stored take
   std::string tracking_note;   // e.g. why a take was not stored
   std::filesystem::path last_export;
@@ -126,6 +130,7 @@ struct Daemon::Impl {
   std::mutex records_mutex;  // SessionRecords is single-threaded; worker and HTTP share it
 
   std::unique_ptr<DepthCamera> preview_camera;  // worker only
+  long long frames_since_loop = 0;              // preview_camera's frames since it (re)started
   FaceFusion fusion;                            // worker only
   QaReport pending_qa;                          // the last take, between record and process
   CaptureCommit pending_commit;
@@ -161,6 +166,10 @@ struct Daemon::Impl {
   std::unique_ptr<VmcSender> vmc;
   std::optional<ArkitMapping> arkit;
   std::vector<float> take_values;
+  // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).
+  static constexpr int kLatencyWindow = 300;
+  std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};
+  int latency_count = 0;
   int take_frames = 0;
   std::int64_t take_session = 0;
   TrackReport track_report;
@@ -211,6 +220,8 @@ struct Daemon::Impl {
   Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
   void preview_tick();
   void tracking_tick();
+  // At the end of a recording or synthetic take: starts it over (see daemon.cpp).
+  void loop_preview_camera();
   // daemon_pipeline.cpp
   Result<void> start_fitter();
   void fit_loop();

@@ -6,6 +6,9 @@
 // the session) back into the worker's queue. A stop discards queued jobs and abandons a job
 // whose fit is running before it commits (the capture stays not done and is recorded again
 // after a restart, exactly like a take interrupted by SIGTERM).
+#include <malloc.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -406,6 +409,9 @@ Result<void> Daemon::Impl::start_tracking() {
     s.tracking_note.clear();
   });
   if (!fitter) return fail("tracking needs the face model: " + fitter_error);
+  // A session before leaves its freed buffers (fusion volumes, the fit thread's arena) in the
+  // heap; hand them back before the tracker allocates, or the peak adds both.
+  ::malloc_trim(0);
   const FaceModel& model = fitter->model();  // immutable after create(): safe on this thread
   auto t = FaceTracker::create(model, preview_camera->info().depth_intrinsics);
   if (!t) return t.failure();
@@ -414,7 +420,12 @@ Result<void> Daemon::Impl::start_tracking() {
   if (!mapping) return mapping.failure();
   arkit = *mapping;
   take_values.clear();
+  // The whole take's room up front, so the frame loop does not grow it (the pages count only
+  // once written).
+  take_values.reserve(static_cast<std::size_t>(config.streaming.max_take_frames) *
+                      (7 + kArkitNames.size()));
   take_frames = 0;
+  latency_count = 0;
   {
     std::lock_guard lock(status_mutex);
     take_session = status.session;
@@ -477,6 +488,7 @@ Result<void> Daemon::Impl::start_tracking() {
   update_status([&](StatusData& s) {
     s.tracking_identity = identity_note;
     s.vmc_datagrams = 0;
+    s.tracking_latency_median_ms = s.tracking_latency_p95_ms = s.tracking_ms_median = 0;
   });
   std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", identity_note.c_str(),
                target.empty() ? "off" : target.c_str());
@@ -514,17 +526,27 @@ void Daemon::Impl::stop_tracking() {
   if (!note.empty()) std::fprintf(stderr, "faceboothd: %s\n", note.c_str());
 }
 
+namespace {
+
+// The q-quantile of the first n values (a copy: the ring keeps its order).
+template <std::size_t N>
+double percentile_of(std::array<float, N> values, int n, double q) {
+  if (n <= 0) return 0.0;
+  const auto k = static_cast<std::ptrdiff_t>(q * (n - 1) + 0.5);
+  std::nth_element(values.begin(), values.begin() + k, values.begin() + n);
+  return values[static_cast<std::size_t>(k)];
+}
+
+}  // namespace
+
 void Daemon::Impl::tracking_tick() {
   const auto t0 = Clock::now();
   RgbdFrame frame;
   auto got = preview_camera->next_frame(frame, std::chrono::milliseconds(100));
-  if (got && *got == FrameStatus::kEndOfStream) {
-    preview_camera->stop();
-    if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start())
-      preview_camera = std::move(*reopened);
-    return;
-  }
+  if (got && *got == FrameStatus::kEndOfStream) return loop_preview_camera();
   if (!got || *got != FrameStatus::kFrame) return;
+  const auto arrival = Clock::now();
+  ++frames_since_loop;
   {
     std::lock_guard lock(preview_mutex);
     const FaceBox box = default_face_box(frame.color.width, frame.color.height);
@@ -548,6 +570,10 @@ void Daemon::Impl::tracking_tick() {
       if (auto sent = vmc->send(track_frame); !sent)
         update_status([&](StatusData& s) { s.tracking_note = sent.error().message; });
     }
+    const auto slot = static_cast<std::size_t>(latency_count++ % kLatencyWindow);
+    latency_ring[slot] = static_cast<float>(
+        std::chrono::duration<double, std::milli>(Clock::now() - arrival).count());
+    track_ms_ring[slot] = static_cast<float>(track_report.times.total_ms());
     if (take_frames < config.streaming.max_take_frames) {
       const auto& p = track_frame.camera_from_model;
       const float pose[7] = {
@@ -579,12 +605,20 @@ void Daemon::Impl::tracking_tick() {
     frames = ++status.frames_total;
     ++status.tracking_frames;
   }
-  if (state_changed || frames % 15 == 0)
+  if (state_changed || frames % 15 == 0) {
+    const int n = std::min(latency_count, kLatencyWindow);
+    const double latency_median = percentile_of(latency_ring, n, 0.5);
+    const double latency_p95 = percentile_of(latency_ring, n, 0.95);
+    const double track_median = percentile_of(track_ms_ring, n, 0.5);
     update_status([&](StatusData& s) {
       s.tracking_state = state;
       s.tracking_reason = reason;
       s.vmc_datagrams = vmc_sent;
+      s.tracking_latency_median_ms = latency_median;
+      s.tracking_latency_p95_ms = latency_p95;
+      s.tracking_ms_median = track_median;
     });
+  }
   if (config.camera.realtime) {
     const auto period = std::chrono::duration<double>(1.0 / preview_camera->info().fps);
     std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(period));

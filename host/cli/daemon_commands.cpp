@@ -6,6 +6,7 @@
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,6 +16,8 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
 #include <thread>
 
 #include "algo/core/result.hpp"
@@ -108,12 +111,64 @@ class Child {
   std::_Exit(0);
 }
 
+// Tracking mode after the session: the daemon tracks the session's subject and streams VMC to
+// a UDP socket here on loopback.
+struct TrackingRun {
+  double seconds = 0;
+  long long frames = 0, datagrams_sent = 0, datagrams_received = 0;
+  double latency_median_ms = 0, latency_p95_ms = 0, track_ms_median = 0, rss_peak = 0;
+  std::string state, identity;
+};
+
 struct SessionRun {
   double start_to_ready_ms = 0, daemon_ready_ms = 0, landmark_load_ms = 0;
   double rss_idle = 0, rss_peak = 0, rss_end = 0;
   long long frames_dropped = 0, frames_total = 0, captures = 0, load_requests = 0;
   double session_s = 0, export_wait_ms = 0, stop_ms = 0;
   bool clean_exit = false;
+  std::optional<TrackingRun> tracking;
+};
+
+// A UDP socket on a free loopback port that counts the datagrams it receives.
+class UdpCounter {
+ public:
+  UdpCounter() {
+    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof a;
+    if (fd_ >= 0 && ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+        ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+      port_ = ntohs(a.sin_port);
+    if (port_ > 0) {
+      // A receive timeout, so the reader sees stop_ without relying on shutdown() waking it.
+      timeval timeout{0, 200000};
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+      reader_ = std::thread([this] {
+        char buffer[2048];
+        while (!stop_)
+          if (::recv(fd_, buffer, sizeof buffer, 0) > 0) ++received_;
+      });
+    }
+  }
+  ~UdpCounter() {
+    stop_ = true;
+    if (fd_ >= 0) ::shutdown(fd_, SHUT_RDWR);
+    if (reader_.joinable()) reader_.join();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  UdpCounter(const UdpCounter&) = delete;
+  UdpCounter& operator=(const UdpCounter&) = delete;
+  int port() const { return port_; }
+  long long received() const { return received_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = -1;
+  std::atomic<bool> stop_{false};
+  std::atomic<long long> received_{0};
+  std::thread reader_;
 };
 
 // One daemon from start to SIGTERM: a session of the configured captures, with `load_threads`
@@ -121,7 +176,8 @@ struct SessionRun {
 // session export has been written (stop_ms: the stop of a daemon at rest), or with
 // `stop_during_export` as soon as the session is complete, while that export runs.
 Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& dir, int port,
-                                      int load_threads, bool stop_during_export) {
+                                      int load_threads, bool stop_during_export,
+                                      int track_seconds = 0, const UdpCounter* vmc = nullptr) {
   SessionRun out;
   fs::remove_all(dir / "data");
   const auto t0 = Clock::now();
@@ -210,6 +266,31 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
   out.captures = last["done_count"];
   out.daemon_ready_ms = last.value("start_to_ready_ms", 0.0);
 
+  if (track_seconds > 0 && vmc != nullptr) {
+    std::cerr << "bench daemon: tracking mode for " << track_seconds << " s\n";
+    TrackingRun t;
+    const long long received_before = vmc->received();
+    http.Post("/api/mode", R"({"mode": "tracking"})", "application/json");
+    const auto track_t0 = Clock::now();
+    std::this_thread::sleep_for(std::chrono::seconds(track_seconds));
+    const json s = status();
+    if (s.is_null()) return fail("faceboothd stopped answering in tracking mode");
+    const json& tr = s["tracking"];
+    t.seconds = ms_since(track_t0) / 1000.0;
+    t.frames = tr.value("frames", 0LL);
+    t.datagrams_sent = tr.value("vmc_datagrams", 0LL);
+    t.latency_median_ms = tr["latency_ms"].value("median", 0.0);
+    t.latency_p95_ms = tr["latency_ms"].value("p95", 0.0);
+    t.track_ms_median = tr.value("track_ms_median", 0.0);
+    t.state = tr.value("state", "");
+    t.identity = tr.value("identity", "");
+    t.rss_peak = rss_mb(pid, "VmHWM:");
+    http.Post("/api/mode", R"({"mode": "capture"})", "application/json");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    t.datagrams_received = vmc->received() - received_before;
+    out.tracking = t;
+  }
+
   const auto stop_t0 = Clock::now();
   const int exit_status = daemon_proc.kill(SIGTERM);
   out.stop_ms = ms_since(stop_t0);
@@ -224,7 +305,11 @@ int bench_daemon(const ParsedOptions& o) {
   auto captures = o.get_int("captures");
   auto frames = o.get_int("frames");
   auto threads = o.get_int("load-threads");
-  if (!captures || !frames || !threads) return report_failure({"bad numeric option"});
+  auto track_seconds = o.get_int("track-seconds");
+  if (!captures || !frames || !threads || !track_seconds)
+    return report_failure({"bad numeric option"});
+  if (*track_seconds < 0 || *track_seconds > 600)
+    return report_failure({"--track-seconds must be 0..600"});
   if (*captures < 1 || *captures > 20) return report_failure({"--captures must be 1..20"});
   if (*threads < 1) return report_failure({"--load-threads must be at least 1"});
 
@@ -250,11 +335,14 @@ int bench_daemon(const ParsedOptions& o) {
     std::ofstream(dir / "guide.json") << guide.dump();
   }
   const int port = free_port();
+  UdpCounter vmc;
+  if (vmc.port() <= 0) return report_failure({"cannot open a UDP socket on loopback"});
   std::ofstream(dir / "faceboothd.toml")
       << "[camera]\nuri = \"synthetic:seed=7\"\ncapture_frames = " << *frames
       << "\nrealtime = true\npreview_fps = 5.0\n[storage]\ndata_dir = \"" << (dir / "data").string()
       << "\"\n[http]\nport = " << port << "\n[session]\nguide_file = \""
-      << (dir / "guide.json").string() << "\"\n";
+      << (dir / "guide.json").string() << "\"\n[streaming]\nvmc_target = \"127.0.0.1:" << vmc.port()
+      << "\"\n";
 
   // The same session twice: without load (the frames the frame loop drops by itself on this
   // machine: the synthetic camera renders on that thread; SIGTERM while the end-of-session
@@ -263,7 +351,8 @@ int bench_daemon(const ParsedOptions& o) {
   auto quiet = run_daemon_session(daemon, dir, port, 0, /*stop_during_export=*/true);
   if (!quiet) return report_failure(quiet.error());
   std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (under load)\n";
-  auto loaded = run_daemon_session(daemon, dir, port, static_cast<int>(*threads), false);
+  auto loaded = run_daemon_session(daemon, dir, port, static_cast<int>(*threads), false,
+                                   static_cast<int>(*track_seconds), &vmc);
   if (!loaded) return report_failure(loaded.error());
   const SessionRun& r = *loaded;
 
@@ -298,6 +387,26 @@ int bench_daemon(const ParsedOptions& o) {
               {"stop_ms", r.stop_ms},
               {"stop_ms_during_export", quiet->stop_ms},
               {"clean_exit", r.clean_exit && quiet->clean_exit}};
+  if (r.tracking) {
+    const TrackingRun& t = *r.tracking;
+    out["tracking"] = {
+        {"seconds", t.seconds},
+        {"frames", t.frames},
+        {"fps", t.seconds > 0 ? t.frames / t.seconds : 0.0},
+        {"state", t.state},
+        {"identity", t.identity},
+        {"latency_ms_median", t.latency_median_ms},
+        {"latency_ms_p95", t.latency_p95_ms},
+        {"track_ms_median", t.track_ms_median},
+        {"vmc_datagrams_sent", t.datagrams_sent},
+        {"vmc_datagrams_received", t.datagrams_received},
+        {"rss_peak_mb", t.rss_peak},
+        {"note",
+         "the daemon's tracking mode on the session's subject, depth only, VMC to a UDP socket "
+         "on loopback; latency: from the frame leaving the camera driver (the synthetic camera "
+         "renders it on the frame loop first) to its VMC datagrams sent, median and p95 over "
+         "the last 300 frames; track_ms: the tracker's own share"}};
+  }
   std::cout << out.dump(2) << "\n";
   return kExitOk;
 }
@@ -313,12 +422,18 @@ std::vector<Command> daemon_commands() {
             "resident memory (VmHWM) with the dlib landmark model and the face model loaded, "
             "takes fused, landmarked, fitted and stored (budget 256 MB); rss_idle_mb is after "
             "start-up, rss_end_mb after the session. The session runs twice, first without "
-            "load: frames_dropped_without_load is what the frame loop drops by itself.",
+            "load: frames_dropped_without_load is what the frame loop drops by itself. Then "
+            "(--track-seconds) the daemon tracks the session's subject in tracking mode, "
+            "streaming VMC to a UDP socket of this process: tracking.latency_ms_median / _p95 "
+            "from the frame leaving the camera driver to its datagrams sent, the datagrams "
+            "received, the peak memory while tracking.",
             {{"json", "", "print the JSON result (always on; for symmetry with other benches)", ""},
              {"daemon", "PATH", "the faceboothd binary", ""},
              {"captures", "N", "guide expressions to capture (1-20)", "5"},
              {"frames", "N", "frames per take (90 = 3 s at 30 fps)", "90"},
-             {"load-threads", "N", "concurrent HTTP clients of the load process", "4"}}},
+             {"load-threads", "N", "concurrent HTTP clients of the load process", "4"},
+             {"track-seconds", "N",
+              "then track the session's subject in tracking mode for N s (0 = skip)", "15"}}},
            &bench_daemon}};
 }
 

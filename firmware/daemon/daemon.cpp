@@ -453,7 +453,7 @@ void Daemon::Impl::preview_tick() {
 // again before giving a frame (a replay that does not rewind), is replaced by a new one. Keeping
 // it is what matters for memory: a synthetic camera holds its own face model and render
 // buffers, and opening the next one while the last still lived put both in the peak every 90
-// frames (bench daemon, tracking mode after a session: VmHWM 256-261 MB, budget 256).
+// frames (bench daemon, tracking mode after a session: VmHWM 255-257 MB, budget 256).
 void Daemon::Impl::loop_preview_camera() {
   preview_camera->stop();
   const bool rewound = frames_since_loop > 0 && preview_camera->start();

@@ -169,7 +169,7 @@ struct Daemon::Impl {
   // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).
   static constexpr int kLatencyWindow = 300;
   std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};
-  int latency_count = 0;
+  long long latency_count = 0;
   int take_frames = 0;
   std::int64_t take_session = 0;
   TrackReport track_report;

@@ -606,7 +606,7 @@ void Daemon::Impl::tracking_tick() {
     ++status.tracking_frames;
   }
   if (state_changed || frames % 15 == 0) {
-    const int n = std::min(latency_count, kLatencyWindow);
+    const int n = static_cast<int>(std::min<long long>(latency_count, kLatencyWindow));
     const double latency_median = percentile_of(latency_ring, n, 0.5);
     const double latency_p95 = percentile_of(latency_ring, n, 0.95);
     const double track_median = percentile_of(track_ms_ring, n, 0.5);

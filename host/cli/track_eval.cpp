@@ -12,7 +12,6 @@
 #include <optional>
 #include <span>
 #include <string>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -483,26 +482,26 @@ int run_eval_track(const ParsedOptions& options) {
     // shape (a brow) alone has a per-frame standard error from depth of ~0.1
     // (worst_shape_data_sigma). Split by how many shapes the mean is over, and every frame
     // over 0.05 with what its data allowed.
-    nlohmann::json by_count, over = nlohmann::json::array();
-    for (const auto& [name, lo, hi] :
-         {std::tuple{"1_to_2", 1, 2}, std::tuple{"3_or_more", 3, 1000}}) {
-      std::vector<double> errors;
-      for (const auto& t : occluder_takes)
-        for (const auto& f : t["per_frame"])
-          if (const int u = f["unoccluded_shapes"]; u >= lo && u <= hi)
-            errors.push_back(f["unaffected_mae"].get<double>());
-      by_count[name] = {{"frames", errors.size()},
-                        {"max", stats_of(errors).max},
-                        {"frames_over_0_05", std::count_if(errors.begin(), errors.end(),
-                                                           [](double e) { return e > 0.05; })}};
-    }
+    std::vector<double> one_or_two, three_or_more;
+    nlohmann::json over = nlohmann::json::array();
     for (const auto& t : occluder_takes)
-      for (const auto& f : t["per_frame"])
-        if (f["unaffected_mae"].get<double>() > 0.05) {
+      for (const auto& f : t["per_frame"]) {
+        const double e = f["unaffected_mae"].get<double>();
+        (f["unoccluded_shapes"].get<int>() <= 2 ? one_or_two : three_or_more).push_back(e);
+        if (e > 0.05) {
           nlohmann::json entry = f;
           entry["take"] = t["seed"];
           over.push_back(std::move(entry));
         }
+      }
+    auto split = [](const std::vector<double>& errors) {
+      return nlohmann::json{{"frames", errors.size()},
+                            {"max", stats_of(errors).max},
+                            {"frames_over_0_05", std::count_if(errors.begin(), errors.end(),
+                                                               [](double e) { return e > 0.05; })}};
+    };
+    const nlohmann::json by_count = {{"1_to_2", split(one_or_two)},
+                                     {"3_or_more", split(three_or_more)}};
     result["occluder"]["unaffected_weight_error_by_unoccluded_shapes"] = by_count;
     result["occluder"]["frames_over_0_05"] = over;
   }

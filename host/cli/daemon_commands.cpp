@@ -414,7 +414,7 @@ int bench_daemon(const ParsedOptions& o) {
 
 std::vector<Command> daemon_commands() {
   return {{{"bench daemon",
-            "faceboothd start-to-ready, memory, frames dropped under HTTP load",
+            "faceboothd start-to-ready, memory, frames dropped under HTTP load, tracking latency",
             "Starts faceboothd (synthetic camera, simulated buttons, real-time takes) in a scratch "
             "directory, runs a session through its HTTP API while a second process loads the API "
             "from several keep-alive clients, then stops it with SIGTERM. rss_mb is the peak "

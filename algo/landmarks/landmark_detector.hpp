@@ -78,6 +78,10 @@ class LandmarkDetector {
   Result<DetectedLandmarks> detect(const ColorImage& image);
   // Forgets the tracked face (the next call is a full-image detection).
   void reset_tracking();
+  // A second detector on the same shape predictor (33 MB, read-only and shared, not copied)
+  // with its own face detector and tracking state: for another thread, e.g. the device's
+  // tracking mode beside its fit thread.
+  LandmarkDetector share() const;
 
  private:
   struct State;

@@ -309,6 +309,8 @@ nlohmann::json Daemon::Impl::status_json() const {
         {"latency_ms",
          {{"median", s.tracking_latency_median_ms}, {"p95", s.tracking_latency_p95_ms}}},
         {"track_ms_median", s.tracking_ms_median},
+        {"reacquire", s.tracking_reacquire},
+        {"detections", s.tracking_detections},
         {"last_take", s.last_take},
         {"note", s.tracking_note},
         {"live", "/api/tracking/events"}}},

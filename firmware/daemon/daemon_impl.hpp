@@ -18,6 +18,7 @@
 
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/tracking/arkit.hpp"
+#include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
@@ -108,6 +109,8 @@ struct StatusData {
   std::string tracking_reason;    // why it has no face then (TrackReport::loss_reason), or ""
   std::string tracking_identity;  // where the tracked identity came from
   long long vmc_datagrams = 0;
+  std::string tracking_reacquire;     // how a lost face is found again
+  long long tracking_detections = 0;  // frames the face detector found the face on
   // Over the last kLatencyWindow tracked frames: from the frame leaving the camera driver to its
   // VMC datagrams sent (or the weights ready, with VMC off), and the tracker's own share.
   double tracking_latency_median_ms = 0, tracking_latency_p95_ms = 0;
@@ -166,6 +169,10 @@ struct Daemon::Impl {
   std::unique_ptr<VmcSender> vmc;
   std::optional<ArkitMapping> arkit;
   std::vector<float> take_values;
+  // Re-acquisition by detection: dlib on the colour image while the tracker has no face (the
+  // fitter's shape predictor, shared); its pose seeds the ICP. Empty without the landmark model.
+  std::optional<TrackLandmarkSource> reacquire_source;
+  bool face_before = false;  // the last tracked frame had the face
   // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).
   static constexpr int kLatencyWindow = 300;
   std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};

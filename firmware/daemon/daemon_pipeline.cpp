@@ -426,6 +426,8 @@ Result<void> Daemon::Impl::start_tracking() {
                       (7 + kArkitNames.size()));
   take_frames = 0;
   latency_count = 0;
+  face_before = false;
+  reacquire_source.emplace(fitter->share_landmark_detector(), preview_camera->info().calibration);
   {
     std::lock_guard lock(status_mutex);
     take_session = status.session;
@@ -489,6 +491,8 @@ Result<void> Daemon::Impl::start_tracking() {
     s.tracking_identity = identity_note;
     s.vmc_datagrams = 0;
     s.tracking_latency_median_ms = s.tracking_latency_p95_ms = s.tracking_ms_median = 0;
+    s.tracking_reacquire = "dlib face detection on the colour image, then depth";
+    s.tracking_detections = 0;
   });
   std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", identity_note.c_str(),
                target.empty() ? "off" : target.c_str());
@@ -516,6 +520,7 @@ void Daemon::Impl::stop_tracking() {
     }
   }
   tracker.reset();
+  reacquire_source.reset();
   vmc.reset();
   take_values.clear();
   take_values.shrink_to_fit();
@@ -558,7 +563,18 @@ void Daemon::Impl::tracking_tick() {
   }
   bool state_changed = false;
   if (tracker) {
-    tracker->track(frame.depth_mm, frame.depth_host_time_s, nullptr, track_report);
+    // While the face is not found (start, after loss) the detector looks for it: its
+    // landmarks give the tracker a pose to start from. Tracked frames use depth alone.
+    const TrackLandmarks* landmarks = nullptr;
+    if (reacquire_source && !face_before &&
+        reacquire_source->detect(frame.color, frame.depth_mm).found) {
+      landmarks = reacquire_source->landmarks();
+      update_status([](StatusData& s) { ++s.tracking_detections; });
+    }
+    tracker->track(frame.depth_mm, frame.depth_host_time_s, landmarks, track_report);
+    // Lost: the next detection searches the whole image, not around the last face.
+    if (face_before && !track_report.face_found && reacquire_source) reacquire_source->reset();
+    face_before = track_report.face_found;
     track_frame.index = frame.index;
     track_frame.time_s = frame.depth_host_time_s;
     track_frame.face_found = track_report.face_found;

@@ -148,6 +148,9 @@ const std::vector<float>& QuickFitter::identity() const {
 double QuickFitter::landmark_model_load_ms() const {
   return state_->load_ms;
 }
+LandmarkDetector QuickFitter::share_landmark_detector() const {
+  return state_->detector->share();
+}
 void QuickFitter::forget_neutral() {
   state_->neutral_session = 0;
   state_->transfer.reset();

@@ -24,6 +24,7 @@
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
 #include "algo/fitting/face_fit.hpp"
+#include "algo/landmarks/landmark_detector.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "storage/stored_data.hpp"
@@ -103,6 +104,9 @@ class QuickFitter {
 
   MeshData mesh(const QuickFitResult& result) const;
   double landmark_model_load_ms() const;
+  // A detector on the fitter's shape predictor (shared, not reloaded) for another thread: the
+  // tracking mode's re-acquisition by detection. The fitter keeps using its own.
+  LandmarkDetector share_landmark_detector() const;
 
   struct State;
 

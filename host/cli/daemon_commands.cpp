@@ -120,9 +120,9 @@ class Child {
 // a UDP socket here on loopback.
 struct TrackingRun {
   double seconds = 0;
-  long long frames = 0, datagrams_sent = 0, datagrams_received = 0;
+  long long frames = 0, datagrams_sent = 0, datagrams_received = 0, detections = 0;
   double latency_median_ms = 0, latency_p95_ms = 0, track_ms_median = 0, rss_peak = 0;
-  std::string state, identity;
+  std::string state, identity, reacquire;
 };
 
 struct SessionRun {
@@ -283,6 +283,8 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
     t.track_ms_median = tr.value("track_ms_median", 0.0);
     t.state = tr.value("state", "");
     t.identity = tr.value("identity", "");
+    t.reacquire = tr.value("reacquire", "");
+    t.detections = tr.value("detections", 0LL);
     t.rss_peak = rss_mb(pid, "VmHWM:");
     http.Post("/api/mode", R"({"mode": "capture"})", "application/json");
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -394,6 +396,8 @@ int bench_daemon(const ParsedOptions& o) {
         {"fps", t.seconds > 0 ? t.frames / t.seconds : 0.0},
         {"state", t.state},
         {"identity", t.identity},
+        {"reacquire", t.reacquire},
+        {"detections", t.detections},
         {"latency_ms_median", t.latency_median_ms},
         {"latency_ms_p95", t.latency_p95_ms},
         {"track_ms_median", t.track_ms_median},

@@ -462,6 +462,11 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   EXPECT_GE(latency["p95"].get<double>(), latency["median"].get<double>());
   EXPECT_GT(s["tracking"]["track_ms_median"].get<double>(), 0.0);
   EXPECT_LE(s["tracking"]["track_ms_median"].get<double>(), latency["median"].get<double>());
+  // The face was first found by detection (the tracker starts without one), then tracked on
+  // depth: a few detections, not one a frame.
+  EXPECT_EQ(s["tracking"]["reacquire"], "dlib face detection on the colour image, then depth");
+  EXPECT_GE(s["tracking"]["detections"].get<int>(), 1) << s.dump();
+  EXPECT_LT(s["tracking"]["detections"].get<int>(), 10) << s.dump();
   // Why the tracker has no face, when it has none (TrackReport::loss_reason): empty here.
   ASSERT_TRUE(s["tracking"].contains("reason")) << s.dump();
   if (s["tracking"]["state"] == "tracking") {

@@ -251,6 +251,28 @@ std::pair<ColorImage, std::array<Eigen::Vector2d, 68>> still_at(double distance_
 // jumped nearer), the detector searches a window around the last face resampled to a 96 px face
 // over four pyramid levels. A face 1.2x and one 1.6x as near are both found there, with a box
 // that grew with the face, and their points are as good as a first detection's.
+// share(): a second detector on the same predictor gives the same points, and each keeps its
+// own tracking state (the device's fit thread and tracking mode use one each).
+TEST(Landmarks, SharedDetectorFindsTheSamePointsWithItsOwnTracking) {
+  if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
+  std::ifstream in(kPredictor, std::ios::binary);
+  auto det = LandmarkDetector::create(in);
+  ASSERT_TRUE(det.ok()) << det.error().message;
+  LandmarkDetector shared = det->share();
+  const Shot s = shot();
+  auto first = det->detect(s.frame.color);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  auto second = det->detect(s.frame.color);
+  ASSERT_TRUE(second.ok());
+  EXPECT_TRUE(second->tracked);
+  // The shared detector has seen no frame yet: a full-image detection, the same points.
+  auto from_shared = shared.detect(s.frame.color);
+  ASSERT_TRUE(from_shared.ok()) << from_shared.error().message;
+  EXPECT_FALSE(from_shared->tracked);
+  for (int l = 0; l < 68; ++l)
+    EXPECT_LT((from_shared->points[l] - first->points[l]).norm(), 1e-9) << "point " << l;
+}
+
 TEST(Landmarks, DlibReanchorsOnTheResampledWindowWhenTheFaceJumpsNearer) {
   if (!std::filesystem::exists(kPredictor)) GTEST_SKIP() << "libdlib-data not installed";
   const std::string bytes = predictor_bytes();

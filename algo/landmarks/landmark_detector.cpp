@@ -85,6 +85,17 @@ double correlation(const Patch& a, const Patch& b) {
   return c;
 }
 
+// The per-call scratch of ShapeCascade::operator(): each detector has its own, so one cascade
+// (read-only after loading) serves several detectors on several threads.
+struct CascadeScratch {
+  struct LeafRef {
+    const std::int16_t* values;
+    float scale;
+  };
+  std::vector<float> features;
+  std::vector<LeafRef> leaves;
+};
+
 // dlib's shape_predictor (same model file, same trees), with the trees of each cascade level
 // packed into contiguous arrays (splits, leaf vectors) and evaluated in two passes: first every
 // tree is walked to its leaf (the features are fixed within a level) and the leaf vector is
@@ -97,17 +108,6 @@ double correlation(const Patch& a, const Patch& b) {
 // it moves a feature pixel across a pixel boundary and so flips a split. Measured over a head
 // turn: 29 of 2040 points differ from dlib's (whole pixels) by one rounding step, mean 0.015 px
 // (one scale per tree instead: 245 differ, mean 0.13 px).
-// The per-call scratch of ShapeCascade::operator(): each detector has its own, so one cascade
-// (read-only after loading) serves several detectors on several threads.
-struct CascadeScratch {
-  struct LeafRef {
-    const std::int16_t* values;
-    float scale;
-  };
-  std::vector<float> features;
-  std::vector<LeafRef> leaves;
-};
-
 struct ShapeCascade {
   struct Split {
     std::uint32_t idx1, idx2;

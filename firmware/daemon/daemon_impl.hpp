@@ -170,7 +170,7 @@ struct Daemon::Impl {
   std::optional<ArkitMapping> arkit;
   std::vector<float> take_values;
   // Re-acquisition by detection: dlib on the colour image while the tracker has no face (the
-  // fitter's shape predictor, shared); its pose seeds the ICP. Empty without the landmark model.
+  // fitter's shape predictor, shared); its pose seeds the ICP. Set only in tracking mode.
   std::optional<TrackLandmarkSource> reacquire_source;
   bool face_before = false;  // the last tracked frame had the face
   // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).

@@ -137,27 +137,52 @@ void create_dxdy_tables(const KinectRegInfo& r, std::vector<double>& reg_x,
 }
 
 // freenect_init_registration_table: per depth pixel, the rectified colour-image position
-// before the depth-dependent parallax shift; x in fixed point (x kRegXValScale), y integer.
-void build_registration_table(const KinectRegInfo& reg_info, std::vector<std::int32_t>& table) {
+// before the depth-dependent parallax shift, x and y in fixed point (x kRegXValScale). The y of
+// libfreenect's table is a truncated whole row; with an identity correction the values here are
+// exactly libfreenect's. The unit's correction is applied on top (see RegistrationCorrection).
+void build_registration_table(const KinectRegInfo& reg_info, const RegistrationCorrection& corr,
+                              std::vector<std::int32_t>& table) {
   std::vector<double> dx;
   std::vector<double> dy;
   create_dxdy_tables(reg_info, dx, dy);
   table.assign(static_cast<std::size_t>(kWidth) * kHeight * 2, 0);
+  const double angle = corr.rotation_deg * 3.14159265358979323846 / 180.0;
+  const double cs = std::cos(angle), sn = std::sin(angle);
+  const double cx = (kWidth - 1) / 2.0, cy = (kHeight - 1) / 2.0;
+  const bool identity = corr.registration_is_identity();
   std::size_t index = 0;
   for (int y = 0; y < kHeight; ++y) {
     for (int x = 0; x < kWidth; ++x, ++index) {
       double new_x = x + dx[index] + kDepthXOffset;
-      const double new_y = y + dy[index] + kDepthYOffset;
-      if (new_x < 0 || new_y < 0 || new_x >= kWidth || new_y >= kHeight) {
+      const double raw_y = y + dy[index] + kDepthYOffset;
+      const bool inside = !(new_x < 0 || raw_y < 0 || new_x >= kWidth || raw_y >= kHeight);
+      double new_y = static_cast<double>(static_cast<std::int32_t>(raw_y));  // C truncation
+      if (!inside) {
         new_x = 2 * kWidth;  // deliberately outside the image, as libfreenect does
+      } else if (!identity) {
+        const double ux = new_x - cx, uy = new_y - cy;
+        new_x = cx + cs * ux - sn * uy + corr.dx_px;
+        new_y = cy + sn * ux + cs * uy + corr.dy_px;
       }
       table[2 * index] = static_cast<std::int32_t>(new_x * kRegXValScale);
-      table[2 * index + 1] = static_cast<std::int32_t>(new_y);
+      table[2 * index + 1] = static_cast<std::int32_t>(std::lround(new_y * kRegXValScale));
     }
   }
 }
 
+// Floor division by the fixed-point scale (the corrected table can hold negative y).
+std::int32_t floor_fixed(std::int32_t v) {
+  return v >= 0 ? v / kRegXValScale : -((-v + kRegXValScale - 1) / kRegXValScale);
+}
+
 }  // namespace
+
+double RegistrationCorrection::corrected_mm(double table_mm) const {
+  if (!(table_mm > 0.0)) return 0.0;
+  if (depth_scale == 1.0 && inverse_depth_offset_per_m == 0.0) return table_mm;
+  const double inverse = 1.0 / (depth_scale * table_mm) + inverse_depth_offset_per_m / 1000.0;
+  return inverse > 0.0 ? 1.0 / inverse : 0.0;
+}
 
 KinectCalibration KinectCalibration::defaults() {
   // Values of the openiss-desk dump's device.json (a real Kinect v1, model 1414). The two
@@ -218,13 +243,18 @@ KinectRegistration::KinectRegistration(const KinectCalibration& calibration)
   // pole of the formula, around raw 1090); here anything not in (0, 10000) mm is invalid, which
   // is what its registration path treats as "no depth" anyway.
   raw_to_mm_table_.assign(kDepthMaxRawValue, 0);
+  raw_to_mm_exact_table_.assign(kDepthMaxRawValue, 0.0f);
   for (int raw = 0; raw < kDepthMaxRawValue; ++raw) {
-    const double mm = raw_to_mm_value(raw, calibration_);
-    if (std::isfinite(mm) && mm >= 1.0 && mm < kDepthMaxMetricValue) {
-      raw_to_mm_table_[raw] = static_cast<std::uint16_t>(mm);  // truncation, as in C
+    const double table_mm = raw_to_mm_value(raw, calibration_);
+    if (!std::isfinite(table_mm) || table_mm < 1.0) continue;
+    const double mm = calibration_.correction.corrected_mm(table_mm);
+    if (std::isfinite(mm) && mm >= 1.0 && mm < kDepthMaxMetricValue - 0.5) {
+      raw_to_mm_table_[raw] = static_cast<std::uint16_t>(std::lround(mm));
+      raw_to_mm_exact_table_[raw] = static_cast<float>(mm);
     }
   }
   raw_to_mm_table_[kInvalidDisparity] = 0;
+  raw_to_mm_exact_table_[kInvalidDisparity] = 0.0f;
 
   // mm -> nearest raw. raw_to_mm is non-decreasing over the valid raw range (it is
   // z = b*f / (d0 - d) shaped), so one sweep with a moving cursor finds the nearest raw for
@@ -262,11 +292,15 @@ KinectRegistration::KinectRegistration(const KinectCalibration& calibration)
   }
 
   build_depth_to_rgb_shift(calibration_.zero_plane_info, depth_to_rgb_shift_);
-  build_registration_table(calibration_.reg_info, registration_table_);
+  build_registration_table(calibration_.reg_info, calibration_.correction, registration_table_);
 }
 
 std::uint16_t KinectRegistration::raw_to_mm(std::uint16_t raw) const {
   return raw < raw_to_mm_table_.size() ? raw_to_mm_table_[raw] : 0;
+}
+
+float KinectRegistration::raw_to_mm_exact(std::uint16_t raw) const {
+  return raw < raw_to_mm_exact_table_.size() ? raw_to_mm_exact_table_[raw] : 0.0f;
 }
 
 std::uint16_t KinectRegistration::mm_to_raw(std::uint16_t mm) const {
@@ -310,11 +344,27 @@ bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& 
   return color_x >= 0.0 && color_x < kWidth;
 }
 
+bool KinectRegistration::rectified_position(int x, int y, double& color_x,
+                                            double& color_y) const {
+  if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
+  const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;
+  if (registration_table_[2 * index] >= 2 * kWidth * kRegXValScale) return false;
+  color_x = static_cast<double>(registration_table_[2 * index]) / kRegXValScale;
+  color_y = static_cast<double>(registration_table_[2 * index + 1]) / kRegXValScale -
+            calibration_.pad_info.start_lines;
+  return true;
+}
+
+double KinectRegistration::parallax_px(std::uint16_t mm) const {
+  if (mm == 0 || mm >= kDepthMaxMetricValue) return 0.0;
+  return static_cast<double>(depth_to_rgb_shift_[mm]) / kRegXValScale;
+}
+
 bool KinectRegistration::color_row(int x, int y, double& color_y) const {
   if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
   const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;
-  color_y =
-      static_cast<double>(registration_table_[2 * index + 1] - calibration_.pad_info.start_lines);
+  color_y = static_cast<double>(registration_table_[2 * index + 1]) / kRegXValScale -
+            calibration_.pad_info.start_lines;
   return color_y >= 0.0 && color_y < kHeight;
 }
 
@@ -343,7 +393,7 @@ void KinectRegistration::register_depth_to_color(const DepthImage& depth_mm,
       if (metric_depth == 0 || metric_depth >= kDepthMaxMetricValue) continue;
       // Integer division truncates toward zero exactly like the C original.
       const std::int32_t nx = (table[2 * index] + shift[metric_depth]) / kRegXValScale;
-      const std::int32_t ny = table[2 * index + 1] - row_offset;
+      const std::int32_t ny = floor_fixed(table[2 * index + 1]) - row_offset;
       if (nx < 0 || nx >= kWidth || ny < 0 || ny >= kHeight) continue;
       std::uint16_t& target = out[static_cast<std::size_t>(ny) * kWidth + nx];
       // Nearest surface wins where several depth pixels land on the same colour pixel.

@@ -41,11 +41,38 @@ struct KinectZeroPlaneInfo {
   double reference_pixel_size = 0.1042;  // mm, zero-plane pixel size (at 1280 width)
 };
 
+// What one unit differs by from the tables its firmware (or the defaults) describe, estimated
+// by `camera calibrate` (checkerboard) or by self-calibration from ordinary frames.
+//  - Registration: the rectified colour position of a depth pixel (the reg_info table) is
+//    rotated by `rotation_deg` about the colour image centre and shifted by (dx_px, dy_px);
+//    the depth-dependent parallax stays along the colour image's x axis, so a depth pixel's
+//    colour row still does not depend on its depth.
+//  - Depth law (Herrera et al. 2012, affine in disparity, i.e. in inverse depth):
+//    1 / z = 1 / (depth_scale * z_table) + inverse_depth_offset_per_m / 1000, z in mm.
+struct RegistrationCorrection {
+  double dx_px = 0.0;
+  double dy_px = 0.0;
+  double rotation_deg = 0.0;
+  double depth_scale = 1.0;
+  double inverse_depth_offset_per_m = 0.0;
+
+  bool is_identity() const {
+    return dx_px == 0.0 && dy_px == 0.0 && rotation_deg == 0.0 && depth_scale == 1.0 &&
+           inverse_depth_offset_per_m == 0.0;
+  }
+  bool registration_is_identity() const {
+    return dx_px == 0.0 && dy_px == 0.0 && rotation_deg == 0.0;
+  }
+  // The corrected depth of a table depth (mm, not rounded); 0 stays 0.
+  double corrected_mm(double table_mm) const;
+};
+
 struct KinectCalibration {
   KinectRegInfo reg_info;
   KinectPadInfo pad_info;
   KinectZeroPlaneInfo zero_plane_info;
   std::int32_t const_shift = 200;
+  RegistrationCorrection correction;
 
   // Documented defaults: the values read from a real Kinect v1 (model 1414) as stored in
   // the openiss-desk dump's device.json. Used when neither a device nor a device.json is at hand.
@@ -66,8 +93,12 @@ class KinectRegistration {
   const KinectCalibration& calibration() const { return calibration_; }
   PinholeIntrinsics depth_intrinsics() const { return calibration_.depth_intrinsics(); }
 
-  // Raw 11-bit value -> millimetres (0 for invalid/out-of-range raw values).
+  // Raw 11-bit value -> millimetres, rounded to the nearest mm (0 for invalid/out-of-range raw
+  // values). Rounding, not libfreenect's truncation: truncation biases every depth 0.5 mm
+  // towards the camera.
   std::uint16_t raw_to_mm(std::uint16_t raw) const;
+  // The same without rounding, for consumers that keep sub-millimetre depth (0 when invalid).
+  float raw_to_mm_exact(std::uint16_t raw) const;
   // Millimetres -> the raw value whose depth is nearest (kInvalidDisparity for 0 or unreachable).
   std::uint16_t mm_to_raw(std::uint16_t mm) const;
 
@@ -76,10 +107,16 @@ class KinectRegistration {
   void mm_to_disparity(const DepthImage& mm, DisparityImage& out) const;
 
   // Where a depth pixel (x, y) with depth `mm` lands in the colour image. Returns false when
-  // the depth is invalid or the target is outside the colour image. color_x has 1/256 px
-  // resolution, color_y is a whole row (libfreenect's table); the colour pixel
-  // (floor(color_x), color_y) is the one register_depth_to_color() writes.
+  // the depth is invalid or the target is outside the colour image. color_x and color_y have
+  // 1/256 px resolution (color_y is a whole row under an identity correction, as in
+  // libfreenect's table); the colour pixel (floor(color_x), floor(color_y)) is the one
+  // register_depth_to_color() writes.
   bool depth_to_color(int x, int y, std::uint16_t mm, double& color_x, double& color_y) const;
+  // The parts of depth_to_color(): the rectified colour position of a depth pixel before the
+  // parallax (with the unit's correction) and the parallax along x at depth `mm`. False as
+  // depth_to_color() when the pixel has no table entry.
+  bool rectified_position(int x, int y, double& color_x, double& color_y) const;
+  double parallax_px(std::uint16_t mm) const;
   // The colour row depth_to_color() gives for this pixel at any valid depth: the registration
   // shifts along x only. False outside the depth image or when that row is outside the colour
   // image.
@@ -93,9 +130,12 @@ class KinectRegistration {
  private:
   KinectCalibration calibration_;
   std::vector<std::uint16_t> raw_to_mm_table_;    // 2048 entries
+  std::vector<float> raw_to_mm_exact_table_;      // 2048 entries
   std::vector<std::uint16_t> mm_to_raw_table_;    // up to 10000 mm
   std::vector<std::int32_t> depth_to_rgb_shift_;  // per mm, as in libfreenect
-  std::vector<std::int32_t> registration_table_;  // 640*480*2, x (scaled) and y per pixel
+  // 640*480*2: per pixel the rectified colour x and y before the parallax shift, both in
+  // 1/256 px, with the unit's correction applied (libfreenect's exact table when it is identity).
+  std::vector<std::int32_t> registration_table_;
 };
 
 }  // namespace fb

@@ -1,5 +1,6 @@
 #include "drivers/camera/common/device_json.hpp"
 
+#include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <limits>
@@ -64,6 +65,18 @@ constexpr ZeroPlaneField kZeroPlaneFields[] = {
     {"dcmos_rcmos_distance", &KinectZeroPlaneInfo::dcmos_rcmos_distance},
     {"reference_distance", &KinectZeroPlaneInfo::reference_distance},
     {"reference_pixel_size", &KinectZeroPlaneInfo::reference_pixel_size},
+};
+
+struct CorrectionField {
+  const char* name;
+  double RegistrationCorrection::*member;
+};
+constexpr CorrectionField kCorrectionFields[] = {
+    {"dx_px", &RegistrationCorrection::dx_px},
+    {"dy_px", &RegistrationCorrection::dy_px},
+    {"rotation_deg", &RegistrationCorrection::rotation_deg},
+    {"depth_scale", &RegistrationCorrection::depth_scale},
+    {"inverse_depth_offset_per_m", &RegistrationCorrection::inverse_depth_offset_per_m},
 };
 
 const char* type_name(const json& v) {
@@ -186,6 +199,30 @@ Result<KinectCalibration> parse_device_json(std::string_view text) {
   auto shift = get_int(root, "", "const_shift");
   if (!shift) return shift.failure();
   c.const_shift = *shift;
+
+  // Optional: the unit's correction written by `camera calibrate` or self-calibration.
+  if (auto corr = root.find("correction"); corr != root.end()) {
+    if (!corr->is_object()) {
+      return fail(std::string("device.json: field 'correction' must be an object, found ") +
+                  type_name(*corr));
+    }
+    for (const auto& f : kCorrectionFields) {
+      if (!corr->contains(f.name)) continue;  // a missing term is no correction of it
+      auto v = get_number(*corr, "correction.", f.name);
+      if (!v) return v.failure();
+      c.correction.*(f.member) = *v;
+    }
+    const auto& k = c.correction;
+    if (!(k.depth_scale > 0.5 && k.depth_scale < 2.0)) {
+      return fail("device.json: field 'correction.depth_scale' must be between 0.5 and 2; "
+                  "recalibrate the camera (facebooth camera calibrate)");
+    }
+    if (!(std::abs(k.dx_px) < 100.0 && std::abs(k.dy_px) < 100.0 &&
+          std::abs(k.rotation_deg) < 20.0 && std::abs(k.inverse_depth_offset_per_m) < 1.0)) {
+      return fail("device.json: the 'correction' block is out of range (|dx_px|, |dy_px| < 100, "
+                  "|rotation_deg| < 20, |inverse_depth_offset_per_m| < 1); recalibrate the camera");
+    }
+  }
   return c;
 }
 
@@ -202,6 +239,11 @@ std::string to_device_json(const KinectCalibration& c) {
   nlohmann::ordered_json root;
   root["reg_info"] = std::move(reg);
   root["const_shift"] = c.const_shift;
+  if (!c.correction.is_identity()) {
+    nlohmann::ordered_json corr;
+    for (const auto& f : kCorrectionFields) corr[f.name] = c.correction.*(f.member);
+    root["correction"] = std::move(corr);
+  }
   return root.dump(4) + "\n";
 }
 

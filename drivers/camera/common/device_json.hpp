@@ -8,7 +8,9 @@
 //    "const_shift": 200}
 //
 // pad_info and zero_plane_info are nested inside reg_info in the real files; the parser also
-// accepts them at the top level.
+// accepts them at the top level. facebooth adds an optional top-level "correction" object
+// (RegistrationCorrection: dx_px, dy_px, rotation_deg, depth_scale, inverse_depth_offset_per_m),
+// written only when the unit has been calibrated; other readers ignore it.
 #pragma once
 
 #include <filesystem>

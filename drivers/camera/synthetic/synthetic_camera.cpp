@@ -133,9 +133,27 @@ Result<double> parse_number(const std::string& key, const std::string& text, dou
 constexpr std::string_view kAccepted =
     "accepted: seed=N, expr=neutral|NAME[:WEIGHT]+NAME... (model shapes or guide expressions), "
     "motion=headturn|static, frames=N, "
-    "distance=MM, noise=on|off, background=MM|off, identity=random|neutral";
+    "distance=MM, noise=on|off, background=MM|off, identity=random|neutral, "
+    "unit=SEED (a decalibrated Kinect unit), reg_dx=PX, reg_dy=PX, reg_rot=DEG, depth_scale=S, "
+    "calibrated=0|1 (report the unit's true calibration instead of the defaults)";
 
 }  // namespace
+
+RegistrationCorrection random_unit_correction(std::uint64_t seed) {
+  RegistrationCorrection c;
+  if (seed == 0) return c;
+  // Counter-based draws so a unit is the same on every build and platform.
+  auto uniform = [&](std::uint64_t k) {
+    const std::uint64_t h = mix64(mix64(seed * 0x9E3779B97F4A7C15ull + 0x5157u) + k);
+    return static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0;  // [-1, 1)
+  };
+  c.dx_px = 20.0 * uniform(1);
+  c.dy_px = 20.0 * uniform(2);
+  c.rotation_deg = 1.0 * uniform(3);
+  c.depth_scale = 1.0 + 0.05 * uniform(4);
+  c.inverse_depth_offset_per_m = 0.02 * uniform(5);
+  return c;
+}
 
 Result<std::vector<float>> parse_expression_spec(std::string_view spec, const FaceModel& model,
                                                  const GuideSet* guide) {
@@ -193,8 +211,38 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
   }
   SyntheticOptions options;
   bool random_identity = true;
+  bool decalibrated = false;
+  int calibrated = -1;
+  RegistrationCorrection& unit = options.calibration.correction;
   for (const auto& [key, value] : *values) {
-    if (key == "seed") {
+    if (key == "unit") {
+      auto n = parse_number(key, value, 0, 1e15);
+      if (!n) return n.failure();
+      if (*n != std::floor(*n))
+        return fail("synthetic: unit must be a non-negative integer seed, got '" + value + "'");
+      const RegistrationCorrection drawn = random_unit_correction(static_cast<std::uint64_t>(*n));
+      unit = drawn;
+      decalibrated = true;
+    } else if (key == "reg_dx" || key == "reg_dy") {
+      auto px = parse_number(key, value, -40, 40);
+      if (!px) return px.failure();
+      (key == "reg_dx" ? unit.dx_px : unit.dy_px) = *px;
+      decalibrated = true;
+    } else if (key == "reg_rot") {
+      auto deg = parse_number(key, value, -5, 5);
+      if (!deg) return deg.failure();
+      unit.rotation_deg = *deg;
+      decalibrated = true;
+    } else if (key == "depth_scale") {
+      auto scale = parse_number(key, value, 0.8, 1.2);
+      if (!scale) return scale.failure();
+      unit.depth_scale = *scale;
+      decalibrated = true;
+    } else if (key == "calibrated") {
+      if (value != "0" && value != "1")
+        return fail("synthetic: bad calibrated '" + value + "'; expected 0 or 1");
+      calibrated = value == "1" ? 1 : 0;
+    } else if (key == "seed") {
       std::uint64_t seed = 0;
       const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), seed);
       if (ec != std::errc() || end != value.data() + value.size()) {
@@ -248,6 +296,13 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
     }
   }
   if (!random_identity) options.identity_coeffs = std::vector<float>();
+  // A decalibrated unit reports the defaults unless calibrated=1; calibrated=0 alone reports
+  // the defaults for a unit that has none to differ by (harmless).
+  if ((decalibrated && calibrated != 1) || calibrated == 0) {
+    KinectCalibration reported = options.calibration;
+    reported.correction = RegistrationCorrection{};
+    options.reported_calibration = reported;
+  }
   if (options.background_mm > 0.0 && options.background_mm <= options.distance_mm + 150.0) {
     return fail("synthetic: background=" + std::to_string(options.background_mm) +
                 " mm must be at least 150 mm behind distance=" +
@@ -263,6 +318,9 @@ struct SyntheticCamera::State {
   CameraInfo info;
   SyntheticOptions options;
   KinectSensorModel sensor;
+  // A decalibrated unit's depth in millimetres as its driver reports it: the raw disparity
+  // through the reported (default) disparity law, not the unit's true one.
+  std::optional<KinectRegistration> reported_registration;
 
   int skin_vertex_count = 0;
   int mesh_vertex_count = 0;            // skin + cap apexes
@@ -556,10 +614,14 @@ Result<FrameStatus> SyntheticCamera::next_frame(RgbdFrame& frame, std::chrono::m
   frame.depth_mm.resize(k.width, k.height);
   frame.raw_disparity.resize(k.width, k.height);
   frame.color.resize(k.width, k.height);
-  std::copy(s.sensor_frame.depth_mm.pixels.begin(), s.sensor_frame.depth_mm.pixels.end(),
-            frame.depth_mm.pixels.begin());
   std::copy(s.sensor_frame.raw.pixels.begin(), s.sensor_frame.raw.pixels.end(),
             frame.raw_disparity.pixels.begin());
+  if (s.reported_registration) {
+    s.reported_registration->disparity_to_mm(frame.raw_disparity, frame.depth_mm);
+  } else {
+    std::copy(s.sensor_frame.depth_mm.pixels.begin(), s.sensor_frame.depth_mm.pixels.end(),
+              frame.depth_mm.pixels.begin());
+  }
   std::copy(s.color.pixels.begin(), s.color.pixels.end(), frame.color.pixels.begin());
 
   ++s.next_index;
@@ -603,6 +665,7 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   const KinectRegistration registration(options.calibration);
   auto state = std::make_unique<SyntheticCamera::State>(registration, options);
   SyntheticCamera::State& s = *state;
+  if (options.reported_calibration) s.reported_registration.emplace(*options.reported_calibration);
   s.skin_vertex_count = V;
   s.expression_count = model.expression_count;
   std::copy(model.landmark_vertices.begin(), model.landmark_vertices.end(), s.landmarks.begin());
@@ -765,7 +828,7 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   info.width = k.width;
   info.height = k.height;
   info.fps = kKinectFps;
-  info.calibration = options.calibration;
+  info.calibration = options.reported_calibration.value_or(options.calibration);
   info.depth_intrinsics = k;
   info.frame_count = options.frame_count;
 
@@ -806,7 +869,8 @@ CameraBackend synthetic_camera_backend() {
   return {
       "synthetic", &open_synthetic, &list_synthetic,
       "synthetic:[seed=N,expr=NAME[:W]+...,motion=headturn|static,frames=N,distance=MM,"
-      "noise=on|off,background=MM|off,identity=random|neutral]  rendered face with ground truth"};
+      "noise=on|off,background=MM|off,identity=random|neutral,unit=SEED,reg_dx=PX,reg_dy=PX,"
+      "reg_rot=DEG,depth_scale=S,calibrated=0|1]  rendered face with ground truth"};
 }
 
 }  // namespace fb

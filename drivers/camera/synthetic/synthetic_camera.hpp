@@ -3,7 +3,8 @@
 // (algo/render/kinect_sensor.hpp) and emits per-frame ground truth (FrameTruth).
 //
 // URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
-//      distance=700,noise=on|off,background=1200|off,identity=random|neutral
+//      distance=700,noise=on|off,background=1200|off,identity=random|neutral,
+//      unit=SEED|reg_dx=PX,reg_dy=PX,reg_rot=DEG,depth_scale=S,calibrated=0|1
 // Defaults: seed 0, neutral expression, headturn, 90 frames, 700 mm, noise on, wall at 1200 mm,
 // random identity (N(0, 1) per mode from the seed).
 //
@@ -86,12 +87,22 @@ struct SyntheticOptions {
   double background_mm = 1200.0;  // wall depth; <= 0 for no wall (empty background)
 
   KinectSensorOptions sensor;  // noise=off sets sensor.depth_noise = false
+  // The unit's true calibration: depth and colour are rendered through it.
   KinectCalibration calibration = KinectCalibration::defaults();
+  // What the camera reports as CameraInfo::calibration; unset = `calibration` (a calibrated
+  // unit). A decalibrated unit (`unit=SEED` or the reg_*/depth_scale keys) renders through its
+  // own correction and reports the plain defaults, as a Kinect without a device.json does.
+  std::optional<KinectCalibration> reported_calibration;
 
   Rgb8 wall_color{178, 180, 172};
   // Reported as CameraInfo::uri; empty = "synthetic:seed=N".
   std::string uri;
 };
+
+// A seeded unit-to-unit variation of a Kinect v1: registration shift up to +-20 px in x and y,
+// rotation up to +-1 deg, depth scale within +-5 % and an inverse-depth offset within
+// +-0.02 /m (all uniform). Seed 0 is the identity.
+RegistrationCorrection random_unit_correction(std::uint64_t seed);
 
 // Parses the URI argument list (after `synthetic:`) into options. Unknown keys and bad values
 // are errors that list what is accepted.

@@ -20,7 +20,9 @@ struct SelfCalibrationEvalOptions {
 };
 
 // Fields: units, self_calibration_units_ok, self_calibration_residual_px_p95 (the estimate's
-// registration error against the truth over the units reported ok, colour px),
+// registration error against the truth over the units reported ok, colour px: where a depth
+// pixel at the face's depth lands under the estimate against its true colour position, the
+// largest over the image centre and the quadrant centres),
 // self_calibration_residual_px_mean, self_calibration_wrongly_ok (ok but > 3 px off: must be 0),
 // self_calibration_not_ok (seeds with why), and per-unit rows under self_calibration_units.
 Result<nlohmann::ordered_json> evaluate_self_calibration(const SelfCalibrationEvalOptions& options,

@@ -68,7 +68,8 @@ TEST(Landmarks, LiftingPutsColourPointsOntoTheDepthImage) {
     px_err += (lm.pixel - s.truth.landmarks_depth_px[l]).norm();
     if (is_contour_landmark(l)) {
       EXPECT_FALSE(lm.point.has_value());
-    } else if (lm.point) {
+    }
+    if (!is_contour_landmark(l) && lm.point) {
       mm_err += (*lm.point - s.truth.landmarks_3d[l]).norm();
       ++n3;
     }
@@ -78,7 +79,8 @@ TEST(Landmarks, LiftingPutsColourPointsOntoTheDepthImage) {
   std::printf("lifting: %.2f px mean, %.2f mm mean over %d interior 3D points\n", px_err, mm_err,
               n3);
   EXPECT_LT(px_err, 1.5);
-  EXPECT_GT(n3, 30);
+  // Points whose 2x2 depth spans 3 mm or more (eye and lip rims, the brow ridge) stay 2D.
+  EXPECT_GE(n3, 25);
   EXPECT_LT(mm_err, 3.0);
 }
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -49,16 +50,23 @@ TEST(RegistrationCorrection, ShiftsRotatesAndScales) {
   c.correction.rotation_deg = 0.5;
   c.correction.depth_scale = 1.04;
   const KinectRegistration corrected(c);
-  // At the centre the rotation moves nothing: the shift alone (within the 1/256 px table).
-  double ax = 0, ay = 0, bx = 0, by = 0;
-  ASSERT_TRUE(plain.depth_to_color(320, 240, 900, ax, ay));
-  ASSERT_TRUE(corrected.depth_to_color(320, 240, 900, bx, by));
-  EXPECT_NEAR(bx - ax, 7.5, 0.05);
-  EXPECT_NEAR(by - ay, -13.25, 0.05);
-  // 200 px right of the centre a 0.5 deg rotation moves the row down by 200 sin(0.5 deg).
-  ASSERT_TRUE(plain.depth_to_color(520, 240, 900, ax, ay));
-  ASSERT_TRUE(corrected.depth_to_color(520, 240, 900, bx, by));
-  EXPECT_NEAR(by - ay, -13.25 + 200 * std::sin(0.5 * 3.14159265358979 / 180), 0.1);
+  // Every depth pixel lands where the plain table put it, rotated by 0.5 deg about the colour
+  // image's centre and shifted (within the 1/256 px of the table; plain rows are whole).
+  const double angle = 0.5 * 3.14159265358979 / 180;
+  for (const auto& [x, y] : {std::pair{320, 240}, std::pair{520, 240}, std::pair{100, 400}}) {
+    double px = 0, py = 0, qx = 0, qy = 0;
+    ASSERT_TRUE(plain.rectified_position(x, y, px, py));
+    ASSERT_TRUE(corrected.rectified_position(x, y, qx, qy));
+    const double ux = px - 319.5, uy = py - 239.5;
+    EXPECT_NEAR(qx, 319.5 + std::cos(angle) * ux - std::sin(angle) * uy + 7.5, 0.01);
+    EXPECT_NEAR(qy, 239.5 + std::sin(angle) * ux + std::cos(angle) * uy - 13.25, 0.01);
+    // The depth-dependent parallax is added on top, along x only.
+    double ax = 0, ay = 0, bx = 0, by = 0;
+    ASSERT_TRUE(plain.depth_to_color(x, y, 900, ax, ay));
+    ASSERT_TRUE(corrected.depth_to_color(x, y, 900, bx, by));
+    EXPECT_NEAR((bx - ax) - (qx - px), 0.0, 0.01);
+    EXPECT_NEAR(by - qy, ay - py, 0.01);
+  }
   // The depth law: 4 % longer, rounded.
   EXPECT_NEAR(corrected.raw_to_mm(700), plain.raw_to_mm_exact(700) * 1.04, 0.51);
   // mm_to_raw inverts the corrected law.

@@ -414,9 +414,8 @@ void Daemon::Impl::worker_loop() {
     if (tracking) wait = std::chrono::milliseconds(1);
     {
       std::unique_lock lock(queue_mutex);
-      queue_cv.wait_for(lock, wait, [&] {
-        return !queue.empty() || !worker_jobs.empty() || stopping.load();
-      });
+      queue_cv.wait_for(lock, wait,
+                        [&] { return !queue.empty() || !worker_jobs.empty() || stopping.load(); });
       if (!queue.empty()) {
         input = queue.front();
         queue.pop_front();

@@ -123,7 +123,7 @@ struct StatusData {
   double start_to_ready_ms = 0;
   // Registration health (registration_health.hpp) and self-calibration.
   RegistrationStatus registration;
-  bool calibrating = false;             // a self-calibration run is reading frames
+  bool calibrating = false;              // a self-calibration run is reading frames
   nlohmann::json last_self_calibration;  // its report; null until one ran
 };
 // The status JSON's "registration" object (daemon_calibration.cpp).

@@ -90,8 +90,8 @@ Result<void> Daemon::Impl::setup_registration() {
   health = std::make_unique<RegistrationHealth>(
       preview_camera->info().calibration, source, note, advice, options,
       [this](const RegistrationStatus& r) {
+        refresh_led();  // first: a client that sees the new verdict sees its LED too
         update_status([&](StatusData& s) { s.registration = r; });
-        refresh_led();
       });
   status.registration = health->status();
   return success();

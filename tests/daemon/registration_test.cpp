@@ -213,6 +213,24 @@ TEST_F(DaemonRegistration, SessionRefusesToFitUntilSelfCalibratedThenProceeds) {
   EXPECT_LT(s["registration"]["misregistration_px"].get<double>(), kHealthyPx);
 }
 
+// [camera] self_calibrate = true: the booth calibrates itself once the check says it must.
+TEST_F(DaemonRegistration, SelfCalibratesOnItsOwnWhenConfigured) {
+  DaemonConfig c = config("synthetic:seed=4,reg_dy=-14", 10.0);
+  c.camera.self_calibrate = true;
+  auto d = start(c);
+  ASSERT_TRUE(d);
+  auto s = wait_for(*d, [](const json& s) {
+    return s["registration"]["calibration"]["source"] == "self-calibration" &&
+           s["registration"]["state"] != "checking";
+  });
+  std::printf("self-calibrated on its own: %s\n", s["registration"].dump().c_str());
+  EXPECT_EQ(s["registration"]["state"], "ok");
+  EXPECT_LT(s["registration"]["misregistration_px"].get<double>(), kHealthyPx);
+  EXPECT_NEAR(s["registration"]["last_self_calibration"]["misregistration_px"].get<double>(),
+              kTrueOffsetPx, 1.5);
+  EXPECT_EQ(s["led"], "ready");
+}
+
 // A unit that reports its true calibration never reads "needs calibration".
 TEST_F(DaemonRegistration, CalibratedUnitReadsHealthyFromTheStart) {
   auto d = start(config("synthetic:seed=4,reg_dy=-14,calibrated=1", 10.0));

@@ -27,6 +27,7 @@ std::vector<Command> tracking_commands();
 std::vector<Command> storage_commands();
 std::vector<Command> daemon_commands();
 std::vector<Command> rig_commands();
+std::vector<Command> self_calibration_commands();
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

@@ -249,8 +249,10 @@ TEST_F(DaemonRegistration, CalibratedUnitReadsHealthyFromTheStart) {
   EXPECT_EQ(s["led"], "ready");
 }
 
-// A seeded unit (shift, rotation and depth law all off): the residual it reports is the unit's
-// true registration error.
+// A seeded unit (shift, rotation and depth law all off): the residual it reports is close to the
+// unit's true registration error. The depth law, which edges cannot show, moves the parallax a
+// little too; the estimator's own error over 20 units is 2.38 px at p95 (eval self-calibration),
+// so 3 px here.
 TEST_F(DaemonRegistration, SeededUnitReportsItsTrueMisregistration) {
   const RegistrationCorrection truth = random_unit_correction(7);
   const double expected = registration_distance_px(truth, RegistrationCorrection{});
@@ -260,7 +262,7 @@ TEST_F(DaemonRegistration, SeededUnitReportsItsTrueMisregistration) {
   std::printf("unit 7 (truth %.2f px): %s\n", expected, s["registration"].dump().c_str());
   ASSERT_GT(expected, 3.0);  // the seed is chosen to be decalibrated
   EXPECT_EQ(s["registration"]["state"], "needs_calibration");
-  EXPECT_NEAR(s["registration"]["misregistration_px"].get<double>(), expected, 1.5);
+  EXPECT_NEAR(s["registration"]["misregistration_px"].get<double>(), expected, 3.0);
 }
 
 }  // namespace

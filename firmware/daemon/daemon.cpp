@@ -804,7 +804,8 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     if (!got) return got.failure();
     if (*got == FrameStatus::kEndOfStream) break;
     if (*got == FrameStatus::kTimeout) continue;
-    health->offer(frame);
+    // No live registration check here: the take's own frames are checked after it, on the fit
+    // thread (registration_allows_fit), so the check never competes with fusion for the CPU.
     const FrameReport report = fusion.process(frame.depth_mm);
     if (report.fused) {
       if (fused == 0) {

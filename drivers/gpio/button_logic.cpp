@@ -41,6 +41,10 @@ bool led_level(LedPattern pattern, std::int64_t t_ms) {
       const std::int64_t phase = t % 1000;
       return phase < 100 || (phase >= 200 && phase < 300);
     }
+    case LedPattern::kCalibrate: {
+      const std::int64_t phase = t % 2000;
+      return phase < 500 && (phase % 200) < 100;
+    }
   }
   return false;
 }

@@ -25,7 +25,9 @@ struct ButtonEvent {
 };
 
 // What the status LED shows. The state machine picks one; the backend animates it.
-enum class LedPattern { kOff, kReady, kRecording, kProcessing, kError };
+// kCalibrate: the camera's depth-to-colour registration is off (faceboothd refuses to fit
+// until it is calibrated); three short flashes every 2 s, unlike kError's two per second.
+enum class LedPattern { kOff, kReady, kRecording, kProcessing, kError, kCalibrate };
 
 const char* to_string(ButtonId button);
 const char* to_string(PressKind kind);

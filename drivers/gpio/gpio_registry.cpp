@@ -30,6 +30,8 @@ const char* to_string(LedPattern pattern) {
       return "processing";
     case LedPattern::kError:
       return "error";
+    case LedPattern::kCalibrate:
+      return "calibrate";
   }
   return "?";
 }
@@ -42,7 +44,7 @@ std::optional<ButtonId> parse_button(std::string_view name) {
 
 std::optional<LedPattern> parse_led_pattern(std::string_view name) {
   for (auto p : {LedPattern::kOff, LedPattern::kReady, LedPattern::kRecording,
-                 LedPattern::kProcessing, LedPattern::kError}) {
+                 LedPattern::kProcessing, LedPattern::kError, LedPattern::kCalibrate}) {
     if (name == to_string(p)) return p;
   }
   return std::nullopt;

@@ -131,6 +131,8 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (!camera)
     return fail("cannot open camera '" + config.camera.uri + "': " + camera.error().message);
   impl->preview_camera = std::move(*camera);
+  // The unit's stored calibration (if any) and the registration check, before the first frame.
+  if (auto ok = impl->setup_registration(); !ok) return ok.failure();
   if (auto ok = impl->preview_camera->start(); !ok)
     return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
 
@@ -156,7 +158,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
 Result<void> Daemon::start() {
   auto& d = *impl_;
   if (d.started.exchange(true)) return success();
-  d.gpio->set_pattern(led_for(KioskState::kIdle));
+  d.refresh_led();
   d.worker_thread = std::thread([&d] { d.worker_loop(); });
   d.fit_thread = std::thread([&d] { d.fit_loop(); });
   d.gpio_thread = std::thread([&d] { d.gpio_loop(); });
@@ -224,6 +226,7 @@ void Daemon::stop() {
   if (d.http) d.http->stop();
   for (auto* t : {&d.worker_thread, &d.fit_thread, &d.gpio_thread, &d.http_thread})
     if (t->joinable()) t->join();
+  d.drain_worker_jobs();  // a calibration request still waiting is answered
   if (d.preview_camera) d.preview_camera->stop();
   if (d.started.exchange(false))
     std::fprintf(stderr, "faceboothd: stopped in %.0f ms\n", ms_since(t0));
@@ -284,6 +287,7 @@ nlohmann::json Daemon::Impl::status_json() const {
       {"frames_dropped", s.frames_dropped},
       {"tracking_frames", s.tracking_frames},
       {"led", to_string(d.gpio->pattern())},
+      {"registration", registration_json(s)},
       {"gpio", d.gpio->info().backend},
       {"camera", d.config.camera.uri},
       {"store", d.records->backend()},
@@ -353,7 +357,8 @@ nlohmann::json Daemon::Impl::status_json() const {
 // Worker: the frame loop and the state machine
 
 void Daemon::Impl::set_state(KioskState s, const std::string& input_name) {
-  gpio->set_pattern(led_for(s));
+  std::lock_guard lock(led_mutex);
+  gpio->set_pattern(led_pattern(s));
   update_status([&](StatusData& st) {
     st.state = s;
     st.last_input = input_name;
@@ -398,6 +403,7 @@ void Daemon::Impl::worker_loop() {
   while (!stopping) {
     watchdog_ping();
     std::optional<QueuedInput> input;
+    std::function<void(bool)> job;
     KioskState state;
     {
       std::lock_guard lock(status_mutex);
@@ -408,20 +414,30 @@ void Daemon::Impl::worker_loop() {
     if (tracking) wait = std::chrono::milliseconds(1);
     {
       std::unique_lock lock(queue_mutex);
-      queue_cv.wait_for(lock, wait, [&] { return !queue.empty() || stopping.load(); });
+      queue_cv.wait_for(lock, wait,
+                        [&] { return !queue.empty() || !worker_jobs.empty() || stopping.load(); });
       if (!queue.empty()) {
         input = queue.front();
         queue.pop_front();
+      } else if (!worker_jobs.empty()) {
+        job = std::move(worker_jobs.front());
+        worker_jobs.pop_front();
       }
     }
     if (stopping) {
       if (tracker) stop_tracking();  // the take so far is stored, not lost
+      if (job) job(false);
       break;
     }
     if (input) {
       handle(*input);
       continue;
     }
+    if (job) {
+      job(true);
+      continue;
+    }
+    maybe_auto_calibrate(state);
     if (tracking) {
       tracking_tick();
     } else if (config.camera.preview_fps > 0 &&
@@ -443,6 +459,7 @@ void Daemon::Impl::preview_tick() {
   if (*got == FrameStatus::kEndOfStream) return loop_preview_camera();
   if (*got != FrameStatus::kFrame) return;
   ++frames_since_loop;
+  health->offer(frame);
   {
     std::lock_guard lock(preview_mutex);
     make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
@@ -461,8 +478,10 @@ void Daemon::Impl::loop_preview_camera() {
   const bool rewound = frames_since_loop > 0 && preview_camera->start();
   frames_since_loop = 0;
   if (rewound) return;
-  if (auto reopened = open_camera(config.camera.uri); reopened && (*reopened)->start())
-    preview_camera = std::move(*reopened);
+  auto reopened = open_camera(config.camera.uri);
+  if (!reopened) return;
+  auto calibrated = with_active_calibration(std::move(*reopened));  // a stored calibration stays
+  if (calibrated && (*calibrated)->start()) preview_camera = std::move(*calibrated);
 }
 
 bool Daemon::Impl::cancel_pending() {
@@ -491,6 +510,7 @@ void Daemon::Impl::handle(const QueuedInput& first) {
       std::lock_guard lock(status_mutex);
       state = status.state;
     }
+    if (refuse_session_start(in, state)) return;
     auto t = kiosk_transition(state, in.input);
     if (!t) {
       update_status([&](StatusData& s) {
@@ -741,6 +761,10 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
       if (!opened) return opened.failure();
       take_camera = std::move(*opened);
     }
+    // The take renders the same unit as the preview: under the same calibration.
+    auto calibrated = with_active_calibration(std::move(take_camera));
+    if (!calibrated) return calibrated.failure();
+    take_camera = std::move(*calibrated);
     if (auto ok = take_camera->start(); !ok) return ok.failure();
     camera = take_camera.get();
   }
@@ -780,6 +804,8 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     if (!got) return got.failure();
     if (*got == FrameStatus::kEndOfStream) break;
     if (*got == FrameStatus::kTimeout) continue;
+    // No live registration check here: the take's own frames are checked after it, on the fit
+    // thread (registration_allows_fit), so the check never competes with fusion for the CPU.
     const FrameReport report = fusion.process(frame.depth_mm);
     if (report.fused) {
       if (fused == 0) {
@@ -885,6 +911,8 @@ Result<HeadlessResult> Daemon::run_headless_session(const std::string& subject, 
       return fail("no progress for 120 s in state '" + state + "'");
     if (state == "error")
       return fail(s.value("error", std::string("the daemon reported an error")));
+    if (state == "idle" && s["registration"]["needs_calibration"] == true)
+      return fail(s["registration"]["message"].get<std::string>());
     if (!started_session) {
       if (state == "guide" && s["resumed"].get<bool>()) {
         started_session = true;  // a resumed session after a power loss: finish that one

@@ -125,6 +125,10 @@ Result<DaemonConfig> parse_daemon_config(std::string_view toml_text, std::string
     r.read(t, "realtime", c.camera.realtime);
     r.read(t, "synthetic_imitates_guide", c.camera.synthetic_imitates_guide);
     r.read(t, "stored_frame_stride", c.camera.stored_frame_stride);
+    r.read(t, "registration_check", c.camera.registration_check);
+    r.read(t, "max_misregistration_px", c.camera.max_misregistration_px);
+    r.read(t, "self_calibrate", c.camera.self_calibrate);
+    r.read(t, "self_calibrate_frames", c.camera.self_calibrate_frames);
   }
   if (auto* t = r.section("gpio")) {
     r.read(t, "backend", c.gpio.backend);
@@ -197,6 +201,10 @@ Result<void> validate_daemon_config(const DaemonConfig& c) {
   if (!(c.camera.preview_fps >= 0 && c.camera.preview_fps <= 30))
     return fail("camera.preview_fps must be in 0..30");
   if (c.camera.stored_frame_stride < 1) return fail("camera.stored_frame_stride must be >= 1");
+  if (!(c.camera.max_misregistration_px > 0 && c.camera.max_misregistration_px <= 20))
+    return fail("camera.max_misregistration_px must be in (0, 20] px (3 is the default)");
+  if (c.camera.self_calibrate_frames < 10 || c.camera.self_calibrate_frames > 300)
+    return fail("camera.self_calibrate_frames must be in 10..300 (45 = 1.5 s at 30 fps)");
   if (c.http.port < 0 || c.http.port > 65535) return fail("http.port must be in 0..65535");
   if (c.http.threads < 2 || c.http.threads > 64)
     return fail("http.threads must be in 2..64 (one is taken by each live-event client)");
@@ -220,7 +228,11 @@ std::string to_toml(const DaemonConfig& c) {
                              {"preview_fps", c.camera.preview_fps},
                              {"realtime", c.camera.realtime},
                              {"synthetic_imitates_guide", c.camera.synthetic_imitates_guide},
-                             {"stored_frame_stride", c.camera.stored_frame_stride}}},
+                             {"stored_frame_stride", c.camera.stored_frame_stride},
+                             {"registration_check", c.camera.registration_check},
+                             {"max_misregistration_px", c.camera.max_misregistration_px},
+                             {"self_calibrate", c.camera.self_calibrate},
+                             {"self_calibrate_frames", c.camera.self_calibrate_frames}}},
       {"gpio", toml::table{{"backend", c.gpio.backend},
                            {"chip", c.gpio.chip},
                            {"main_line", c.gpio.main_line},

@@ -26,6 +26,16 @@ struct CameraConfig {
   // until the quality check; 3 (30 of 90 frames, 46 MB) keeps the daemon, with the ~100 MB
   // landmark model, inside its 256 MB budget. Fusion uses every frame.
   int stored_frame_stride = 3;
+  // Registration health (issue 34): how far depth and colour are apart, measured on the frames
+  // the daemon already gets. Over max_misregistration_px (with confidence) the camera "needs
+  // calibration" (status, page, LED) and sessions are not fitted.
+  bool registration_check = true;
+  double max_misregistration_px = 3.0;
+  // Self-calibrate on its own when the check says the camera needs it (while idle, at most once
+  // a minute), from self_calibrate_frames preview frames; POST /api/camera/self-calibrate does
+  // the same on demand. A result is kept per unit under the data directory (calibration/).
+  bool self_calibrate = false;
+  int self_calibrate_frames = 45;
 };
 
 struct StorageConfig {

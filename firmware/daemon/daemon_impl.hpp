@@ -20,10 +20,12 @@
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
+#include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/quick_fit.hpp"
+#include "firmware/daemon/registration_health.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 
 // After every Eigen header: httplib pulls in <resolv.h>, whose `_res` macro breaks Eigen.
@@ -119,7 +121,13 @@ struct StatusData {
   std::string tracking_note;   // e.g. why a take was not stored
   std::filesystem::path last_export;
   double start_to_ready_ms = 0;
+  // Registration health (registration_health.hpp) and self-calibration.
+  RegistrationStatus registration;
+  bool calibrating = false;              // a self-calibration run is reading frames
+  nlohmann::json last_self_calibration;  // its report; null until one ran
 };
+// The status JSON's "registration" object (daemon_calibration.cpp).
+nlohmann::json registration_json(const StatusData& s);
 
 struct Daemon::Impl {
   DaemonConfig config;
@@ -262,6 +270,42 @@ struct Daemon::Impl {
 
   // --- HTTP (http_api.cpp)
   Result<void> setup_http();
+
+  // --- registration health and calibration (daemon_calibration.cpp)
+  std::optional<CalibrationStore> calibration_store;
+  std::string calibration_key;  // the preview camera's unit
+  // Worker only: the calibration every camera the worker opens is put under (a stored or
+  // self-calibrated one); nullopt = the camera's own.
+  std::optional<KinectCalibration> active_calibration;
+  std::deque<std::function<void(bool run)>> worker_jobs;  // guarded by queue_mutex
+  std::mutex led_mutex;  // the LED pattern follows the state and the registration together
+  std::chrono::steady_clock::time_point last_auto_calibration{};
+
+  // create(): loads the unit's stored calibration (wrapping the preview camera) and starts the
+  // registration check.
+  Result<void> setup_registration();
+  // `camera` under active_calibration (unchanged when there is none).
+  Result<std::unique_ptr<DepthCamera>> with_active_calibration(std::unique_ptr<DepthCamera> camera);
+  Result<void> apply_calibration(const KinectCalibration& calibration, const std::string& source,
+                                 const std::string& note);
+  // Worker: reads `frames` preview frames, estimates the registration, applies and stores it
+  // when the estimate is ok. The report says what happened either way.
+  Result<nlohmann::json> self_calibrate(int frames);
+  // Any thread: runs self_calibrate() on the worker and waits for its report.
+  Result<nlohmann::json> request_self_calibration(int frames);
+  void maybe_auto_calibrate(KioskState state);
+  void drain_worker_jobs();
+  // Refuses a session start on a camera that needs calibration (says why in the status).
+  bool refuse_session_start(const QueuedInput& in, KioskState state);
+  // Fit thread: checks the take's own frames; false (qa says why) when the camera needs
+  // calibration, so the take is neither fitted nor stored.
+  bool registration_allows_fit(CaptureCommit& commit, std::int64_t session, int index,
+                               QaReport& qa);
+  LedPattern led_pattern(KioskState state) const;
+  void refresh_led();
+
+  // Last: its checker thread calls back into the members above, so it is destroyed first.
+  std::unique_ptr<RegistrationHealth> health;
 };
 
 }  // namespace fb

@@ -196,6 +196,10 @@ void Daemon::Impl::process_capture(std::int64_t session, int index, QaReport qa,
   LastCapture lc;
   lc.session = session;
   lc.index = index;
+  // A misregistered camera lifts every landmark to the wrong depth: such a take is not fitted
+  // (nor stored as done) but rejected with what to do.
+  if (qa.passed && !registration_allows_fit(commit, session, index, qa))
+    std::fprintf(stderr, "faceboothd: capture %d: %s\n", index, qa.reason.c_str());
   if (fitter && qa.passed) {
     update_status([](StatusData& s) { s.fit_stage = "landmarks and quick fit"; });
     if (index > 0) ensure_session_neutral(session);
@@ -552,6 +556,7 @@ void Daemon::Impl::tracking_tick() {
   if (!got || *got != FrameStatus::kFrame) return;
   const auto arrival = Clock::now();
   ++frames_since_loop;
+  health->offer(frame);
   {
     std::lock_guard lock(preview_mutex);
     const FaceBox box = default_face_box(frame.color.width, frame.color.height);

@@ -481,6 +481,29 @@ Result<void> Daemon::Impl::setup_http() {
     queue_cv.notify_all();
     send_json(res, {{"accepted", mode}}, 202);
   });
+  // --- camera registration: the health check, and self-calibration from the live frames.
+  srv.Get("/api/camera/registration", [this](const httplib::Request&, httplib::Response& res) {
+    std::lock_guard lock(status_mutex);
+    send_json(res, registration_json(status));
+  });
+  srv.Post(
+      "/api/camera/self-calibrate", [this](const httplib::Request& req, httplib::Response& res) {
+        json body = parse_body(req);
+        if (body.is_null()) return send_error(res, 400, "body must be a JSON object (or empty)");
+        int frames = config.camera.self_calibrate_frames;
+        if (body.contains("frames")) {
+          if (!body["frames"].is_number_integer() || body["frames"].get<int>() < 10 ||
+              body["frames"].get<int>() > 300)
+            return send_error(
+                res, 400,
+                "frames must be an integer in 10..300 (default " + std::to_string(frames) + ")");
+          frames = body["frames"].get<int>();
+        }
+        auto report = request_self_calibration(frames);
+        if (!report) return send_error(res, 409, report.error().message);
+        // 422: the estimate was not good enough to use; the report says why and what to do.
+        send_json(res, *report, (*report)["applied"].get<bool>() ? 200 : 422);
+      });
   srv.Post("/api/sim/button", [this](const httplib::Request& req, httplib::Response& res) {
     json body = parse_body(req);
     if (body.is_null()) return send_error(res, 400, "body must be a JSON object");

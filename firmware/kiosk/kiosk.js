@@ -54,6 +54,7 @@ function render(s) {
     renderQaCapture(null);
   }
   renderTracking(s);
+  renderRegistration(s);
   const inSession = ["enrolled", "guide", "recording", "processing", "retry"].includes(s.state);
   $("start").disabled = !(s.state === "idle" || s.state === "complete");
   $("next").disabled = s.state !== "guide";
@@ -125,6 +126,31 @@ window.addEventListener("pointerup", async (e) => {
   dragging = null;
   qaKey = "";  // redraw from the next status
 });
+
+// Registration health: a camera whose depth and colour are misregistered distorts every fit,
+// so the daemon refuses sessions; the banner says so plainly, with the way out (self-calibrate).
+function renderRegistration(s) {
+  const r = s.registration || {};
+  const box = $("calibration");
+  const needs = r.needs_calibration === true;
+  box.hidden = !(needs || r.calibrating);
+  box.classList.toggle("busy", !!r.calibrating);
+  box.dataset.state = r.state || "";
+  if (typeof r.misregistration_px === "number") box.dataset.px = r.misregistration_px.toFixed(1);
+  $("calibration-message").textContent = r.calibrating ? (s.message || "Calibrating...") :
+                                                         (r.message || "");
+  const busy = ["enrolled", "recording", "processing", "tracking"].includes(s.state);
+  $("calibrate").disabled = !!r.calibrating || busy;
+}
+$("calibrate").onclick = async () => {
+  $("calibrate").disabled = true;
+  $("calibration-result").textContent = "calibrating...";
+  const r = await fetch("/api/camera/self-calibrate", {method: "POST",
+      headers: {"Content-Type": "application/json"}, body: "{}"});
+  let text = "";
+  try { const j = await r.json(); text = j.message || j.error || ""; } catch { text = r.statusText; }
+  $("calibration-result").textContent = text;
+};
 
 // Tracking view: live weights from /api/tracking/events while in tracking mode.
 let live = null;

@@ -82,6 +82,7 @@ TEST(LedPatterns, ShapesPerPattern) {
   EXPECT_EQ(on_ms(LedPattern::kRecording), 500);   // 4 Hz, 50 %
   EXPECT_EQ(on_ms(LedPattern::kProcessing), 500);  // 1 Hz, 50 %
   EXPECT_EQ(on_ms(LedPattern::kError), 200);       // two 100 ms flashes
+  EXPECT_EQ(on_ms(LedPattern::kCalibrate), 300);   // three 100 ms flashes (every 2 s)
   // Recording blinks faster than processing: count rising edges in one second.
   auto edges = [](LedPattern p) {
     int n = 0;
@@ -90,11 +91,12 @@ TEST(LedPatterns, ShapesPerPattern) {
   };
   EXPECT_EQ(edges(LedPattern::kRecording), 3);  // + the one at t = 0
   EXPECT_EQ(edges(LedPattern::kError), 1);
+  EXPECT_EQ(edges(LedPattern::kCalibrate), 2);
 }
 
 TEST(GpioNames, RoundTrip) {
   for (auto p : {LedPattern::kOff, LedPattern::kReady, LedPattern::kRecording,
-                 LedPattern::kProcessing, LedPattern::kError}) {
+                 LedPattern::kProcessing, LedPattern::kError, LedPattern::kCalibrate}) {
     EXPECT_EQ(parse_led_pattern(to_string(p)), p);
   }
   EXPECT_EQ(parse_button("main"), ButtonId::kMain);

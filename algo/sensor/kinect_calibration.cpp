@@ -222,6 +222,12 @@ KinectCalibration KinectCalibration::defaults() {
   return c;
 }
 
+KinectCalibration KinectCalibration::typical_unit() {
+  KinectCalibration c = defaults();
+  c.correction.dy_px = -13.0;
+  return c;
+}
+
 PinholeIntrinsics KinectCalibration::depth_intrinsics() const {
   // freenect_camera_to_world: wx = (x - 640/2) * 2 * reference_pixel_size * z /
   // reference_distance. The zero-plane pixel size is for the 1280-wide sensor, and the 640x480

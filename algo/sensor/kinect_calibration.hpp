@@ -77,6 +77,12 @@ struct KinectCalibration {
   // Documented defaults: the values read from a real Kinect v1 (model 1414) as stored in
   // the openiss-desk dump's device.json. Used when neither a device nor a device.json is at hand.
   static KinectCalibration defaults();
+  // The best guess for a unit nothing is known about (a recording without device.json, an
+  // OpenNI2 device): the defaults' tables with the registration moved 13 rows up. The openiss
+  // unit sits at the high end of the units surveyed in docs/registration-systematics.md
+  // (colour row of the depth centre 252-268, 257 +- 6 across nine units and calibrations);
+  // three real recordings needed -13 to -15. Self-calibration refines it per unit.
+  static KinectCalibration typical_unit();
 
   // Pinhole model of the depth camera implied by zero_plane_info (f = reference_distance /
   // (2 * reference_pixel_size) at 640x480, about 575.8 px; principal point (320, 240) exactly as

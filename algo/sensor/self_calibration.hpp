@@ -28,10 +28,13 @@ struct SelfCalibrationOptions {
   int border_px = 8;                // image border ignored in both images
   double min_jump_mm = 25.0;        // a depth edge: the neighbour is farther by this or
   double min_jump_fraction = 0.04;  //   by this fraction of the depth, whichever is larger
-  int max_gap_px = 6;               // unmeasured pixels skipped looking for the far side
-  double min_colour_gradient = 6.0; // grey levels per px; weaker colour edges score nothing
-  int min_samples = 400;            // fewer edge samples in total: no estimate
-  double ok_confidence = 0.5;       // below this the result is not to be used
+  // Unmeasured pixels skipped looking for the far side: past the projector's shadow beside a
+  // near object, so contours facing both ways are seen (a one-sided set would confuse the
+  // sensor's edge bias with a shift).
+  int max_gap_px = 48;
+  double min_colour_gradient = 6.0;  // grey levels per px; weaker colour edges score nothing
+  int min_samples = 400;             // fewer edge samples in total: no estimate
+  double ok_confidence = 0.5;        // below this the result is not to be used
 };
 
 struct SelfCalibrationResult {
@@ -57,7 +60,8 @@ class SelfCalibrator {
  public:
   // `calibration`: the unit's current calibration (its depth law is used for the depth; its
   // registration correction, if any, is what misregistration_px is measured against).
-  explicit SelfCalibrator(const KinectCalibration& calibration, SelfCalibrationOptions options = {});
+  explicit SelfCalibrator(const KinectCalibration& calibration,
+                          SelfCalibrationOptions options = {});
 
   // Adds one frame's edge samples. depth_mm is the depth camera's image under `calibration`,
   // color the colour camera's RGB image, both 640x480. Does not allocate once max_frames frames

@@ -1,7 +1,9 @@
 // facebooth camera list | record | view
 #include <chrono>
+#include <cstdio>
 #include <iostream>
 
+#include "algo/sensor/self_calibration.hpp"
 #include "drivers/camera/camera_backend.hpp"
 #include "drivers/camera/recorder/recorder.hpp"
 #include "host/cli/commands.hpp"
@@ -64,6 +66,27 @@ int run_view(const ParsedOptions& options) {
     return report_failure(written.error());
   std::cout << "wrote frame " << frame.index << " of " << (*camera)->info().uri << " to " << out
             << "\n";
+  if (options.flag("overlay")) {
+    // The same measure as `camera self-calibrate`, on this one frame.
+    SelfCalibrator calibrator((*camera)->info().calibration);
+    calibrator.add_frame(frame.depth_mm, frame.color);
+    auto r = calibrator.estimate();
+    if (!r) {
+      std::cout << "registration residual: not measurable (" << r.error().message << ")\n";
+    } else if (!r->ok) {
+      std::cout << "registration residual: not measurable on this frame (" << r->why << ")\n";
+    } else {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "registration residual: the depth edges are %.1f px off the colour edges "
+                    "(best correction dx %.1f, dy %.1f px)%s\n",
+                    r->misregistration_px, r->correction.dx_px, r->correction.dy_px,
+                    r->misregistration_px > 3.0 ? "; calibrate this camera: facebooth camera "
+                                                  "self-calibrate --camera URI --save"
+                                                : "");
+      std::cout << text;
+    }
+  }
   return kExitOk;
 }
 
@@ -97,7 +120,8 @@ std::vector<Command> camera_commands() {
         {{"camera", "URI", "camera to read from", "synthetic:"},
          {"frame", "K", "0-based index of the frame to draw", "0"},
          {"out", "FILE", "PNG to write", ""},
-         {"overlay", "", "add a third panel: registered depth edges over the colour image", ""}}},
+         {"overlay", "", "add a third panel: registered depth edges over the colour image, and print the "
+          "registration residual", ""}}},
        run_view},
   };
 }

@@ -27,6 +27,7 @@ std::vector<Command> tracking_commands();
 std::vector<Command> storage_commands();
 std::vector<Command> daemon_commands();
 std::vector<Command> rig_commands();
+std::vector<Command> self_calibration_commands();
 std::vector<Command> camera_calibrate_commands();  // camera_calibrate.cpp
 std::vector<Command> calibration_eval_commands();  // calibration_eval.cpp
 

@@ -371,7 +371,8 @@ TEST(ReplayCamera, SyntheticDumpWithLoopAndDefaultsCalibration) {
   auto not_started = camera.next_frame(f, std::chrono::milliseconds(0));
   EXPECT_FALSE(not_started);
   ASSERT_TRUE(camera.start());
-  const KinectRegistration reg(KinectCalibration::defaults());
+  const KinectRegistration reg(KinectCalibration::typical_unit());
+  EXPECT_DOUBLE_EQ(camera.info().calibration.correction.dy_px, -13.0);
   for (int i = 0; i < 7; ++i) {
     auto s = camera.next_frame(f, std::chrono::milliseconds(100));
     ASSERT_TRUE(s) << s.error().message;

@@ -65,6 +65,31 @@ TEST(DeviceJson, RoundTrip) {
   EXPECT_EQ(to_device_json(*parsed), text);
 }
 
+TEST(DeviceJson, CorrectionRoundTripAndRange) {
+  KinectCalibration c = KinectCalibration::defaults();
+  EXPECT_EQ(to_device_json(c).find("correction"), std::string::npos)
+      << "an uncalibrated unit writes the real files' layout";
+  c.correction.dx_px = -7.125;
+  c.correction.dy_px = 13.5;
+  c.correction.rotation_deg = 0.25;
+  c.correction.depth_scale = 0.97;
+  c.correction.inverse_depth_offset_per_m = 0.004;
+  auto parsed = parse_device_json(to_device_json(c));
+  ASSERT_TRUE(parsed) << parsed.error().message;
+  EXPECT_DOUBLE_EQ(parsed->correction.dx_px, -7.125);
+  EXPECT_DOUBLE_EQ(parsed->correction.dy_px, 13.5);
+  EXPECT_DOUBLE_EQ(parsed->correction.rotation_deg, 0.25);
+  EXPECT_DOUBLE_EQ(parsed->correction.depth_scale, 0.97);
+  EXPECT_DOUBLE_EQ(parsed->correction.inverse_depth_offset_per_m, 0.004);
+  auto j = nlohmann::json::parse(to_device_json(c));
+  j["correction"]["depth_scale"] = 3.0;
+  auto bad = parse_device_json(j.dump());
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("correction.depth_scale"), std::string::npos);
+  j["correction"] = "x";
+  EXPECT_FALSE(parse_device_json(j.dump()));
+}
+
 TEST(DeviceJson, FileRoundTrip) {
   const auto dir =
       std::filesystem::temp_directory_path() /

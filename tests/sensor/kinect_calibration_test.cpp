@@ -19,8 +19,50 @@ TEST_F(KinectRegistrationTest, RawToMmMatchesLibfreenectFormula) {
   // mm = 10 * (metric * 120 / (7.5 - metric) + 120).
   const double metric = 41.125 * 0.10419999808073044;
   const double expected = 10.0 * (metric * 120.0 / (7.5 - metric) + 120.0);
-  EXPECT_EQ(reg.raw_to_mm(966), static_cast<std::uint16_t>(expected));
+  // Rounded (libfreenect truncates, which puts every depth 0.5 mm nearer on average).
+  EXPECT_EQ(reg.raw_to_mm(966), static_cast<std::uint16_t>(std::lround(expected)));
+  EXPECT_NEAR(reg.raw_to_mm_exact(966), expected, 1e-3);
   EXPECT_NEAR(reg.raw_to_mm(966), 2800, 20);
+}
+
+TEST(RegistrationCorrection, IdentityKeepsLibfreenectsTables) {
+  const KinectRegistration plain(KinectCalibration::defaults());
+  KinectCalibration c = KinectCalibration::defaults();
+  c.correction.dx_px = 0.0;
+  const KinectRegistration same(c);
+  for (int y = 0; y < 480; y += 37)
+    for (int x = 0; x < 640; x += 41) {
+      double ax = 0, ay = 0, bx = 0, by = 0;
+      const bool a = plain.depth_to_color(x, y, 800, ax, ay);
+      ASSERT_EQ(a, same.depth_to_color(x, y, 800, bx, by));
+      if (!a) continue;
+      EXPECT_EQ(ax, bx);
+      EXPECT_EQ(ay, std::floor(ay)) << "rows stay whole under an identity correction";
+    }
+}
+
+TEST(RegistrationCorrection, ShiftsRotatesAndScales) {
+  const KinectRegistration plain(KinectCalibration::defaults());
+  KinectCalibration c = KinectCalibration::defaults();
+  c.correction.dx_px = 7.5;
+  c.correction.dy_px = -13.25;
+  c.correction.rotation_deg = 0.5;
+  c.correction.depth_scale = 1.04;
+  const KinectRegistration corrected(c);
+  // At the centre the rotation moves nothing: the shift alone (within the 1/256 px table).
+  double ax = 0, ay = 0, bx = 0, by = 0;
+  ASSERT_TRUE(plain.depth_to_color(320, 240, 900, ax, ay));
+  ASSERT_TRUE(corrected.depth_to_color(320, 240, 900, bx, by));
+  EXPECT_NEAR(bx - ax, 7.5, 0.05);
+  EXPECT_NEAR(by - ay, -13.25, 0.05);
+  // 200 px right of the centre a 0.5 deg rotation moves the row down by 200 sin(0.5 deg).
+  ASSERT_TRUE(plain.depth_to_color(520, 240, 900, ax, ay));
+  ASSERT_TRUE(corrected.depth_to_color(520, 240, 900, bx, by));
+  EXPECT_NEAR(by - ay, -13.25 + 200 * std::sin(0.5 * 3.14159265358979 / 180), 0.1);
+  // The depth law: 4 % longer, rounded.
+  EXPECT_NEAR(corrected.raw_to_mm(700), plain.raw_to_mm_exact(700) * 1.04, 0.51);
+  // mm_to_raw inverts the corrected law.
+  EXPECT_NEAR(corrected.mm_to_raw(corrected.raw_to_mm(700)), 700, 1);
 }
 
 TEST_F(KinectRegistrationTest, InvalidRawIsZero) {

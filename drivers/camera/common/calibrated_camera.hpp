@@ -23,10 +23,10 @@ namespace fb {
 
 // Where a unit's calibration came from, for messages and the status.
 enum class CalibrationSource {
-  kDevice,            // the device's firmware tables or a device.json next to the recording
-  kDefaults,          // the built-in defaults: nothing better was known
-  kCheckerboard,      // `facebooth camera calibrate`
-  kSelfCalibration,   // estimated from ordinary frames
+  kDevice,           // the device's firmware tables or a device.json next to the recording
+  kDefaults,         // the built-in defaults: nothing better was known
+  kCheckerboard,     // `facebooth camera calibrate`
+  kSelfCalibration,  // estimated from ordinary frames
 };
 const char* to_string(CalibrationSource source);
 

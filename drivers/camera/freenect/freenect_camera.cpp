@@ -435,8 +435,8 @@ Result<std::unique_ptr<DepthCamera>> FreenectCamera::open(std::string_view argum
   DevicePtr device(raw_device);
 
   // Calibration: explicit file, then the dump's own device.json, then the device, then defaults.
-  KinectCalibration calibration = KinectCalibration::defaults();
-  std::string calibration_source = "built-in defaults";
+  KinectCalibration calibration = KinectCalibration::typical_unit();
+  std::string calibration_source = "defaults for a typical unit";
   if (!options->calib_path.empty()) {
     auto loaded = read_device_json(options->calib_path);
     if (!loaded)

@@ -470,10 +470,10 @@ class Openni2Camera final : public DepthCamera {
     info_.fps = depth_mode.getFps() > 0 ? depth_mode.getFps() : kKinectFps;
     max_color_lag_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
         std::chrono::duration<double>(2.0 / info_.fps));
-    // OpenNI2 exposes no Kinect reg_info / zero-plane block, so the documented Kinect v1
-    // defaults stand in; they only matter to code that converts disparity or registers depth
-    // to colour with the Kinect model.
-    info_.calibration = KinectCalibration::defaults();
+    // OpenNI2 exposes no Kinect reg_info / zero-plane block, so a typical Kinect v1 unit
+    // stands in; it only matters to code that converts disparity or registers depth to colour
+    // with the Kinect model (self-calibration refines it per unit).
+    info_.calibration = KinectCalibration::typical_unit();
     info_.depth_intrinsics =
         intrinsics_from_fov(info_.width, info_.height, depth_.getHorizontalFieldOfView(),
                             depth_.getVerticalFieldOfView());

@@ -161,7 +161,7 @@ Result<std::unique_ptr<DepthCamera>> open_replay_camera(const std::filesystem::p
   if (options.loop) info.uri += ",loop=1";
   info.backend = "replay";
   const bool has_json = reader->device_calibration().has_value();
-  info.calibration = has_json ? *reader->device_calibration() : KinectCalibration::defaults();
+  info.calibration = has_json ? *reader->device_calibration() : KinectCalibration::typical_unit();
   info.depth_intrinsics = info.calibration.depth_intrinsics();
   info.width = first.raw_disparity.width;
   info.height = first.raw_disparity.height;
@@ -171,7 +171,9 @@ Result<std::unique_ptr<DepthCamera>> open_replay_camera(const std::filesystem::p
   info.description =
       "fakenect dump " + directory.string() + ": " + std::to_string(n) + " depth frames, " +
       std::to_string(reader->color_image_count()) + " colour images, calibration from " +
-      (has_json ? std::string("device.json") : std::string("defaults (no device.json)"));
+      (has_json ? std::string("device.json")
+                : std::string("defaults for a typical unit (no device.json; run `facebooth "
+                              "camera self-calibrate --camera replay:DIR --save`)"));
   return std::unique_ptr<DepthCamera>(
       std::make_unique<ReplayCamera>(std::move(info), std::move(*reader), options));
 }

@@ -28,6 +28,8 @@ std::vector<Command> storage_commands();
 std::vector<Command> daemon_commands();
 std::vector<Command> rig_commands();
 std::vector<Command> self_calibration_commands();
+std::vector<Command> camera_calibrate_commands();  // camera_calibrate.cpp
+std::vector<Command> calibration_eval_commands();  // calibration_eval.cpp
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "drivers/camera/common/camera_uri.hpp"
+#include "drivers/camera/synthetic/board_scene.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -859,6 +860,7 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const SyntheticOp
 namespace {
 
 Result<std::unique_ptr<DepthCamera>> open_synthetic(std::string_view arguments) {
+  if (is_board_target(arguments)) return open_board_camera(arguments);  // board_scene.hpp
   auto model = load_face_model();
   if (!model) {
     return fail("synthetic: cannot load the face model: " + model.error().message);

@@ -194,7 +194,10 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
   nlohmann::json j = score_json(with_landmarks, model);
   j.erase("per_shape_mae");
   const nlohmann::json d = score_json(depth_only, model);
-  j["depth_only_weight_mae"] = d["weight_mae"];
+  // A run that never calibrated scores no frame: null, not 0.
+  j["depth_only_frames_scored"] = d["frames_scored"];
+  j["depth_only_weight_mae"] = depth_only.frames ? d["weight_mae"] : nlohmann::json(nullptr);
+  if (!with_landmarks.frames) j["weight_mae"] = nullptr;
   j["depth_only_pose_error_deg"] = d["pose_error_deg"];
   j["depth_only_frames_lost"] = d["frames_lost"];
   j["takes"] = seeds;

@@ -51,7 +51,8 @@ double inverse_normal_cdf(double p) {
 }
 
 constexpr std::size_t kGaussianTableBits = 16;
-constexpr std::uint64_t kStreamNoise = 1, kStreamEdge = 2, kStreamGrazing = 3;
+constexpr std::uint64_t kStreamNoise = 1, kStreamEdge = 2, kStreamGrazing = 3,
+                        kStreamCorrelated = 4, kStreamSpeckle = 5;
 
 }  // namespace
 
@@ -99,6 +100,27 @@ KinectSensorModel::KinectSensorModel(const KinectRegistration& registration,
     gaussian_table_[i] = static_cast<float>(inverse_normal_cdf(
         (static_cast<double>(i) + 0.5) / static_cast<double>(gaussian_table_.size())));
   }
+}
+
+double KinectSensorModel::correlated_noise(int x, int y, std::uint64_t noise_seed) const {
+  if (options_.correlated_noise_sigma <= 0.0) return 0.0;
+  // Gaussian values on a coarse grid, bilinearly interpolated: neighbours within a block share
+  // most of their error, as the device's window matching makes them.
+  const int b = std::max(1, options_.correlated_noise_block_px);
+  const int gx = x / b, gy = y / b;
+  const double fx = static_cast<double>(x - gx * b) / b, fy = static_cast<double>(y - gy * b) / b;
+  const std::size_t table_mask = gaussian_table_.size() - 1;
+  const std::size_t stride = static_cast<std::size_t>(intrinsics_.width / b + 2);
+  auto node = [&](int ix, int iy) {
+    const std::size_t k = static_cast<std::size_t>(iy) * stride + static_cast<std::size_t>(ix);
+    return static_cast<double>(
+        gaussian_table_[(pixel_random(noise_seed, k, kStreamCorrelated) >> 20) & table_mask]);
+  };
+  const double v = (1 - fx) * (1 - fy) * node(gx, gy) + fx * (1 - fy) * node(gx + 1, gy) +
+                   (1 - fx) * fy * node(gx, gy + 1) + fx * fy * node(gx + 1, gy + 1);
+  // Bilinear blending shrinks the variance (to 4/9 at a block's centre); 1.5 restores about
+  // the nominal sigma on average over a block.
+  return 1.5 * options_.correlated_noise_sigma * v;
 }
 
 double KinectSensorModel::fractional_raw(double depth_mm) const {
@@ -220,6 +242,14 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
         }
       }
 
+      if (invalid == 0 && options_.speckle_dropout_rate > 0.0) {
+        const std::size_t cell = static_cast<std::size_t>(y / 2) * static_cast<std::size_t>(w) +
+                                 static_cast<std::size_t>(x / 2);
+        if (unit_uniform(pixel_random(noise_seed, cell, kStreamSpeckle)) <
+            options_.speckle_dropout_rate)
+          invalid |= kSensorSpeckle;
+      }
+
       std::uint16_t raw = kInvalidDisparity;
       if (invalid == 0) {
         if (options_.depth_noise) {
@@ -228,7 +258,8 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
           if (r >= 0.0) {
             const auto bits = pixel_random(noise_seed, i, kStreamNoise);
             const double noisy =
-                r + options_.disparity_noise_sigma * gaussian_table_[(bits >> 20) & table_mask];
+                r + options_.disparity_noise_sigma * gaussian_table_[(bits >> 20) & table_mask] +
+                correlated_noise(x, y, noise_seed);
             // floor(x + 0.5): round half up, far cheaper than lround and the same for x >= 0.
             const long rounded = static_cast<long>(std::floor(noisy + 0.5));
             if (rounded >= 0 && rounded < kInvalidDisparity)

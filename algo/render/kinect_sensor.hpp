@@ -55,6 +55,15 @@ struct KinectSensorOptions {
   // Working range; outside it the device reports nothing.
   double min_depth_mm = 500.0;
   double max_depth_mm = 8000.0;
+  // Disparity noise correlated over small blocks (the device matches 9x9 speckle windows, so
+  // neighbouring pixels share their error): a Gaussian field drawn on a grid every
+  // `correlated_noise_block_px` pixels, bilinearly interpolated, added to the per-pixel noise
+  // before quantisation. Raw units; 0 = off (the default, so existing figures hold).
+  double correlated_noise_sigma = 0.0;
+  int correlated_noise_block_px = 6;
+  // Low-rate speckle dropouts: isolated 2x2 holes where the pattern fails to match, with this
+  // probability per 2x2 cell. 0 = off.
+  double speckle_dropout_rate = 0.0;
 };
 
 // Why a pixel has no depth (bit mask, 0 = measured).
@@ -64,6 +73,8 @@ enum SensorInvalid : std::uint8_t {
   kSensorProjectorShadow = 4,
   kSensorGrazing = 8,
   kSensorDepthEdge = 16,
+  kSensorSpeckle = 32,   // speckle_dropout_rate
+  kSensorMaterial = 64,  // hair or beard (set by the synthetic world, not by this model)
 };
 
 struct SensorFrame {
@@ -98,6 +109,9 @@ class KinectSensorModel {
   double fractional_raw(double depth_mm) const;
 
  private:
+  // The block-correlated part of the disparity noise at pixel (x, y), raw units.
+  double correlated_noise(int x, int y, std::uint64_t noise_seed) const;
+
   KinectRegistration registration_;
   KinectSensorOptions options_;
   PinholeIntrinsics intrinsics_;

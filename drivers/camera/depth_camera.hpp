@@ -42,6 +42,8 @@ struct FrameTruth {
   std::vector<Eigen::Vector2d> landmarks_depth_px;  // 68 points projected into the depth image
   std::vector<Eigen::Vector2d> landmarks_color_px;  // 68 points in the colour image
   Image<float> noiseless_depth_mm;  // rendered depth before the sensor model, 0 = background/none
+  // Fraction of the face (jaw line and brows polygon) hidden by a hand in front of it.
+  double face_hidden_fraction = 0.0;
 };
 
 class DepthCamera {

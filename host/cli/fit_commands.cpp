@@ -29,6 +29,7 @@
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "drivers/camera/synthetic/world_presets.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/stats.hpp"
 #include "host/cli/synthetic_capture.hpp"
@@ -160,39 +161,42 @@ Result<std::vector<int>> parse_expression_list(const std::string& text, const Gu
   return out;
 }
 
-int run_eval_fit(const ParsedOptions& options) {
-  auto identities = options.get_int("identities");
-  if (!identities) return report_failure(identities.error());
-  auto first_seed = options.get_int("first-seed");
-  if (!first_seed) return report_failure(first_seed.error());
-  auto frames = options.get_int("frames");
-  if (!frames) return report_failure(frames.error());
-  auto noise = options.get_double("landmark-noise-px");
-  if (!noise) return report_failure(noise.error());
-  auto robust_noise = options.get_double("robustness-noise-px");
-  if (!robust_noise) return report_failure(robust_noise.error());
-  if (*identities < 1 || *frames < 2 || *noise < 0)
-    return report_failure({"--identities >= 1, --frames >= 2 and --landmark-noise-px >= 0"});
-  auto model = load_face_model();
-  if (!model) return report_failure(model.error());
-  auto guide = load_guide(*model, options.get("guide"));
-  if (!guide) return report_failure(guide.error());
-  auto model_system = model_refine_system(*model);
-  if (!model_system) return report_failure(model_system.error());
-  const bool noiseless_depth = options.get("depth") == "noiseless";  // diagnostics only
-  auto expressions = parse_expression_list(options.get("expressions"), *guide);
-  if (!expressions) return report_failure(expressions.error());
-  std::optional<LandmarkDetector> detector;
-  if (options.get("dlib") != "off") {
-    std::cerr << "eval fit: loading the dlib landmark model...\n";
-    auto d = load_detector(options.get("shape-predictor"));
-    if (!d) return report_failure(d.error());
-    detector.emplace(std::move(*d));
-  }
+// One run of eval fit over the subjects, in the world `world` (a world_presets.hpp part, or
+// empty for the plain synthetic camera).
+struct FitEvalSetup {
+  const FaceModel* model = nullptr;
+  const GuideSet* guide = nullptr;
+  const RefineSystem* model_system = nullptr;
+  LandmarkDetector* detector = nullptr;  // dlib (scored, and the fit's landmarks with dlib_fit)
+  std::vector<int> expressions;
+  long long identities = 1, first_seed = 1, frames = 45;
+  double noise = 1, robust_noise = 5;
+  bool noiseless_depth = false;
+  bool dlib_fit = false;  // fit dlib's points on frame 0's colour image instead of truth + noise
+};
 
+Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEvalSetup& setup,
+                                     const std::string& world) {
+  const FaceModel* model = setup.model;
+  const GuideSet* guide = setup.guide;
+  const RefineSystem* model_system = setup.model_system;
+  const std::vector<int>* expressions = &setup.expressions;
+  const long long* identities = &setup.identities;
+  const long long* first_seed = &setup.first_seed;
+  const long long* frames = &setup.frames;
+  const double* noise = &setup.noise;
+  const double* robust_noise = &setup.robust_noise;
+  const bool noiseless_depth = setup.noiseless_depth;
+  LandmarkDetector* detector = setup.detector;
+  // In a world (scenario runs) a capture that fails (fusion loses the face, dlib finds none, a
+  // fit fails) is a figure, not an abort: it is counted and its reason kept.
+  const bool lenient = !world.empty();
+  int captures = 0, captures_failed = 0;
+  std::map<std::string, int> failure_reasons;
   Samples rms_init, rms_ref, ne_init, ne_ref, ne_noise, ee_init, ee_ref, erms_ref, lm_err,
       lm_err_interior, lm_detect_fail, neutral_ms, expr_ms, lm_ms_track, lm_ms_full, lift_err;
-  int detections = 0, detection_attempts = 0;
+  int detections = 0, detection_attempts = 0, fit_dlib_found = 0, fit_dlib_attempts = 0;
+  Samples fit_dlib_err;
   nlohmann::json per_subject = nlohmann::json::array();
   nlohmann::json per_expression = nlohmann::json::object();
   std::map<int, Samples> expr_err;
@@ -211,15 +215,58 @@ int run_eval_fit(const ParsedOptions& options) {
     for (int e : *expressions) {
       const GuideExpression& ge = guide->expressions[static_cast<std::size_t>(e)];
       auto weights = guide_weights(ge, *model);
-      if (!weights) return report_failure(weights.error());
+      if (!weights) return weights.failure();
       std::cerr << "eval fit: subject " << seed << ", " << ge.name << " ...\n";
-      auto cap = capture(*model, identity, *weights, seed * 1000 + static_cast<std::uint64_t>(e),
-                         static_cast<int>(*frames), detector.has_value() && e == 0 && s == 0);
-      if (!cap) return report_failure(cap.error());
-      auto target = make_fit_target(*cap, noisy(cap->truth_color_px, *noise, rng), noiseless_depth);
-      if (!target) return report_failure(target.error());
       nlohmann::json j;
       j["expression"] = ge.name;
+      ++captures;
+      // Why a capture gave no figure: an error outside a world, a counted failure in one.
+      auto failed = [&](const std::string& stage, const Error& error) -> Result<bool> {
+        if (!lenient) return fail(error);
+        ++captures_failed;
+        ++failure_reasons[stage];
+        j["failed"] = stage + ": " + error.message;
+        exprs.push_back(j);
+        std::cerr << "  " << ge.name << " failed at " << stage << ": " << error.message << "\n";
+        return e == 0;  // no neutral: the subject's expressions cannot be fitted
+      };
+      auto cap = capture(*model, identity, *weights, seed * 1000 + static_cast<std::uint64_t>(e),
+                         static_cast<int>(*frames), detector && e == 0 && s == 0, {}, world, seed);
+      if (!cap) {
+        auto stop = failed("capture", cap.error());
+        if (!stop) return stop.failure();
+        if (*stop) break;
+        continue;
+      }
+      std::vector<Eigen::Vector2d> fit_points = noisy(cap->truth_color_px, *noise, rng);
+      if (setup.dlib_fit) {
+        // What runs on real frames: dlib on the colour image of frame 0.
+        ++fit_dlib_attempts;
+        detector->reset_tracking();
+        auto found = detector->detect(cap->color);
+        if (!found) {
+          auto stop = failed("dlib", found.error());
+          if (!stop) return stop.failure();
+          if (*stop) break;
+          continue;
+        }
+        ++fit_dlib_found;
+        fit_points.assign(found->points.begin(), found->points.end());
+        double sum = 0;
+        for (int l = 0; l < 68; ++l)
+          sum += (fit_points[static_cast<std::size_t>(l)] -
+                  cap->truth_color_px[static_cast<std::size_t>(l)])
+                     .norm();
+        fit_dlib_err.add(sum / 68);
+        j["fit_landmark_error_px"] = sum / 68;
+      }
+      auto target = make_fit_target(*cap, fit_points, noiseless_depth);
+      if (!target) {
+        auto stop = failed("landmarks", target.error());
+        if (!stop) return stop.failure();
+        if (*stop) break;
+        continue;
+      }
       j["fused_frames"] = cap->fused_frames;
       {  // how well the colour -> depth lifting puts the points (vs the true depth-image points)
         double sum = 0;
@@ -236,7 +283,11 @@ int run_eval_fit(const ParsedOptions& options) {
       }
       if (e == 0) {
         auto fit = fit_neutral(*model, *target, {}, nullptr, &*model_system);
-        if (!fit) return report_failure(fit.error());
+        if (!fit) {
+          auto stop = failed("neutral fit", fit.error());
+          if (!stop) return stop.failure();
+          break;
+        }
         neutral = std::move(*fit);
         const double vi =
             mean_vertex_distance(neutral.initial_vertices, neutral.camera_from_model,
@@ -263,9 +314,9 @@ int run_eval_fit(const ParsedOptions& options) {
         if (*robust_noise > 0) {
           auto t2 = make_fit_target(*cap, noisy(cap->truth_color_px, *robust_noise, rng),
                                     noiseless_depth);
-          if (!t2) return report_failure(t2.error());
+          if (!t2) return t2.failure();
           auto f2 = fit_neutral(*model, *t2, {}, nullptr, &*model_system);
-          if (!f2) return report_failure(f2.error());
+          if (!f2) return f2.failure();
           const double vn =
               mean_vertex_distance(f2->vertices, f2->camera_from_model, cap->truth_mesh,
                                    cap->truth_pose, model->fitting_vertices);
@@ -275,7 +326,7 @@ int run_eval_fit(const ParsedOptions& options) {
         g0.resize(static_cast<std::size_t>(model->vertex_count) * 3);
         model->evaluate({}, {}, g0);
         auto tr = ExpressionTransfer::create(*model, neutral.vertices, g0);
-        if (!tr) return report_failure(tr.error());
+        if (!tr) return tr.failure();
         transfer.emplace(std::move(*tr));
         // dlib on the untextured render.
         if (detector) {
@@ -317,14 +368,18 @@ int run_eval_fit(const ParsedOptions& options) {
             cv::hconcat(
                 std::vector<cv::Mat>{a, cv::Mat(a.rows, 10, CV_8UC3, cv::Scalar(255, 255, 255)), b},
                 row);
-            if (auto ok = write_png(png, row); !ok) return report_failure(ok.error());
+            if (auto ok = write_png(png, row); !ok) return ok.failure();
           }
         }
       } else {
         auto gi = guide_mesh(ge, *model);
-        if (!gi) return report_failure(gi.error());
+        if (!gi) return gi.failure();
         auto fit = fit_expression(*model, *transfer, *gi, *target);
-        if (!fit) return report_failure(fit.error());
+        if (!fit) {
+          auto stop = failed("expression fit", fit.error());
+          if (!stop) return stop.failure();
+          continue;
+        }
         const double vi =
             mean_vertex_distance(fit->initial_vertices, fit->camera_from_model, cap->truth_mesh,
                                  cap->truth_pose, model->fitting_vertices);
@@ -356,12 +411,28 @@ int run_eval_fit(const ParsedOptions& options) {
 
   nlohmann::json out;
   out["identities"] = *identities;
+  out["world"] = world.empty() ? "plain synthetic camera" : world;
+  out["captures"] = captures;
+  out["captures_failed"] = captures_failed;
+  out["capture_failures_by_stage"] = failure_reasons;
+  out["fit_landmark_source"] =
+      setup.dlib_fit ? "dlib on the colour image of frame 0 (what runs on real frames)"
+                     : "ground-truth colour-image landmarks + Gaussian noise";
+  if (setup.dlib_fit) {
+    out["fit_landmark_error_px"] =
+        fit_dlib_err.empty() ? nlohmann::json(nullptr) : nlohmann::json(fit_dlib_err.mean());
+    out["fit_landmark_detections"] =
+        std::to_string(fit_dlib_found) + "/" + std::to_string(fit_dlib_attempts);
+  }
   out["expressions"] = expressions->size();
   out["frames_per_capture"] = *frames;
   out["landmark_source"] =
-      "ground-truth colour-image landmarks (projected model landmark vertices) + Gaussian noise of "
-      "landmark_noise_px per axis, lifted into the depth camera through the registration and the "
-      "fused depth; dlib is scored separately (landmark_error_px)";
+      setup.dlib_fit
+          ? "dlib's points on the colour image of frame 0, lifted into the depth camera through "
+            "the registration the camera reports and the fused depth"
+          : "ground-truth colour-image landmarks (projected model landmark vertices) + Gaussian "
+            "noise of landmark_noise_px per axis, lifted into the depth camera through the "
+            "registration and the fused depth; dlib is scored separately (landmark_error_px)";
   out["landmark_noise_px"] = *noise;
   out["lifted_landmark_error_px"] = lift_err.mean();
   out["depth_used"] =
@@ -397,9 +468,9 @@ int run_eval_fit(const ParsedOptions& options) {
     out["landmark_detections"] =
         std::to_string(detections) + "/" + std::to_string(detection_attempts);
     out["landmark_error_note"] =
-        "dlib HOG + shape_predictor_68 on the untextured synthetic colour render (frame 0 of each "
-        "neutral take) vs the projected model landmark vertices; the render has no skin texture "
-        "and dlib's annotation convention differs from the model's landmark vertices";
+        "dlib HOG + shape_predictor_68 on the synthetic colour render (frame 0 of each neutral "
+        "take; textured only in a world with texture) vs the projected model landmark vertices; "
+        "dlib's annotation convention differs from the model's landmark vertices";
     out["landmark_ms_full_image"] = lm_ms_full.mean();
     out["landmark_ms_tracked"] = lm_ms_track.mean();
   } else {
@@ -414,6 +485,89 @@ int run_eval_fit(const ParsedOptions& options) {
   out["meets_targets"] =
       rms_ref.mean() <= 0.3 && ne_ref.mean() <= 1.0 && (ee_ref.empty() || ee_ref.mean() <= 1.5);
   out["per_subject"] = per_subject;
+  return out;
+}
+
+int run_eval_fit(const ParsedOptions& options) {
+  auto identities = options.get_int("identities");
+  if (!identities) return report_failure(identities.error());
+  auto first_seed = options.get_int("first-seed");
+  if (!first_seed) return report_failure(first_seed.error());
+  auto frames = options.get_int("frames");
+  if (!frames) return report_failure(frames.error());
+  auto noise = options.get_double("landmark-noise-px");
+  if (!noise) return report_failure(noise.error());
+  auto robust_noise = options.get_double("robustness-noise-px");
+  if (!robust_noise) return report_failure(robust_noise.error());
+  if (*identities < 1 || *frames < 2 || *noise < 0)
+    return report_failure({"--identities >= 1, --frames >= 2 and --landmark-noise-px >= 0"});
+  auto model = load_face_model();
+  if (!model) return report_failure(model.error());
+  auto guide = load_guide(*model, options.get("guide"));
+  if (!guide) return report_failure(guide.error());
+  auto model_system = model_refine_system(*model);
+  if (!model_system) return report_failure(model_system.error());
+  const bool noiseless_depth = options.get("depth") == "noiseless";  // diagnostics only
+  auto expressions = parse_expression_list(options.get("expressions"), *guide);
+  if (!expressions) return report_failure(expressions.error());
+  const std::string scenario = options.get("scenario");
+  const std::string fit_landmarks = options.get("fit-landmarks").empty()
+                                        ? (scenario.empty() ? "truth" : "dlib")
+                                        : options.get("fit-landmarks");
+  if (fit_landmarks != "truth" && fit_landmarks != "dlib")
+    return report_failure({"--fit-landmarks must be truth or dlib"});
+  if (fit_landmarks == "dlib" && options.get("dlib") == "off")
+    return report_failure({"--fit-landmarks dlib needs dlib: drop --dlib off"});
+  std::vector<std::string> parts;
+  if (!scenario.empty()) {
+    SyntheticOptions probe;
+    if (auto ok = apply_world_preset(scenario, 1, probe); !ok) return report_failure(ok.error());
+    if (scenario == "realistic") {
+      parts = {"baseline"};
+      for (const auto& p : world_parts()) parts.push_back(p);
+    }
+    parts.push_back(scenario);
+  }
+  std::optional<LandmarkDetector> detector;
+  if (options.get("dlib") != "off") {
+    std::cerr << "eval fit: loading the dlib landmark model...\n";
+    auto d = load_detector(options.get("shape-predictor"));
+    if (!d) return report_failure(d.error());
+    detector.emplace(std::move(*d));
+  }
+  FitEvalSetup setup;
+  setup.model = &*model;
+  setup.guide = &*guide;
+  setup.model_system = &*model_system;
+  setup.detector = detector ? &*detector : nullptr;
+  setup.expressions = *expressions;
+  setup.identities = *identities;
+  setup.first_seed = *first_seed;
+  setup.frames = *frames;
+  setup.noise = *noise;
+  setup.robust_noise = *robust_noise;
+  setup.noiseless_depth = noiseless_depth;
+  setup.dlib_fit = fit_landmarks == "dlib";
+  if (parts.empty()) {
+    auto out = eval_fit_once(options, setup, "");
+    if (!out) return report_failure(out.error());
+    std::cout << out->dump(2) << std::endl;
+    return kExitOk;
+  }
+  // Each part alone (and, for realistic, the plain world with the same landmarks as a
+  // baseline), then the scenario itself: its figures are the top level.
+  nlohmann::json scenarios;
+  nlohmann::json out;
+  for (const auto& part : parts) {
+    std::cerr << "eval fit: scenario " << part << "\n";
+    auto run = eval_fit_once(options, setup, part == "baseline" ? "none" : part);
+    if (!run) return report_failure(run.error());
+    if (part == scenario) out = *run;
+    run->erase("per_subject");
+    scenarios[part] = std::move(*run);
+  }
+  out["scenario"] = scenario;
+  out["scenarios"] = scenarios;
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }
@@ -616,6 +770,15 @@ std::vector<Command> fit_commands() {
           "5"},
          {"png", "FILE", "error map of the first neutral fit (initial | refined)", ""},
          {"dlib", "on|off", "score dlib's landmarks on the renders", "on"},
+         {"scenario", "NAME",
+          "realistic (every part alone, a baseline, then all together; JSON scenarios.<part>) or "
+          "one part: identity|texture|hair|clutter|noise|unit (drivers/camera/synthetic/"
+          "world_presets.hpp); empty = the plain synthetic camera",
+          ""},
+         {"fit-landmarks", "dlib|truth",
+          "the fit's landmarks: dlib on frame 0's colour image, or truth + --landmark-noise-px "
+          "(default: dlib with --scenario, truth without)",
+          ""},
          {"depth", "fused|noiseless",
           "fit the fused depth (the figure) or, to isolate fusion "
           "error, the noiseless rendering",

@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "algo/fusion/face_fusion.hpp"
+#include "drivers/camera/synthetic/world_presets.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/scratch_directory.hpp"
@@ -459,7 +460,9 @@ std::string synthetic_uri(const std::string& base, int seed, long long frames) {
   return uri + "seed=" + std::to_string(seed) + ",frames=" + std::to_string(frames);
 }
 
-int run_eval_fusion(const ParsedOptions& options) {
+// One eval fusion run; `world` (a world_presets.hpp scenario, or empty) is appended to the
+// synthetic URI. With `sink` the JSON goes there (and the real dump is skipped), else to stdout.
+int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlohmann::json* sink) {
   auto seeds = options.get_int("seeds");
   if (!seeds) return report_failure(seeds.error());
   auto first_seed = options.get_int("first-seed");
@@ -485,7 +488,9 @@ int run_eval_fusion(const ParsedOptions& options) {
   FaceFusion fusion;
   for (long long s = 0; s < *seeds; ++s) {
     const int seed = static_cast<int>(*first_seed + s);
-    const std::string uri = synthetic_uri(options.get("synthetic"), seed, *frames);
+    std::string base = options.get("synthetic");
+    if (!world.empty()) base += (base.ends_with(":") ? "" : ",") + ("world=" + world);
+    const std::string uri = synthetic_uri(base, seed, *frames);
     std::cerr << "eval fusion: " << uri << " ...\n";
     auto seq = load_sequence(uri, *frames, static_cast<int>(*frontal));
     if (!seq) return report_failure(seq.error());
@@ -580,7 +585,7 @@ int run_eval_fusion(const ParsedOptions& options) {
   result["per_seed"] = per_seed;
 
   // The real dump: must run to the end without losing track, and give a mesh.
-  const std::string real = options.get("real");
+  const std::string real = sink ? "off" : options.get("real");
   if (real != "off") {
     auto scratch = ScratchDirectory::create("facebooth-eval-fusion-");
     if (!scratch) return report_failure(scratch.error());
@@ -633,7 +638,39 @@ int run_eval_fusion(const ParsedOptions& options) {
   result["targets"] = targets;
   result["meets_targets"] =
       worst.max_mm <= 1.0 && worst.max_deg <= 0.5 && fused_sum / *seeds <= 0.5;
+  if (sink) {
+    *sink = std::move(result);
+    return kExitOk;
+  }
   std::cout << result.dump(2) << std::endl;
+  return kExitOk;
+}
+
+int run_eval_fusion(const ParsedOptions& options) {
+  const std::string scenario = options.get("scenario");
+  if (scenario.empty()) return eval_fusion_once(options, "", nullptr);
+  SyntheticOptions probe;
+  if (auto ok = apply_world_preset(scenario, 1, probe); !ok) return report_failure(ok.error());
+  // A plain baseline and every part alone for realistic, then the scenario (the top level);
+  // the real dump is not part of a scenario run.
+  std::vector<std::string> parts;
+  if (scenario == "realistic") {
+    parts.push_back("baseline");
+    for (const auto& p : world_parts()) parts.push_back(p);
+  }
+  parts.push_back(scenario);
+  nlohmann::json scenarios, out;
+  for (const auto& part : parts) {
+    nlohmann::json j;
+    if (int rc = eval_fusion_once(options, part == "baseline" ? "none" : part, &j); rc != kExitOk)
+      return rc;
+    j.erase("per_seed");
+    if (part == scenario) out = j;
+    scenarios[part] = std::move(j);
+  }
+  out["scenario"] = scenario;
+  out["scenarios"] = scenarios;
+  std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }
 
@@ -949,6 +986,10 @@ std::vector<Command> fusion_commands() {
       {"seeds", "N", "synthetic head-turn sequences (seeds first-seed..first-seed+N-1)", "5"},
       {"first-seed", "N", "first synthetic seed", "0"},
       {"frames", "N", "frames per sequence", "90"},
+      {"scenario", "NAME",
+       "realistic (a baseline, every part alone, then all: JSON scenarios.<part>; no real "
+       "dump) or one part: identity|texture|hair|clutter|noise|unit (world_presets.hpp)",
+       ""},
       {"synthetic", "URI", "base synthetic URI (seed and frames are appended)",
        "synthetic:motion=headturn"},
       {"frontal-frame", "N", "frame whose fused depth is scored", "0"},

@@ -6,6 +6,7 @@
 
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "drivers/camera/synthetic/world_presets.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -32,7 +33,8 @@ Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
 
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
-                        bool keep_colors, std::span<const float> personal_expression_basis) {
+                        bool keep_colors, std::span<const float> personal_expression_basis,
+                        std::string_view world, std::uint64_t world_seed) {
   SyntheticOptions so;
   so.personal_expression_basis.assign(personal_expression_basis.begin(),
                                       personal_expression_basis.end());
@@ -40,6 +42,8 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   so.identity_coeffs = identity;
   so.expression_weights = weights;
   so.frame_count = frames;
+  if (!world.empty())
+    if (auto ok = apply_world_preset(world, world_seed, so); !ok) return ok.failure();
   auto camera = make_synthetic_camera(model, so);
   if (!camera) return camera.failure();
   if (auto ok = (*camera)->start(); !ok) return ok.failure();
@@ -75,7 +79,9 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
       for (int v = 0; v < model.vertex_count; ++v)
         for (int a = 0; a < 3; ++a) c.truth_mesh[3 * v + a] = rendered[v][a];
       if (r.state != TrackingState::kStarted)
-        return fail("fusion did not start on the frontal frame");
+        return fail(
+            "fusion did not start on the frontal frame (too little face depth in the "
+            "fixed face box)");
       first = r.world_from_camera;
       started = true;
     }

@@ -8,6 +8,7 @@
 #include <random>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -45,10 +46,12 @@ struct Capture {
 };
 
 // `personal_expression_basis`: the subject's own expression shapes (SyntheticOptions), or empty
-// for the model's generic ones.
+// for the model's generic ones. `world`: a scenario of the realistic synthetic world
+// (world_presets.hpp) for subject `world_seed`, or empty for the plain camera.
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
-                        bool keep_colors, std::span<const float> personal_expression_basis = {});
+                        bool keep_colors, std::span<const float> personal_expression_basis = {},
+                        std::string_view world = {}, std::uint64_t world_seed = 0);
 
 // A fit's model frame -> the capture's true model frame: truth_pose^-1 * the fit's
 // camera_from_model (both of frame 0). Fits are scored against the truth through it.

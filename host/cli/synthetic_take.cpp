@@ -10,6 +10,7 @@
 #include "algo/render/kinect_sensor.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/face_tracker.hpp"
+#include "drivers/camera/synthetic/world_presets.hpp"
 
 namespace fb::cli {
 namespace {
@@ -192,6 +193,9 @@ class OccluderCompositor {
 Result<RenderedTake> render_take(const FaceModel& model, const TakeSpec& spec) {
   RenderedTake out;
   out.take = make_take(model, spec);
+  if (!spec.world.empty())
+    if (auto ok = apply_world_preset(spec.world, spec.seed, out.take.options); !ok)
+      return ok.failure();
   auto camera = make_synthetic_camera(model, out.take.options);
   if (!camera) return camera.failure();
   if (auto started = (*camera)->start(); !started) return started.failure();

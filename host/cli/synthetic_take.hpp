@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include "algo/core/result.hpp"
@@ -32,6 +33,9 @@ struct TakeSpec {
   bool occluder = false;
   bool noise = true;
   bool color = false;  // keep the colour images (for dlib landmarks; 0.9 MB a frame)
+  // A scenario of the realistic synthetic world (world_presets.hpp) for this take's subject
+  // (seeded by `seed`); empty = the plain camera.
+  std::string world;
 };
 
 struct Take {

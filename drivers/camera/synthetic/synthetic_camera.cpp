@@ -11,6 +11,7 @@
 
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/synthetic/board_scene.hpp"
+#include "drivers/camera/synthetic/world_presets.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -136,7 +137,11 @@ constexpr std::string_view kAccepted =
     "motion=headturn|static, frames=N, "
     "distance=MM, noise=on|off, background=MM|off, identity=random|neutral, "
     "unit=SEED (a decalibrated Kinect unit), reg_dx=PX, reg_dy=PX, reg_rot=DEG, depth_scale=S, "
-    "calibrated=0|1 (report the unit's true calibration instead of the defaults)";
+    "calibrated=0|1 (report the unit's true calibration instead of the defaults), "
+    "world=realistic|identity|texture|hair|clutter|noise|unit|none, world_seed=N, displace=MM, "
+    "asym=MM, id_scale=S, id_extreme=N, texture=on|off, tone=0..1, light=fixed|vary, "
+    "hair=on|off, beard=on|off, torso=on|off, desk=on|off, hand=on|off, hand_pass=on|off|START, "
+    "offset_x=PX, offset_y=PX, block_noise=RAW, block_px=N, speckle=RATE";
 
 }  // namespace
 
@@ -292,11 +297,14 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
         return fail("synthetic: bad identity '" + value + "'; expected random or neutral");
       }
       random_identity = value == "random";
+    } else if (is_world_key(key)) {
+      // Applied after the loop: a preset first, explicit keys over it (world_presets.hpp).
     } else {
       return fail("synthetic: unknown option '" + key + "'; " + std::string(kAccepted));
     }
   }
   if (!random_identity) options.identity_coeffs = std::vector<float>();
+  if (auto ok = apply_world_keys(*values, options); !ok) return ok.failure();
   // A decalibrated unit reports the defaults unless calibrated=1; calibrated=0 alone reports
   // the defaults for a unit that has none to differ by (harmless).
   if ((decalibrated && calibrated != 1) || calibrated == 0) {
@@ -341,6 +349,13 @@ struct SyntheticCamera::State {
   std::vector<Eigen::Vector3f> albedo;
   std::vector<Eigen::Vector3f> scene_vertices;  // camera frame, + wall corners
 
+  // The realistic world (synthetic_world.hpp): props, hair/beard regions, texture inputs.
+  std::optional<WorldProps> props;
+  WorldRegions regions;
+  std::vector<float> brow_weight;       // per mesh vertex, for the brow texture
+  std::vector<MaterialPixel> material;  // per depth pixel, hair/beard weights
+  Eigen::Vector3f skin = Eigen::Vector3f::Zero();
+
   SensorFrame sensor_frame;
   FrameTruth truth;
   Image<float> color_z;
@@ -352,7 +367,9 @@ struct SyntheticCamera::State {
 
   void set_expression(std::span<const float> basis, std::span<const float> weights);
   RigidPose pose_at(std::uint64_t index) const;
-  void shade_color();
+  void shade_color(std::uint64_t frame_index);
+  void world_depth(std::uint64_t noise_seed);
+  Eigen::Vector3f head_albedo(std::int32_t t, float b1, float b2) const;
   Eigen::Vector2d color_position(const Eigen::Vector2d& px, double z) const;
 };
 
@@ -394,9 +411,17 @@ void SyntheticCamera::State::set_expression(std::span<const float> basis,
 }
 
 RigidPose SyntheticCamera::State::pose_at(std::uint64_t index) const {
+  // The world's offset moves the face centre across the image (explicit tracks too).
+  auto placed = [&](RigidPose pose) {
+    const double z = pose.apply(rest_centroid).z();
+    const auto& k = sensor.intrinsics();
+    pose.translation += Eigen::Vector3d(options.world.offset_x_px * z / k.fx,
+                                        options.world.offset_y_px * z / k.fy, 0.0);
+    return pose;
+  };
   if (!options.camera_from_model_track.empty()) {
-    return options.camera_from_model_track[std::min<std::size_t>(
-        index, options.camera_from_model_track.size() - 1)];
+    return placed(options.camera_from_model_track[std::min<std::size_t>(
+        index, options.camera_from_model_track.size() - 1)]);
   }
   double yaw = 0.0, pitch = 0.0;
   if (options.motion == SyntheticMotion::kHeadTurn) {
@@ -411,7 +436,7 @@ RigidPose SyntheticCamera::State::pose_at(std::uint64_t index) const {
   RigidPose pose;
   pose.rotation = (flip * head).normalized();
   pose.translation = Eigen::Vector3d(0.0, 0.0, options.distance_mm) - flip * rest_centroid;
-  return pose;
+  return placed(pose);
 }
 
 Eigen::Vector2d SyntheticCamera::State::color_position(const Eigen::Vector2d& px, double z) const {
@@ -436,7 +461,49 @@ Eigen::Vector2d SyntheticCamera::State::color_position(const Eigen::Vector2d& px
   return sum / weight;
 }
 
-void SyntheticCamera::State::shade_color() {
+Eigen::Vector3f SyntheticCamera::State::head_albedo(std::int32_t t, float b1, float b2) const {
+  const auto a = triangles[3 * t], b = triangles[3 * t + 1], c = triangles[3 * t + 2];
+  const float b0 = 1.0f - b1 - b2;
+  const Eigen::Vector3f plain = b0 * albedo[a] + b1 * albedo[b] + b2 * albedo[c];
+  if (!options.world.texture) return plain;
+  // The texture sticks to the skin: sampled at the rest-pose point (caps at their current one).
+  const auto skin_count = static_cast<std::uint32_t>(skin_vertex_count);
+  auto rest = [&](std::uint32_t v) {
+    return v < skin_count ? Eigen::Vector3f(identity_mesh[3 * v], identity_mesh[3 * v + 1],
+                                            identity_mesh[3 * v + 2])
+                          : model_vertices[v];
+  };
+  auto weight = [&](const std::vector<float>& w, std::uint32_t v) {
+    return v < w.size() ? w[v] : 0.0f;
+  };
+  auto mix = [&](const std::vector<float>& w) {
+    return b0 * weight(w, a) + b1 * weight(w, b) + b2 * weight(w, c);
+  };
+  return textured_albedo(options.world, plain, b0 * rest(a) + b1 * rest(b) + b2 * rest(c),
+                         mix(regions.hair), mix(regions.beard), mix(brow_weight));
+}
+
+void SyntheticCamera::State::world_depth(std::uint64_t noise_seed) {
+  if (!options.world.hair && !options.world.beard) return;
+  const auto& raster = sensor.camera_raster();
+  material.assign(raster.triangle.size(), MaterialPixel{});
+  const auto skin_count = static_cast<std::uint32_t>(skin_vertex_count);
+  for (std::size_t i = 0; i < raster.triangle.size(); ++i) {
+    const std::int32_t t = raster.triangle[i];
+    if (t == kNoTriangle || static_cast<std::uint32_t>(t) >= mesh_triangle_count) continue;
+    const float b1 = raster.bary1[i], b2 = raster.bary2[i], b0 = 1.0f - b1 - b2;
+    const std::uint32_t v[3] = {triangles[3 * t], triangles[3 * t + 1], triangles[3 * t + 2]};
+    const float w[3] = {b0, b1, b2};
+    for (int k = 0; k < 3; ++k) {
+      if (v[k] >= skin_count) continue;
+      material[i].hair += w[k] * regions.hair[v[k]];
+      material[i].beard += w[k] * regions.beard[v[k]];
+    }
+  }
+  degrade_material_depth(sensor, material, mix64(noise_seed ^ 0x4a1b), sensor_frame);
+}
+
+void SyntheticCamera::State::shade_color(std::uint64_t frame_index) {
   const auto& raster = sensor.camera_raster();
   const auto& registration = sensor.registration();
   const int w = raster.width, h = raster.height;
@@ -448,10 +515,11 @@ void SyntheticCamera::State::shade_color() {
 
   // Key light from the upper left of the camera, expressed in the model frame so the stored
   // model normals can be used directly: l_model = R^T l_camera.
-  const Eigen::Vector3f light_camera = Eigen::Vector3f(-0.35f, -0.45f, -1.0f).normalized();
+  const WorldLight world_light_now = world_light(options.world, frame_index);
+  const Eigen::Vector3f light_camera = world_light_now.to_light;
   const Eigen::Vector3f light =
       (truth.camera_from_model.rotation.conjugate().cast<float>() * light_camera).normalized();
-  constexpr float kAmbient = 0.3f, kDiffuse = 0.75f;
+  const float kAmbient = world_light_now.ambient, kDiffuse = world_light_now.diffuse;
   const Rgb8 wall = options.wall_color;
 
   for (int y = 0; y < h; ++y) {
@@ -470,18 +538,28 @@ void SyntheticCamera::State::shade_color() {
       if (!(z < color_z.pixels[j])) continue;
       color_z.pixels[j] = z;
       color_mark.pixels[j] = 1;
-      if (static_cast<std::uint32_t>(t) >= mesh_triangle_count) {
+      Eigen::Vector3f value;
+      if (props && static_cast<std::uint32_t>(t) >= props->first_triangle()) {
+        // A prop: flat-shaded with its triangle's normal (camera frame).
+        const auto& p0 = scene_vertices[triangles[3 * t]];
+        const Eigen::Vector3f n = (scene_vertices[triangles[3 * t + 1]] - p0)
+                                      .cross(scene_vertices[triangles[3 * t + 2]] - p0)
+                                      .normalized();
+        const float intensity = kAmbient + kDiffuse * std::max(0.0f, n.dot(light_camera));
+        value = props->albedo(static_cast<std::uint32_t>(t)) * intensity * 255.0f;
+      } else if (static_cast<std::uint32_t>(t) >= mesh_triangle_count) {
         color.pixels[j] = wall;
         continue;
+      } else {
+        const auto a = triangles[3 * t], b = triangles[3 * t + 1], c = triangles[3 * t + 2];
+        const float b1 = raster.bary1[i], b2 = raster.bary2[i], b0 = 1.0f - b1 - b2;
+        const Eigen::Vector3f n =
+            (b0 * model_normals[a] + b1 * model_normals[b] + b2 * model_normals[c]).normalized();
+        const Eigen::Vector3f albedo_here = head_albedo(t, b1, b2);
+        const float intensity = kAmbient + kDiffuse * std::max(0.0f, n.dot(light));
+        value = albedo_here * intensity * 255.0f;
       }
-      const auto a = triangles[3 * t], b = triangles[3 * t + 1], c = triangles[3 * t + 2];
-      const float b1 = raster.bary1[i], b2 = raster.bary2[i], b0 = 1.0f - b1 - b2;
-      const Eigen::Vector3f n =
-          (b0 * model_normals[a] + b1 * model_normals[b] + b2 * model_normals[c]).normalized();
-      const Eigen::Vector3f albedo_here = b0 * albedo[a] + b1 * albedo[b] + b2 * albedo[c];
-      const float intensity = kAmbient + kDiffuse * std::max(0.0f, n.dot(light));
-      const Eigen::Vector3f value =
-          (albedo_here * intensity * 255.0f).cwiseMin(255.0f).cwiseMax(0.0f);
+      value = value.cwiseProduct(world_light_now.tint).cwiseMin(255.0f).cwiseMax(0.0f);
       color.pixels[j] = Rgb8{static_cast<std::uint8_t>(value.x() + 0.5f),
                              static_cast<std::uint8_t>(value.y() + 0.5f),
                              static_cast<std::uint8_t>(value.z() + 0.5f)};
@@ -532,6 +610,18 @@ void SyntheticCamera::State::shade_color() {
   for (std::size_t j = 0; j < color.pixels.size(); ++j) {
     if (color_mark.pixels[j] == 0) color.pixels[j] = wall;
   }
+  if (options.world.texture) {
+    // The colour sensor's own noise (about 3 levels per channel), so dlib sees no clean edges.
+    const std::uint64_t seed = mix64(mix64(options.seed ^ 0xc0104) + frame_index);
+    for (std::size_t j = 0; j < color.pixels.size(); ++j) {
+      std::uint8_t* channel[3] = {&color.pixels[j].r, &color.pixels[j].g, &color.pixels[j].b};
+      for (int k = 0; k < 3; ++k) {
+        const double g = hashed_gaussian(seed, 3, 3 * j + static_cast<std::size_t>(k));
+        *channel[k] =
+            static_cast<std::uint8_t>(std::clamp(*channel[k] + 3.0 * g + 0.5, 0.0, 255.0));
+      }
+    }
+  }
 }
 
 SyntheticCamera::SyntheticCamera(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -548,6 +638,9 @@ const SyntheticOptions& SyntheticCamera::options() const {
 }
 const SensorFrame& SyntheticCamera::sensor_frame() const {
   return state_->sensor_frame;
+}
+std::span<const MaterialPixel> SyntheticCamera::material_pixels() const {
+  return state_->material;
 }
 std::span<const Eigen::Vector3f> SyntheticCamera::model_vertices() const {
   return state_->model_vertices;
@@ -590,7 +683,8 @@ Result<FrameStatus> SyntheticCamera::next_frame(RgbdFrame& frame, std::chrono::m
   for (int v = 0; v < s.mesh_vertex_count; ++v) {
     s.scene_vertices[v] = rotation * s.model_vertices[v] + translation;
   }
-  // The wall corners stay where they are (fixed in the camera frame).
+  // The wall corners stay where they are (fixed in the camera frame); a passing hand moves.
+  if (s.props) s.props->pose(index, pose.apply(s.rest_centroid).cast<float>(), s.scene_vertices);
 
   const std::uint64_t noise_seed = mix64(mix64(s.options.seed) + index);
   std::span<const std::uint32_t> triangles = s.triangles;
@@ -598,6 +692,7 @@ Result<FrameStatus> SyntheticCamera::next_frame(RgbdFrame& frame, std::chrono::m
       !captured) {
     return captured.failure();
   }
+  s.world_depth(noise_seed);
 
   // Ground truth.
   FrameTruth& truth = s.truth;
@@ -618,7 +713,10 @@ Result<FrameStatus> SyntheticCamera::next_frame(RgbdFrame& frame, std::chrono::m
             s.sensor_frame.noiseless_depth_mm.pixels.end(),
             truth.noiseless_depth_mm.pixels.begin());
 
-  s.shade_color();
+  truth.face_hidden_fraction =
+      s.props ? face_hidden_fraction(s.sensor.camera_raster(), *s.props, truth.landmarks_depth_px)
+              : 0.0;
+  s.shade_color(index);
 
   frame.index = index;
   frame.depth_host_time_s = static_cast<double>(index) / kKinectFps;
@@ -695,9 +793,12 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
     }
   }
   identity.resize(static_cast<std::size_t>(model.identity_count), 0.0f);
+  adjust_identity(options.world, identity);
   s.truth.identity_coeffs = identity;
   s.identity_mesh.resize(static_cast<std::size_t>(3 * V));
   model.evaluate(identity, {}, s.identity_mesh);
+  // Out of the model's span: the displacement is part of the rendered (and true) rest mesh.
+  displace_identity(options.world, model, s.identity_mesh);
   s.evaluated.resize(s.identity_mesh.size());
   s.current_weights.assign(static_cast<std::size_t>(model.expression_count), 0.0f);
   std::copy_n(options.expression_weights.begin(), options.expression_weights.size(),
@@ -792,17 +893,23 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
   const float front_z = std::min({landmark(17).z(), landmark(26).z(), landmark(36).z(),
                                   landmark(45).z(), landmark(48).z(), landmark(54).z()}) -
                         20.0f;
-  s.albedo.assign(s.mesh_vertex_count, kSkin * skin_tone);
+  const double world_tone = options.world.skin_tone >= 0.0
+                                ? options.world.skin_tone
+                                : hashed_uniform(options.world.seed, kStreamSkin, 1);
+  s.skin = options.world.texture ? skin_albedo(world_tone) : Eigen::Vector3f(kSkin * skin_tone);
+  s.albedo.assign(s.mesh_vertex_count, s.skin);
+  s.brow_weight.assign(static_cast<std::size_t>(V), 0.0f);
   for (int v = 0; v < V; ++v) {
     const Eigen::Vector3f p(s.identity_mesh[3 * v], s.identity_mesh[3 * v + 1],
                             s.identity_mesh[3 * v + 2]);
     if (p.z() < front_z) continue;
     const Eigen::Vector2f q = p.head<2>();
-    Eigen::Vector3f colour = kSkin * skin_tone;
+    Eigen::Vector3f colour = s.skin;
     // Brows: 4 mm either side of the landmark polyline, blending out over 2 mm.
     const float brow =
         std::min(polyline_distance(q, right_brow, false), polyline_distance(q, left_brow, false));
-    colour += (kBrow - colour) * std::clamp((6.0f - brow) / 2.0f, 0.0f, 1.0f);
+    s.brow_weight[v] = std::clamp((6.0f - brow) / 2.0f, 0.0f, 1.0f);
+    colour += (kBrow - colour) * s.brow_weight[v];
     // Lips: inside the outer contour, softened over 1 mm at the border.
     const float lip_edge = polyline_distance(q, outer_lip, true);
     const float lip = inside_polygon(q, outer_lip) ? std::clamp(0.5f + lip_edge, 0.0f, 1.0f)
@@ -822,6 +929,26 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const FaceModel& 
       apex = kMouthInside;
       for (auto v : s.caps[c].loop) s.albedo[v] = 0.5f * (s.albedo[v] + kMouthInside);
     }
+  }
+
+  // Hair and beard colour over the painted skin (their depth is degraded per frame).
+  s.regions = paint_regions(options.world, model, s.identity_mesh);
+  if (options.world.hair || options.world.beard) {
+    static const std::array<Eigen::Vector3f, 4> kHair = {rgb(28, 24, 22), rgb(62, 44, 32),
+                                                         rgb(105, 74, 48), rgb(168, 134, 92)};
+    const auto pick = static_cast<std::size_t>(hashed_uniform(options.world.seed, kStreamSkin, 2) *
+                                               (world_tone > 0.6 ? 1.0 : 4.0));
+    const Eigen::Vector3f hair = kHair[std::min<std::size_t>(pick, 3)];
+    for (int v = 0; v < V; ++v) {
+      const float w = std::max(s.regions.hair[v], 0.85f * s.regions.beard[v]);
+      s.albedo[v] += (hair - s.albedo[v]) * w;
+    }
+  }
+  // Props after the wall: static ones placed around the face of frame 0.
+  if (options.world.any_props()) {
+    const Eigen::Vector3f head = s.pose_at(0).apply(s.rest_centroid).cast<float>();
+    s.props.emplace(options.world, options.frame_count, head, s.skin);
+    s.props->append(s.scene_vertices, s.triangles);
   }
 
   // Per-frame buffers at their final size, so next_frame() does not allocate.
@@ -881,11 +1008,14 @@ std::vector<CameraListing> list_synthetic() {
 }  // namespace
 
 CameraBackend synthetic_camera_backend() {
-  return {
-      "synthetic", &open_synthetic, &list_synthetic,
-      "synthetic:[seed=N,expr=NAME[:W]+...,motion=headturn|static,frames=N,distance=MM,"
-      "noise=on|off,background=MM|off,identity=random|neutral,unit=SEED,reg_dx=PX,reg_dy=PX,"
-      "reg_rot=DEG,depth_scale=S,calibrated=0|1]  rendered face with ground truth"};
+  return {"synthetic", &open_synthetic, &list_synthetic,
+          "synthetic:[seed=N,expr=NAME[:W]+...,motion=headturn|static,frames=N,distance=MM,"
+          "noise=on|off,background=MM|off,identity=random|neutral,unit=SEED,reg_dx=PX,reg_dy=PX,"
+          "reg_rot=DEG,depth_scale=S,calibrated=0|1,world=realistic|identity|texture|hair|clutter|"
+          "noise|unit,world_seed=N,displace=MM,asym=MM,id_scale=S,id_extreme=N,texture=on|off,"
+          "tone=T,light=fixed|vary,hair=on|off,beard=on|off,torso=on|off,desk=on|off,hand=on|off,"
+          "hand_pass=on|off|START,offset_x=PX,offset_y=PX,block_noise=RAW,block_px=N,speckle=RATE]"
+          "  rendered face with ground truth"};
 }
 
 }  // namespace fb

@@ -4,9 +4,13 @@
 //
 // URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
 //      distance=700,noise=on|off,background=1200|off,identity=random|neutral,
-//      unit=SEED|reg_dx=PX,reg_dy=PX,reg_rot=DEG,depth_scale=S,calibrated=0|1
+//      unit=SEED|reg_dx=PX,reg_dy=PX,reg_rot=DEG,depth_scale=S,calibrated=0|1,
+//      world=realistic|identity|texture|hair|clutter|noise|unit and the world's own keys
+//      (displace, asym, id_scale, id_extreme, texture, tone, light, hair, beard, torso, desk,
+//      hand, hand_pass, offset_x, offset_y, block_noise, block_px, speckle; world_presets.hpp)
 // Defaults: seed 0, neutral expression, headturn, 90 frames, 700 mm, noise on, wall at 1200 mm,
-// random identity (N(0, 1) per mode from the seed).
+// random identity (N(0, 1) per mode from the seed), no world options (synthetic_world.hpp:
+// out-of-span identities, texture, hair, clutter, realistic sensor noise; all off by default).
 //
 // Scene and conventions (all documented choices):
 //  - Head pose: camera_from_model = T * R_flip * R_y(yaw) * R_x(pitch). R_flip (180 deg about x)
@@ -51,6 +55,7 @@
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/render/kinect_sensor.hpp"
 #include "drivers/camera/camera_backend.hpp"
+#include "drivers/camera/synthetic/synthetic_world.hpp"
 
 namespace fb {
 
@@ -94,6 +99,9 @@ struct SyntheticOptions {
   // own correction and reports the plain defaults, as a Kinect without a device.json does.
   std::optional<KinectCalibration> reported_calibration;
 
+  // The realistic world's options (synthetic_world.hpp); all off by default.
+  SyntheticWorld world;
+
   Rgb8 wall_color{178, 180, 172};
   // Reported as CameraInfo::uri; empty = "synthetic:seed=N".
   std::string uri;
@@ -129,6 +137,8 @@ class SyntheticCamera : public DepthCamera {
   const SyntheticOptions& options() const;
   // Sensor-model output of the last frame, including why each missing pixel is missing.
   const SensorFrame& sensor_frame() const;
+  // Hair and beard weights per depth pixel of the last frame (empty without hair or beard).
+  std::span<const MaterialPixel> material_pixels() const;
   // Rest-pose (no expression track) mesh in model coordinates, incl. hole caps, and its triangles.
   std::span<const Eigen::Vector3f> model_vertices() const;
   std::span<const std::uint32_t> model_triangles() const;

@@ -11,6 +11,7 @@
 
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/synthetic/board_scene.hpp"
+#include "drivers/camera/synthetic/color_fill.hpp"
 #include "drivers/camera/synthetic/world_presets.hpp"
 #include "storage/asset_files.hpp"
 
@@ -566,47 +567,7 @@ void SyntheticCamera::State::shade_color(std::uint64_t frame_index) {
     }
   }
 
-  // Fill the colour pixels no depth pixel landed on from at least three splatted 8-neighbours:
-  // the mapping is slightly expanding, and beside a near object the colour camera sees
-  // background the depth camera does not (disocclusion). Only the farthest neighbours are
-  // averaged, so a disoccluded pixel shows the background, not the object's edge colour.
-  // Pixels filled in a pass are marked 2 and only read in the next pass.
-  for (int pass = 0; pass < 2; ++pass) {
-    for (int y = 1; y + 1 < h; ++y) {
-      for (int x = 1; x + 1 < w; ++x) {
-        const std::size_t j = static_cast<std::size_t>(y) * w + x;
-        if (color_mark.pixels[j] != 0) continue;
-        float farthest = 0.0f;
-        int count = 0;
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const std::size_t k = j + static_cast<std::ptrdiff_t>(dy) * w + dx;
-            if (color_mark.pixels[k] != 1) continue;
-            farthest = std::max(farthest, color_z.pixels[k]);
-            ++count;
-          }
-        if (count < 3) continue;
-        const float band = std::max(20.0f, 0.03f * farthest);
-        int r = 0, g = 0, b = 0;
-        count = 0;
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const std::size_t k = j + static_cast<std::ptrdiff_t>(dy) * w + dx;
-            if (color_mark.pixels[k] != 1 || color_z.pixels[k] < farthest - band) continue;
-            r += color.pixels[k].r;
-            g += color.pixels[k].g;
-            b += color.pixels[k].b;
-            ++count;
-          }
-        color.pixels[j] =
-            Rgb8{static_cast<std::uint8_t>(r / count), static_cast<std::uint8_t>(g / count),
-                 static_cast<std::uint8_t>(b / count)};
-        color_z.pixels[j] = farthest;
-        color_mark.pixels[j] = 2;
-      }
-    }
-    for (auto& m : color_mark.pixels) m = m == 2 ? 1 : m;
-  }
+  fill_color_holes(color, color_z, color_mark);
   for (std::size_t j = 0; j < color.pixels.size(); ++j) {
     if (color_mark.pixels[j] == 0) color.pixels[j] = wall;
   }

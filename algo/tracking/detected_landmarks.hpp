@@ -47,6 +47,10 @@ class TrackLandmarkSource {
   const TrackLandmarks* landmarks() const { return have_ ? &view_ : nullptr; }
   // The next detection searches the whole image (after the tracker lost the face).
   void reset() { detector_.reset_tracking(); }
+  // A camera with another registration (rebuilds the tables: not for the frame loop).
+  void set_calibration(const KinectCalibration& calibration) {
+    registration_ = KinectRegistration(calibration);
+  }
 
  private:
   LandmarkDetector detector_;

@@ -33,6 +33,7 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/stats.hpp"
 #include "host/cli/synthetic_capture.hpp"
+#include "host/cli/unit_calibration.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -173,6 +174,7 @@ struct FitEvalSetup {
   double noise = 1, robust_noise = 5;
   bool noiseless_depth = false;
   bool dlib_fit = false;  // fit dlib's points on frame 0's colour image instead of truth + noise
+  UnitCalibration unit_calibration = UnitCalibration::kSelfCalibrated;
 };
 
 Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEvalSetup& setup,
@@ -231,7 +233,8 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         return e == 0;  // no neutral: the subject's expressions cannot be fitted
       };
       auto cap = capture(*model, identity, *weights, seed * 1000 + static_cast<std::uint64_t>(e),
-                         static_cast<int>(*frames), detector && e == 0 && s == 0, {}, world, seed);
+                         static_cast<int>(*frames), detector && e == 0 && s == 0, {}, world, seed,
+                         setup.unit_calibration);
       if (!cap) {
         auto stop = failed("capture", cap.error());
         if (!stop) return stop.failure();
@@ -548,6 +551,9 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.robust_noise = *robust_noise;
   setup.noiseless_depth = noiseless_depth;
   setup.dlib_fit = fit_landmarks == "dlib";
+  auto unit_calibration = parse_unit_calibration(options.get("unit-calibration"));
+  if (!unit_calibration) return report_failure(unit_calibration.error());
+  setup.unit_calibration = *unit_calibration;
   if (parts.empty()) {
     auto out = eval_fit_once(options, setup, "");
     if (!out) return report_failure(out.error());
@@ -562,12 +568,38 @@ int run_eval_fit(const ParsedOptions& options) {
     std::cerr << "eval fit: scenario " << part << "\n";
     auto run = eval_fit_once(options, setup, part == "baseline" ? "none" : part);
     if (!run) return report_failure(run.error());
+    if (decalibrates_unit(part) && setup.unit_calibration == UnitCalibration::kSelfCalibrated) {
+      // The same run with the depth law known (registration self-calibrated), and on the unit
+      // calibrated perfectly: the reference self-calibration is held to.
+      nlohmann::json ratio;
+      for (const auto mode : {UnitCalibration::kSelfWithDepthLaw, UnitCalibration::kCalibrated}) {
+        std::cerr << "eval fit: scenario " << part << ", unit " << unit_calibration_name(mode)
+                  << "\n";
+        FitEvalSetup other = setup;
+        other.unit_calibration = mode;
+        auto c = eval_fit_once(options, other, part);
+        if (!c) return report_failure(c.error());
+        c->erase("per_subject");
+        (*run)[std::string("unit_") + unit_calibration_name(mode)] = std::move(*c);
+      }
+      const auto& reference = (*run)["unit_calibrated"];
+      for (const auto& [name, figures] :
+           {std::pair<std::string, const nlohmann::json*>{"self", &*run},
+            {"self-depth-law", &(*run)["unit_self-depth-law"]}})
+        ratio[name] = {{"neutral_vertex_error_mm", ratio_of((*figures)["neutral_vertex_error_mm"],
+                                                            reference["neutral_vertex_error_mm"])},
+                       {"expression_vertex_error_mm",
+                        ratio_of((*figures)["expression_vertex_error_mm"],
+                                 reference["expression_vertex_error_mm"])}};
+      (*run)["decalibrated_vs_calibrated_ratio"] = ratio;
+    }
     if (part == scenario) out = *run;
     run->erase("per_subject");
     scenarios[part] = std::move(*run);
   }
   out["scenario"] = scenario;
   out["scenarios"] = scenarios;
+  out["unit_calibration"] = unit_calibration_name(setup.unit_calibration);
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }
@@ -775,6 +807,8 @@ std::vector<Command> fit_commands() {
           "one part: identity|texture|hair|clutter|noise|unit (drivers/camera/synthetic/"
           "world_presets.hpp); empty = the plain synthetic camera",
           ""},
+         {"unit-calibration", "self|self-depth-law|reported|calibrated", kUnitCalibrationHelp,
+          "self"},
          {"fit-landmarks", "dlib|truth",
           "the fit's landmarks: dlib on frame 0's colour image, or truth + --landmark-noise-px "
           "(default: dlib with --scenario, truth without)",

@@ -34,7 +34,8 @@ Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis,
-                        std::string_view world, std::uint64_t world_seed) {
+                        std::string_view world, std::uint64_t world_seed,
+                        UnitCalibration unit) {
   SyntheticOptions so;
   so.personal_expression_basis.assign(personal_expression_basis.begin(),
                                       personal_expression_basis.end());
@@ -44,12 +45,14 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   so.frame_count = frames;
   if (!world.empty())
     if (auto ok = apply_world_preset(world, world_seed, so); !ok) return ok.failure();
+  auto calibration = unit_calibration_for(model, so, unit);
+  if (!calibration) return calibration.failure();
   auto camera = make_synthetic_camera(model, so);
   if (!camera) return camera.failure();
   if (auto ok = (*camera)->start(); !ok) return ok.failure();
   Capture c;
   c.intrinsics = (*camera)->info().depth_intrinsics;
-  c.calibration = (*camera)->info().calibration;
+  c.calibration = *calibration;
   FaceFusion fusion;
   if (auto ok =
           fusion.reset(c.intrinsics, default_face_box(c.intrinsics.width, c.intrinsics.height));

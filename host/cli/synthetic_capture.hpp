@@ -21,6 +21,7 @@
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
+#include "host/cli/unit_calibration.hpp"
 
 namespace fb::cli {
 
@@ -47,11 +48,13 @@ struct Capture {
 
 // `personal_expression_basis`: the subject's own expression shapes (SyntheticOptions), or empty
 // for the model's generic ones. `world`: a scenario of the realistic synthetic world
-// (world_presets.hpp) for subject `world_seed`, or empty for the plain camera.
+// (world_presets.hpp) for subject `world_seed`, or empty for the plain camera. `unit`: the
+// registration a decalibrated unit (the unit part) is used with (unit_calibration.hpp).
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis = {},
-                        std::string_view world = {}, std::uint64_t world_seed = 0);
+                        std::string_view world = {}, std::uint64_t world_seed = 0,
+                        UnitCalibration unit = UnitCalibration::kSelfCalibrated);
 
 // A fit's model frame -> the capture's true model frame: truth_pose^-1 * the fit's
 // camera_from_model (both of frame 0). Fits are scored against the truth through it.

@@ -196,11 +196,13 @@ Result<RenderedTake> render_take(const FaceModel& model, const TakeSpec& spec) {
   if (!spec.world.empty())
     if (auto ok = apply_world_preset(spec.world, spec.seed, out.take.options); !ok)
       return ok.failure();
+  auto calibration = unit_calibration_for(model, out.take.options, spec.unit_calibration);
+  if (!calibration) return calibration.failure();
   auto camera = make_synthetic_camera(model, out.take.options);
   if (!camera) return camera.failure();
   if (auto started = (*camera)->start(); !started) return started.failure();
   out.intrinsics = (*camera)->info().depth_intrinsics;
-  out.calibration = (*camera)->info().calibration;
+  out.calibration = *calibration;
   std::unique_ptr<OccluderCompositor> compositor;
   if (spec.occluder) compositor = std::make_unique<OccluderCompositor>(out.take.options);
   std::mt19937_64 rng(spec.seed * 31 + 5);

@@ -17,6 +17,7 @@
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "host/cli/unit_calibration.hpp"
 
 namespace fb::cli {
 
@@ -36,6 +37,8 @@ struct TakeSpec {
   // A scenario of the realistic synthetic world (world_presets.hpp) for this take's subject
   // (seeded by `seed`); empty = the plain camera.
   std::string world;
+  // The registration a decalibrated unit (the unit part) is used with.
+  UnitCalibration unit_calibration = UnitCalibration::kSelfCalibrated;
 };
 
 struct Take {

@@ -20,6 +20,7 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/take_runner.hpp"
 #include "host/cli/tracking_commands.hpp"
+#include "host/cli/unit_calibration.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -161,7 +162,10 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
               << spec.frames << " frames...\n";
     auto take = render_take(model, spec);
     if (!take) return take.failure();
-    if (dlib) dlib->reset();
+    if (dlib) {
+      dlib->reset();
+      dlib->set_calibration(take->calibration);
+    }
     RunOptions run = base;
     run.landmarks = true;
     run.dlib = dlib;
@@ -411,6 +415,9 @@ int run_eval_track(const ParsedOptions& options) {
   TakeSpec design;
   design.active_shapes = static_cast<int>(*active);
   design.neutral_frames = static_cast<int>(*neutral);
+  auto unit_calibration = parse_unit_calibration(options.get("unit-calibration"));
+  if (!unit_calibration) return report_failure(unit_calibration.error());
+  design.unit_calibration = *unit_calibration;
 
   if (const std::string scenario = options.get("scenario"); !scenario.empty()) {
     // The realistic world: each part (and, for realistic, a plain baseline) then the scenario;
@@ -436,11 +443,35 @@ int run_eval_track(const ParsedOptions& options) {
     for (const auto& part : parts) {
       auto j = evaluate_world(model, *mapping, design, *seeds, part, base, dlib ? &*dlib : nullptr);
       if (!j) return report_failure(j.error());
+      if (decalibrates_unit(part) && design.unit_calibration == UnitCalibration::kSelfCalibrated) {
+        // The same run with the depth law known (registration self-calibrated), and on the
+        // unit calibrated perfectly: the reference self-calibration is held to.
+        for (const auto mode :
+             {UnitCalibration::kSelfWithDepthLaw, UnitCalibration::kCalibrated}) {
+          TakeSpec other = design;
+          other.unit_calibration = mode;
+          auto c =
+              evaluate_world(model, *mapping, other, *seeds, part, base, dlib ? &*dlib : nullptr);
+          if (!c) return report_failure(c.error());
+          (*j)[std::string("unit_") + unit_calibration_name(mode)] = std::move(*c);
+        }
+        const nlohmann::json& reference = (*j)["unit_calibrated"];
+        nlohmann::json ratio;
+        for (const auto& [name, figures] :
+             {std::pair<std::string, const nlohmann::json*>{"self", &*j},
+              {"self-depth-law", &(*j)["unit_self-depth-law"]}})
+          ratio[name] = {
+              {"weight_mae", ratio_of((*figures)["weight_mae"], reference["weight_mae"])},
+              {"depth_only_weight_mae", ratio_of((*figures)["depth_only_weight_mae"],
+                                                 reference["depth_only_weight_mae"])}};
+        (*j)["decalibrated_vs_calibrated_ratio"] = ratio;
+      }
       if (part == scenario) out = *j;
       scenarios[part] = std::move(*j);
     }
     out["scenario"] = scenario;
     out["scenarios"] = scenarios;
+    out["unit_calibration"] = unit_calibration_name(design.unit_calibration);
     out["landmark_source"] = landmark_source;
     out["setup"] = {{"seeds", *seeds},
                     {"frames_per_take", *frames},
@@ -717,6 +748,8 @@ Command eval_track_command() {
          "realistic (a baseline, every part alone, then all: JSON scenarios.<part>) or one "
          "part: identity|texture|hair|clutter|noise|unit (world_presets.hpp); empty = plain",
          ""},
+        {"unit-calibration", "self|self-depth-law|reported|calibrated", kUnitCalibrationHelp,
+         "self"},
         {"json", "", "print JSON (the only output format; accepted for symmetry)", ""}}},
       run_eval_track};
 }

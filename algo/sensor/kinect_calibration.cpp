@@ -350,8 +350,7 @@ bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& 
   return color_x >= 0.0 && color_x < kWidth;
 }
 
-bool KinectRegistration::rectified_position(int x, int y, double& color_x,
-                                            double& color_y) const {
+bool KinectRegistration::rectified_position(int x, int y, double& color_x, double& color_y) const {
   if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
   const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;
   if (registration_table_[2 * index] >= 2 * kWidth * kRegXValScale) return false;

@@ -22,9 +22,9 @@ struct CameraInfo {
   int width = kKinectWidth;
   int height = kKinectHeight;
   double fps = kKinectFps;
-  KinectCalibration calibration;   // used for disparity conversion and registration
+  KinectCalibration calibration;  // used for disparity conversion and registration
   PinholeIntrinsics depth_intrinsics;
-  long long frame_count = -1;      // known length of a recording or synthetic take, -1 = live
+  long long frame_count = -1;  // known length of a recording or synthetic take, -1 = live
 };
 
 enum class FrameStatus {
@@ -35,10 +35,10 @@ enum class FrameStatus {
 
 // Per-frame ground truth, filled only by the synthetic backend.
 struct FrameTruth {
-  RigidPose camera_from_model;                  // model frame (mm) -> depth camera frame (mm)
-  std::vector<float> identity_coeffs;           // model identity coefficients (sigma units)
-  std::vector<float> expression_weights;        // one per model expression shape
-  std::vector<Eigen::Vector3d> landmarks_3d;    // 68 iBUG points, depth camera frame, mm
+  RigidPose camera_from_model;                      // model frame (mm) -> depth camera frame (mm)
+  std::vector<float> identity_coeffs;               // model identity coefficients (sigma units)
+  std::vector<float> expression_weights;            // one per model expression shape
+  std::vector<Eigen::Vector3d> landmarks_3d;        // 68 iBUG points, depth camera frame, mm
   std::vector<Eigen::Vector2d> landmarks_depth_px;  // 68 points projected into the depth image
   std::vector<Eigen::Vector2d> landmarks_color_px;  // 68 points in the colour image
   Image<float> noiseless_depth_mm;  // rendered depth before the sensor model, 0 = background/none

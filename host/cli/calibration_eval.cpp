@@ -160,7 +160,8 @@ std::vector<Command> calibration_eval_commands() {
             "registration is within 0.5 px and its depth within 0.5 %; every other unit is "
             "listed with why. The same unit seeds are then self-calibrated from 45-frame head-turn "
             "takes (see eval self-calibration): self_calibration_residual_px_p95 is the estimate's "
-            "registration error against the truth over the units it reports ok. --json is accepted for symmetry; the output is always JSON.",
+            "registration error against the truth over the units it reports ok. --json is accepted "
+            "for symmetry; the output is always JSON.",
             {{"units", "N", "number of decalibrated units", "100"},
              {"seed", "S", "scene seed (board poses, noise)", "1"},
              {"views", "N", "board views per unit", "12"},

@@ -120,8 +120,10 @@ std::vector<Command> camera_commands() {
         {{"camera", "URI", "camera to read from", "synthetic:"},
          {"frame", "K", "0-based index of the frame to draw", "0"},
          {"out", "FILE", "PNG to write", ""},
-         {"overlay", "", "add a third panel: registered depth edges over the colour image, and print the "
-          "registration residual", ""}}},
+         {"overlay", "",
+          "add a third panel: registered depth edges over the colour image, and print the "
+          "registration residual",
+          ""}}},
        run_view},
   };
 }

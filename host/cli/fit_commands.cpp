@@ -586,11 +586,11 @@ int run_eval_fit(const ParsedOptions& options) {
       for (const auto& [name, figures] :
            {std::pair<std::string, const nlohmann::json*>{"self", &*run},
             {"self-depth-law", &(*run)["unit_self-depth-law"]}})
-        ratio[name] = {{"neutral_vertex_error_mm", ratio_of((*figures)["neutral_vertex_error_mm"],
-                                                            reference["neutral_vertex_error_mm"])},
-                       {"expression_vertex_error_mm",
-                        ratio_of((*figures)["expression_vertex_error_mm"],
-                                 reference["expression_vertex_error_mm"])}};
+        ratio[name] = {
+            {"neutral_vertex_error_mm",
+             ratio_of((*figures)["neutral_vertex_error_mm"], reference["neutral_vertex_error_mm"])},
+            {"expression_vertex_error_mm", ratio_of((*figures)["expression_vertex_error_mm"],
+                                                    reference["expression_vertex_error_mm"])}};
       (*run)["decalibrated_vs_calibrated_ratio"] = ratio;
     }
     if (part == scenario) out = *run;

@@ -97,16 +97,17 @@ Result<nlohmann::ordered_json> evaluate_self_calibration(const SelfCalibrationEv
     const KinectCalibration estimated = with_registration(take->reported, r->correction);
     const double error = registration_error_px(estimated, take->truth, take->distance_mm);
     const auto& t = take->truth.correction;
-    rows.push_back({{"unit", unit},
-                    {"ok", r->ok},
-                    {"error_px", error},
-                    {"offset_px", registration_error_px(take->reported, take->truth, take->distance_mm)},
-                    {"dx_error_px", r->correction.dx_px - t.dx_px},
-                    {"dy_error_px", r->correction.dy_px - t.dy_px},
-                    {"rotation_error_deg", r->correction.rotation_deg - t.rotation_deg},
-                    {"true_depth_scale", t.depth_scale},
-                    {"residual_px", r->residual_px},
-                    {"confidence", r->confidence}});
+    rows.push_back(
+        {{"unit", unit},
+         {"ok", r->ok},
+         {"error_px", error},
+         {"offset_px", registration_error_px(take->reported, take->truth, take->distance_mm)},
+         {"dx_error_px", r->correction.dx_px - t.dx_px},
+         {"dy_error_px", r->correction.dy_px - t.dy_px},
+         {"rotation_error_deg", r->correction.rotation_deg - t.rotation_deg},
+         {"true_depth_scale", t.depth_scale},
+         {"residual_px", r->residual_px},
+         {"confidence", r->confidence}});
     if (r->ok) {
       ++ok;
       errors.push_back(error);
@@ -213,8 +214,7 @@ Result<nlohmann::ordered_json> bench_self_calibration(int frames, std::uint64_t 
   j["peer"] = "OpenCV chamfer (Canny + distanceTransform, exhaustive +-28 px shift search)";
   j["peer_ms"] = peer_ms;
   j["speedup_vs_peer"] = ours_ms > 0.0 ? peer_ms / ours_ms : 0.0;
-  j["self_calibration_error_px"] =
-      registration_error_px(estimated, take->truth, take->distance_mm);
+  j["self_calibration_error_px"] = registration_error_px(estimated, take->truth, take->distance_mm);
   j["peer_error_px"] = registration_error_px(with_registration(take->reported, peer), take->truth,
                                              take->distance_mm);
   j["self_calibration_ok"] = r->ok;

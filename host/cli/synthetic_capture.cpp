@@ -34,8 +34,7 @@ Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis,
-                        std::string_view world, std::uint64_t world_seed,
-                        UnitCalibration unit) {
+                        std::string_view world, std::uint64_t world_seed, UnitCalibration unit) {
   SyntheticOptions so;
   so.personal_expression_basis.assign(personal_expression_basis.begin(),
                                       personal_expression_basis.end());

@@ -446,8 +446,7 @@ int run_eval_track(const ParsedOptions& options) {
       if (decalibrates_unit(part) && design.unit_calibration == UnitCalibration::kSelfCalibrated) {
         // The same run with the depth law known (registration self-calibrated), and on the
         // unit calibrated perfectly: the reference self-calibration is held to.
-        for (const auto mode :
-             {UnitCalibration::kSelfWithDepthLaw, UnitCalibration::kCalibrated}) {
+        for (const auto mode : {UnitCalibration::kSelfWithDepthLaw, UnitCalibration::kCalibrated}) {
           TakeSpec other = design;
           other.unit_calibration = mode;
           auto c =
@@ -462,8 +461,8 @@ int run_eval_track(const ParsedOptions& options) {
               {"self-depth-law", &(*j)["unit_self-depth-law"]}})
           ratio[name] = {
               {"weight_mae", ratio_of((*figures)["weight_mae"], reference["weight_mae"])},
-              {"depth_only_weight_mae", ratio_of((*figures)["depth_only_weight_mae"],
-                                                 reference["depth_only_weight_mae"])}};
+              {"depth_only_weight_mae",
+               ratio_of((*figures)["depth_only_weight_mae"], reference["depth_only_weight_mae"])}};
         (*j)["decalibrated_vs_calibrated_ratio"] = ratio;
       }
       if (part == scenario) out = *j;

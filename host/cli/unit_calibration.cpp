@@ -21,10 +21,14 @@ Result<UnitCalibration> parse_unit_calibration(std::string_view name) {
 
 const char* unit_calibration_name(UnitCalibration mode) {
   switch (mode) {
-    case UnitCalibration::kSelfCalibrated: return "self";
-    case UnitCalibration::kSelfWithDepthLaw: return "self-depth-law";
-    case UnitCalibration::kAsReported: return "reported";
-    case UnitCalibration::kCalibrated: return "calibrated";
+    case UnitCalibration::kSelfCalibrated:
+      return "self";
+    case UnitCalibration::kSelfWithDepthLaw:
+      return "self-depth-law";
+    case UnitCalibration::kAsReported:
+      return "reported";
+    case UnitCalibration::kCalibrated:
+      return "calibrated";
   }
   return "self";
 }
@@ -63,8 +67,7 @@ Result<KinectCalibration> unit_calibration_for(const FaceModel& model, Synthetic
   }
   auto estimate = calibrator.estimate();
   if (!estimate) return estimate.failure();
-  if (!estimate->ok)
-    return fail("self-calibration of the synthetic unit failed: " + estimate->why);
+  if (!estimate->ok) return fail("self-calibration of the synthetic unit failed: " + estimate->why);
   return with_registration(reported, estimate->correction);
 }
 

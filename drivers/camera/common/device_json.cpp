@@ -214,13 +214,15 @@ Result<KinectCalibration> parse_device_json(std::string_view text) {
     }
     const auto& k = c.correction;
     if (!(k.depth_scale > 0.5 && k.depth_scale < 2.0)) {
-      return fail("device.json: field 'correction.depth_scale' must be between 0.5 and 2; "
-                  "recalibrate the camera (facebooth camera calibrate)");
+      return fail(
+          "device.json: field 'correction.depth_scale' must be between 0.5 and 2; "
+          "recalibrate the camera (facebooth camera calibrate)");
     }
     if (!(std::abs(k.dx_px) < 100.0 && std::abs(k.dy_px) < 100.0 &&
           std::abs(k.rotation_deg) < 20.0 && std::abs(k.inverse_depth_offset_per_m) < 1.0)) {
-      return fail("device.json: the 'correction' block is out of range (|dx_px|, |dy_px| < 100, "
-                  "|rotation_deg| < 20, |inverse_depth_offset_per_m| < 1); recalibrate the camera");
+      return fail(
+          "device.json: the 'correction' block is out of range (|dx_px|, |dy_px| < 100, "
+          "|rotation_deg| < 20, |inverse_depth_offset_per_m| < 1); recalibrate the camera");
     }
   }
   return c;

@@ -7,7 +7,9 @@ namespace fb {
 namespace {
 
 // Two splatted ends belong to one surface when their depths agree within this band.
-bool same_surface(float a, float b) { return std::abs(a - b) <= std::max(20.0f, 0.03f * a); }
+bool same_surface(float a, float b) {
+  return std::abs(a - b) <= std::max(20.0f, 0.03f * a);
+}
 
 Rgb8 mix(Rgb8 a, Rgb8 b, float t) {
   auto lerp = [t](std::uint8_t u, std::uint8_t v) {

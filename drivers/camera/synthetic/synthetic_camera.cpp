@@ -142,7 +142,8 @@ constexpr std::string_view kAccepted =
     "world=realistic|identity|texture|hair|clutter|noise|unit|none, world_seed=N, displace=MM, "
     "asym=MM, id_scale=S, id_extreme=N, texture=on|off, tone=0..1, light=fixed|vary, "
     "hair=on|off, beard=on|off, torso=on|off, desk=on|off, hand=on|off, hand_pass=on|off|START, "
-    "offset_x=PX, offset_y=PX, block_noise=RAW, block_px=N, speckle=RATE";
+    "offset_x=PX, offset_y=PX, block_noise=RAW, block_px=N, speckle=RATE; or "
+    "target=checkerboard with its own keys (board=COLSxROWS:SIZEmm, ...)";
 
 }  // namespace
 
@@ -976,7 +977,8 @@ CameraBackend synthetic_camera_backend() {
           "noise|unit,world_seed=N,displace=MM,asym=MM,id_scale=S,id_extreme=N,texture=on|off,"
           "tone=T,light=fixed|vary,hair=on|off,beard=on|off,torso=on|off,desk=on|off,hand=on|off,"
           "hand_pass=on|off|START,offset_x=PX,offset_y=PX,block_noise=RAW,block_px=N,speckle=RATE]"
-          "  rendered face with ground truth"};
+          "  rendered face with ground truth; synthetic:target=checkerboard,board=9x6:25mm[,...]"
+          "  a calibration board"};
 }
 
 }  // namespace fb

@@ -8,6 +8,7 @@
 //      world=realistic|identity|texture|hair|clutter|noise|unit and the world's own keys
 //      (displace, asym, id_scale, id_extreme, texture, tone, light, hair, beard, torso, desk,
 //      hand, hand_pass, offset_x, offset_y, block_noise, block_px, speckle; world_presets.hpp)
+//      or target=checkerboard,board=9x6:25mm,... (a calibration board, board_scene.hpp)
 // Defaults: seed 0, neutral expression, headturn, 90 frames, 700 mm, noise on, wall at 1200 mm,
 // random identity (N(0, 1) per mode from the seed), no world options (synthetic_world.hpp:
 // out-of-span identities, texture, hair, clutter, realistic sensor noise; all off by default).

@@ -4,17 +4,10 @@
 #include <cmath>
 #include <numbers>
 
+#include "algo/core/mix64.hpp"
+
 namespace fb {
 namespace {
-
-// splitmix64 finaliser: a counter-based generator, so every pixel's random numbers depend only
-// on (seed, pixel, stream) and not on the order pixels are visited.
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
 
 std::uint64_t pixel_random(std::uint64_t seed, std::size_t pixel, std::uint64_t stream) {
   return mix64(seed ^ mix64((static_cast<std::uint64_t>(pixel) << 8) | stream));

@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "algo/calibration/registration_model.hpp"
+#include "algo/core/mix64.hpp"
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 
@@ -14,13 +15,6 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr int kSupersample = 8;
-
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
 
 // Counter-based uniform in [0, 1) for (seed, stream, k).
 double uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {

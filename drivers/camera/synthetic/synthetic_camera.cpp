@@ -9,6 +9,7 @@
 #include <numbers>
 #include <string>
 
+#include "algo/core/mix64.hpp"
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/synthetic/board_scene.hpp"
 #include "drivers/camera/synthetic/color_fill.hpp"
@@ -21,13 +22,6 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 // 60 MHz device clock at 30 fps.
 constexpr std::uint32_t kTicksPerFrame = 2'000'000;
-
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
 
 double hashed_uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {
   const auto bits = mix64(mix64(seed ^ (stream << 56)) + k);

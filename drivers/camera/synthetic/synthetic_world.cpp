@@ -7,15 +7,10 @@
 
 #include <Eigen/Geometry>
 
+#include "algo/core/mix64.hpp"
+
 namespace fb {
 namespace {
-
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
 
 // Counter-based uniforms in (0, 1): a subject's world is the same on every build.
 double uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {

@@ -4,15 +4,10 @@
 #include <charconv>
 #include <cmath>
 
+#include "algo/core/mix64.hpp"
+
 namespace fb {
 namespace {
-
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
 
 double draw(std::uint64_t seed, std::uint64_t k) {
   return static_cast<double>(mix64(mix64(seed * 0x2545F4914F6CDD1Dull + 0x77) + k) >> 11) *

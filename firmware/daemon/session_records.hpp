@@ -106,8 +106,9 @@ class SessionRecords {
       std::int64_t id, const std::filesystem::path& exports_dir,
       const std::function<bool()>& cancelled = {}) = 0;
 
-  // Fits, landmarks, takes and rigs: the SQLite store keeps them; the file store does not (its
-  // answers say so, and the daemon reports the stage as unsupported).
+  // Fits, landmarks, takes and rigs. The defaults answer "not kept" (the daemon then reports the
+  // stage as unsupported); the SQLite store overrides them all. The interface could now shrink
+  // to the one store (issue 36).
   virtual bool keeps_fits() const { return false; }
   virtual Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit);
   // The newest fitted neutral of a session (nullopt when there is none).
@@ -122,9 +123,7 @@ class SessionRecords {
   virtual Result<std::optional<StoredRig>> subject_rig(std::int64_t session);
 };
 
-// The SQLite store when this build has it, else the file store; both under `data_dir`.
+// The SQLite session store under `data_dir` (storage/session_store).
 Result<std::unique_ptr<SessionRecords>> open_session_records(const std::filesystem::path& data_dir);
-// The plain-file store (always built; tests use it to check the interface contract).
-Result<std::unique_ptr<SessionRecords>> open_file_records(const std::filesystem::path& data_dir);
 
 }  // namespace fb

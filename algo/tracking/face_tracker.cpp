@@ -760,6 +760,14 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
     if (hidden_rows > 0) set_gram(rows, count, hidden_rows, h_hidden);
     if (options.report_weight_sigma && final && it == iterations - 1 && noise_sigma > 0.0f)
       estimate_weight_sigma(depth_rows, count - depth_rows, noise_sigma);
+    // The data rows are in mm^2 and the L1 weight was set for the sensor's usual noise: a
+    // noisier frame (correlated disparity noise, a worse unit, hair) gives each mm^2 less
+    // evidence, so the L1 weight grows with the frame's noise variance (MAD) over the reference.
+    float prior_scale = 1.0f;
+    if (options.prior_noise_reference_mm > 0.0f && noise_sigma > 0.0f) {
+      const float ratio = noise_sigma / options.prior_noise_reference_mm;
+      prior_scale = std::clamp(ratio * ratio, 1.0f, options.max_prior_noise_scale);
+    }
     // The L1 weight follows the signal this frame's rows give each shape: a shape whose region
     // is hidden (an occluder, the far side of a turned head) has no data, and a weight sized for
     // the whole face would drive it to 0 against the temporal term within a frame or two.
@@ -769,7 +777,7 @@ void FaceTracker::State::solve_weights(const Image<float>& image, const Box& b, 
       const bool continuing = previous_weights[j] > options.on_shape_min_weight &&
                               full_signal[j] < options.on_shape_max_signal * signal_median;
       shape_sparsity[j] =
-          options.sparsity *
+          prior_scale * options.sparsity *
           std::pow(std::max(h(j, j), 0.0f) / signal_median, options.sparsity_signal_power) *
           (continuing ? options.on_shape_sparsity : 1.0f);
     }
@@ -1148,7 +1156,15 @@ void FaceTracker::State::calibrate_landmark_offsets() {
       const Eigen::Vector3f x = landmark_in_camera(p, l);
       if (x.z() <= 1.0f) continue;
       const Eigen::Vector2f& px = calib_landmarks[at];
-      const Eigen::Vector3f ray((px.x() - cx) * x.z() / fx, (px.y() - cy) * x.z() / fy, x.z());
+      // On the measured surface where the frame has depth there: the model's depth alone leaves
+      // the offset's component along the view, which shows once the head turns.
+      float z = x.z(), measured = 0.0f;
+      if (options.landmark_offset_depth_gate_mm > 0.0f &&
+          depth_at(calib_depth[static_cast<std::size_t>(f)], calib_box[static_cast<std::size_t>(f)],
+                   px.x(), px.y(), measured) &&
+          std::abs(measured - x.z()) <= options.landmark_offset_depth_gate_mm)
+        z = measured;
+      const Eigen::Vector3f ray((px.x() - cx) * z / fx, (px.y() - cy) * z / fy, z);
       sum += p.r.transpose() * (ray - x);
       ++seen;
     }

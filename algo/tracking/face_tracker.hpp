@@ -116,6 +116,12 @@ struct TrackerOptions {
   // 0.0178 -> 0.0139, on the takes' animated shapes 0.145 -> 0.101; occluder takes' unaffected
   // shapes, worst frame 0.396 -> 0.078 (L1 from the whole-face H_jj instead: 0.104, and an
   // occluded open mouth snapped shut, dragging the pose 1.4 deg).
+  // The sparsity below scales with the frame's depth noise variance over
+  // prior_noise_reference_mm^2 (the MAD of the residuals; ~0.7 mm on the usual sensor at 0.7 m),
+  // never below 1 and at most max_prior_noise_scale. 0 = fixed. Block-correlated disparity
+  // noise otherwise reads as small expressions (docs/tuning.md).
+  float prior_noise_reference_mm = 0.75f;
+  float max_prior_noise_scale = 4.0f;
   float sparsity = 60.0f;  // lambda_1 * sum w (w >= 0 makes it L1), for the median shape
   float sparsity_signal_power = 0.5f;
   float support_sparsity = 0.0f;  // 1 = plain lasso
@@ -184,9 +190,14 @@ struct TrackerOptions {
   // squares weighs a row by 1 / sigma^2.
   float landmark_noise_px = 1.5f;
   // Calibration also measures where the landmarks sit on this face (see
-  // calibrate_landmark_offsets()); offsets longer than this are not trusted.
+  // calibrate_landmark_offsets()); offsets longer than this are not trusted (a longer one came
+  // from an identity the calibration frames' view did not pin down; docs/tuning.md).
   bool calibrate_landmark_offsets = true;
-  float max_landmark_offset_mm = 10.0f;
+  float max_landmark_offset_mm = 4.0f;
+  // A landmark's offset is measured in 3D where the frame has depth at the detected point within
+  // this of the model's landmark (the point lifted onto the measured surface); else on the ray at
+  // the model's depth. 0 = always the model's depth.
+  float landmark_offset_depth_gate_mm = 8.0f;
   // The same for the depth samples: the mean point-to-plane residual of each sample over the
   // calibration frames (neutral face) moves that sample along its normal, so what the identity
   // PCA cannot fit of this face (and its prior shrinks) does not pull the expression weights.

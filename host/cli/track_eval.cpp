@@ -142,6 +142,16 @@ nlohmann::json score_json(const Score& s, const FaceModel& model) {
   return j;
 }
 
+// The n shapes of a per-shape figure with the largest values, largest first.
+nlohmann::json top_shapes(const nlohmann::json& per_shape, std::size_t n) {
+  std::vector<std::pair<double, std::string>> v;
+  for (const auto& [name, value] : per_shape.items()) v.emplace_back(value.get<double>(), name);
+  std::sort(v.begin(), v.end(), std::greater<>());
+  nlohmann::json out = nlohmann::json::object();
+  for (std::size_t i = 0; i < v.size() && i < n; ++i) out[v[i].second] = v[i].first;
+  return out;
+}
+
 // One scenario of the realistic world (world_presets.hpp) over seeds 1..N: the take's usual
 // figures with landmarks and depth only, the neutral segment's weights (truth 0 there), and
 // the frames a hand hides >= 30 % of the face (FrameTruth::face_hidden_fraction).
@@ -152,6 +162,8 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
   const int k = model.fitting_expression_count;
   Score with_landmarks, depth_only;
   std::vector<double> neutral_mean, neutral_max, hidden_error;
+  double worst_neutral = -1.0;
+  std::string worst_neutral_shape;
   int hidden_frames = 0, hidden_lost = 0, never_calibrated = 0;
   for (long long seed = 1; seed <= seeds; ++seed) {
     TakeSpec spec = design;
@@ -185,7 +197,12 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
       const auto& e = r.abs_error;
       if (static_cast<int>(f) < spec.neutral_frames) {
         neutral_mean.push_back(std::accumulate(e.begin(), e.begin() + k, 0.0) / k);
-        neutral_max.push_back(*std::max_element(e.begin(), e.begin() + k));
+        const auto worst = std::max_element(e.begin(), e.begin() + k);
+        neutral_max.push_back(*worst);
+        if (*worst > worst_neutral) {
+          worst_neutral = *worst;
+          worst_neutral_shape = model.expression_names[static_cast<std::size_t>(worst - e.begin())];
+        }
       }
       if (take->frames[f].truth.face_hidden_fraction >= 0.3) {
         ++hidden_frames;
@@ -196,7 +213,7 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
     never_calibrated += calibrated ? 0 : 1;
   }
   nlohmann::json j = score_json(with_landmarks, model);
-  j.erase("per_shape_mae");
+  j["per_shape_mae"] = top_shapes(j["per_shape_mae"], 5);
   const nlohmann::json d = score_json(depth_only, model);
   // A run that never calibrated scores no frame: null, not 0.
   j["depth_only_frames_scored"] = d["frames_scored"];
@@ -210,6 +227,8 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
       neutral_mean.empty() ? nlohmann::json(nullptr) : nlohmann::json(stats_of(neutral_mean).mean);
   j["neutral_weight_max"] =
       neutral_max.empty() ? nlohmann::json(nullptr) : nlohmann::json(stats_of(neutral_max).max);
+  j["neutral_weight_max_shape"] =
+      neutral_max.empty() ? nlohmann::json(nullptr) : nlohmann::json(worst_neutral_shape);
   j["frames_face_hidden_30pct"] = hidden_frames;
   j["frames_lost_while_hidden"] = hidden_lost;
   j["weight_mae_while_hidden"] =

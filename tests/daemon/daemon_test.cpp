@@ -9,9 +9,12 @@
 
 #include <sys/socket.h>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <vector>
 
 #include "algo/fitting/face_fit.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
@@ -643,6 +646,49 @@ TEST_F(DaemonTest, FailedQualityCheckAsksForRetryAndCountsAttempts) {
   EXPECT_EQ(caps["captures"][0]["state"], "rejected");
   EXPECT_EQ(caps["captures"][0]["attempts"], 2);
   EXPECT_EQ(caps["captures"][1]["state"], "pending");
+}
+
+// Issue 35: headless retries printed only "processing --qa_failed--> retry"; the reason came
+// only when the whole session failed. Now each failed check says why at once, in the log line
+// of the transition and in the status that shows the retry screen.
+TEST_F(DaemonTest, HeadlessRetriesPrintTheQaReasonAtOnce) {
+  DaemonConfig c = config();
+  c.session.min_coverage = 0.99;  // impossible: every take fails on coverage
+  std::ofstream(dir_ / "faceboothd.toml") << to_toml(c);
+  const std::string command =
+      std::string(FB_FACEBOOTHD) + " --config " + (dir_ / "faceboothd.toml").string() +
+      " --run-session-headless --subject Qa 2>" + (dir_ / "stderr.txt").string();
+  const int rc = std::system(command.c_str());
+  EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 1) << rc;
+  std::ifstream log(dir_ / "stderr.txt");
+  std::vector<std::string> retries;
+  int retry_lines_before_the_end = 0;
+  bool ended = false;
+  for (std::string line; std::getline(log, line);) {
+    if (line.find("headless session failed") != std::string::npos) ended = true;
+    if (line.find("--qa_failed--> retry") == std::string::npos) continue;
+    retries.push_back(line);
+    retry_lines_before_the_end += !ended;
+  }
+  EXPECT_TRUE(ended);
+  ASSERT_EQ(retries.size(), 3u);  // the default three attempts
+  EXPECT_EQ(retry_lines_before_the_end, 3);
+  for (const auto& line : retries)
+    EXPECT_NE(line.find("retry: face coverage "), std::string::npos) << line;
+
+  c.storage.data_dir = dir_ / "in-process";  // not the headless run's unfinished session
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  d->post(KioskInput::kStart, "Qa");
+  wait_for(*d, [](auto& s) { return s["state"] == "guide"; });
+  ASSERT_TRUE(d->press({ButtonId::kMain, PressKind::kShort}));
+  auto s = wait_for(*d, [](auto& s) { return s["state"] == "retry"; });
+  const std::string message = s["message"];
+  EXPECT_NE(message.find("Quality check failed (face coverage "), std::string::npos) << message;
+  EXPECT_EQ(s["last_input"], "qa_failed");
+  std::printf("first retry line: %s\nstatus message: %s\n", retries.front().c_str(),
+              message.c_str());
 }
 
 TEST_F(DaemonTest, HttpControlsAndRejectsBadRequests) {

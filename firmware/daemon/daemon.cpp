@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "algo/core/figure_text.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
@@ -324,19 +325,19 @@ nlohmann::json Daemon::Impl::status_json() const {
                        {"label", d.guide[s.capture_index].label}};
   }
   if (s.last_qa) {
-    j["qa"] = {{"coverage", s.last_qa->coverage},
-               {"residual_mm", s.last_qa->residual_mm},
-               {"fused_fraction", s.last_qa->fused_fraction},
+    j["qa"] = {{"coverage", figure_json(s.last_qa->coverage)},
+               {"residual_mm", figure_json(s.last_qa->residual_mm)},
+               {"fused_fraction", figure_json(s.last_qa->fused_fraction)},
                {"passed", s.last_qa->passed},
                {"reason", s.last_qa->reason},
                {"landmarks", s.last_qa->landmarks},
                {"fit", s.last_qa->fit},
-               {"landmark_score", s.last_qa->landmark_score},
+               {"landmark_score", figure_json(s.last_qa->landmark_score)},
                {"landmarks_3d", s.last_qa->landmarks_3d},
-               {"landmark_error_mm", s.last_qa->landmark_error_mm},
-               {"fit_rms_mm", s.last_qa->fit_rms_mm},
-               {"fit_rms_initial_mm", s.last_qa->fit_rms_initial_mm},
-               {"fit_ms", s.last_qa->fit_ms},
+               {"landmark_error_mm", figure_json(s.last_qa->landmark_error_mm)},
+               {"fit_rms_mm", figure_json(s.last_qa->fit_rms_mm)},
+               {"fit_rms_initial_mm", figure_json(s.last_qa->fit_rms_initial_mm)},
+               {"fit_ms", figure_json(s.last_qa->fit_ms)},
                {"corrections", s.last_qa->corrections}};
     if (s.qa_capture.index >= 0) {
       j["qa"]["capture"] = {

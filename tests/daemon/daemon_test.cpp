@@ -13,9 +13,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <thread>
 #include <vector>
 
+#include "algo/core/figure_text.hpp"
 #include "algo/fitting/face_fit.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "firmware/daemon/daemon.hpp"
@@ -168,6 +170,20 @@ TEST(DaemonConfig, ErrorsNameTheProblem) {
   ASSERT_FALSE(section);
   EXPECT_NE(section.error().message.find("[cameras]"), std::string::npos);
   EXPECT_FALSE(load_daemon_config("/nonexistent/faceboothd.toml"));
+}
+
+// Issue 35: no "nan" reaches a user. A missing figure (a fit that did not run, a mean over
+// nothing) reads "n/a" in the daemon's log lines, QA reasons and `eval fit`'s console lines,
+// and null in the status JSON, also for in-process readers (nlohmann keeps NaN until dump).
+TEST(DaemonFigures, MissingFiguresAreNaInTextAndNullInJson) {
+  EXPECT_EQ(figure_text(std::nan(""), 2), "n/a");
+  EXPECT_EQ(figure_text(std::numeric_limits<double>::infinity(), 1), "n/a");
+  EXPECT_EQ(figure_text(0.255, 1), "0.3");
+  EXPECT_EQ(figure_text(1.0 / 3.0, 3), "0.333");
+  EXPECT_TRUE(figure_json(std::nan("")).is_null());
+  EXPECT_EQ(figure_json(0.5).get<double>(), 0.5);
+  const nlohmann::json j = {{"fit_rms_mm", figure_json(std::nan(""))}};
+  EXPECT_EQ(j.dump(), R"({"fit_rms_mm":null})");
 }
 
 TEST(GuideSteps, TheProjectGuideHasTwentyExpressions) {

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <thread>
 #include <vector>
 
@@ -113,6 +114,55 @@ TEST(DaemonConfig, DefaultsAreValidAndRoundTrip) {
   EXPECT_EQ(back->camera.uri, c.camera.uri);
   EXPECT_EQ(back->http.port, c.http.port);
   EXPECT_EQ(back->storage.data_dir, c.storage.data_dir);
+}
+
+// Issue 35: toml++ printed min_fused_fraction = 0.59999999999999998. Floats print as written
+// (shortest text) and still read back bit for bit, the defaults and awkward values alike.
+TEST(DaemonConfig, FloatsPrintAsWrittenAndRoundTripExactly) {
+  std::string printed;
+  {
+    std::unique_ptr<FILE, int (*)(FILE*)> pipe(
+        ::popen(FB_FACEBOOTHD " --print-default-config", "r"), ::pclose);
+    ASSERT_TRUE(pipe);
+    char buf[4096];
+    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;)
+      printed.append(buf, n);
+  }
+  EXPECT_NE(printed.find("\nmin_fused_fraction = 0.6\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\nmax_fit_rms_mm = 1.5\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\npreview_fps = 5.0\n"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("99999"), std::string::npos) << printed;
+  auto defaults = parse_daemon_config(printed, "printed");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_EQ(defaults->session.min_fused_fraction, 0.6);
+
+  DaemonConfig c = default_daemon_config();
+  double* floats[] = {&c.camera.preview_fps,
+                      &c.camera.max_misregistration_px,
+                      &c.session.min_coverage,
+                      &c.session.max_residual_mm,
+                      &c.session.min_fused_fraction,
+                      &c.session.max_fit_rms_mm,
+                      &c.session.max_landmark_error_mm,
+                      &c.session.min_landmark_score};
+  const double awkward[] = {0.1 + 0.2,          2.0 / 3.0,           1e-7,
+                            19.999999999999996, 1.0 / 3.0,           1.4999999999999998,
+                            5.000000000000001,  -0.30000000000000004};
+  for (std::size_t i = 0; i < std::size(floats); ++i) *floats[i] = awkward[i];
+  auto back = parse_daemon_config(to_toml(c), "roundtrip");
+  ASSERT_TRUE(back) << back.error().message << "\n" << to_toml(c);
+  DaemonConfig& b = *back;
+  const double read[] = {b.camera.preview_fps,
+                         b.camera.max_misregistration_px,
+                         b.session.min_coverage,
+                         b.session.max_residual_mm,
+                         b.session.min_fused_fraction,
+                         b.session.max_fit_rms_mm,
+                         b.session.max_landmark_error_mm,
+                         b.session.min_landmark_score};
+  for (std::size_t i = 0; i < std::size(awkward); ++i)
+    EXPECT_EQ(read[i], awkward[i]) << "float " << i << " in\n" << to_toml(c);
+  EXPECT_NE(to_toml(c).find("min_coverage = 1e-07\n"), std::string::npos) << to_toml(c);
 }
 
 TEST(DaemonConfig, ReadsEverySection) {

@@ -167,6 +167,17 @@ void residuals(const FaceModel& model, const FitTarget& target, const Points& x,
   rms = count > 0 ? std::sqrt(sum / count) : kNaN;
 }
 
+// A fit without a single depth sample within the metric gate has no residual to report (the
+// RMS would be NaN): the depth there is missing or far from where the landmarks put the face.
+Result<void> check_depth_reached(int correspondences) {
+  if (correspondences > 0) return success();
+  return fail("fit: no depth sample lies within " +
+              std::to_string(static_cast<int>(kMetricGateMm)) +
+              " mm of the fitted face (the depth image has no surface where the landmarks put "
+              "the face); check that the face is in the depth camera's view and range and that "
+              "depth and colour are registered, then record again");
+}
+
 void landmark_residuals(const FitTarget& target, const Points& x,
                         const std::array<int, kFitLandmarkCount>& verts,
                         std::array<double, kFitLandmarkCount>& out) {
@@ -499,6 +510,7 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
   from_points(v_model, res.vertices);
   residuals(model, target, x, model.triangles, visible_vertices(target, x, model.triangles),
             res.vertex_residual_mm, res.rms_to_depth_mm, res.depth_correspondences);
+  if (auto ok = check_depth_reached(res.depth_correspondences); !ok) return ok.failure();
   res.landmark_vertex = lm_verts;
   landmark_residuals(target, x, lm_verts, res.landmark_residual_mm);
   res.times.refine_ms = ms_since(t0);
@@ -692,6 +704,7 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     const Points x = posed(to_points(mesh), r, t);
     residuals(model, target, x, model.triangles, visible_vertices(target, x, model.triangles),
               out.vertex_residual_mm, out.rms_to_depth_mm, out.depth_correspondences);
+    if (auto ok = check_depth_reached(out.depth_correspondences); !ok) return ok.failure();
     out.initial_vertex_residual_mm = out.vertex_residual_mm;
     out.rms_to_depth_mm_initial = out.rms_to_depth_mm;
     out.landmark_vertex = landmark_vertices(model, target, x);

@@ -126,7 +126,9 @@ struct FitResult {
   // initial mesh.
   std::vector<float> vertex_residual_mm;
   std::vector<float> initial_vertex_residual_mm;
-  double rms_to_depth_mm = 0;  // over face vertices with a correspondence
+  // Over face vertices with a correspondence; a fit whose final mesh has none fails instead
+  // (what to do, not "RMS nan"). The initial one is NaN when the start mesh had none.
+  double rms_to_depth_mm = 0;
   double rms_to_depth_mm_initial = 0;
   int depth_correspondences = 0;
   // Landmark residuals of the final mesh: 3D distance (interior) or ray distance (contour), mm.

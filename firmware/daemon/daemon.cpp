@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "algo/core/figure_text.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
@@ -324,19 +325,19 @@ nlohmann::json Daemon::Impl::status_json() const {
                        {"label", d.guide[s.capture_index].label}};
   }
   if (s.last_qa) {
-    j["qa"] = {{"coverage", s.last_qa->coverage},
-               {"residual_mm", s.last_qa->residual_mm},
-               {"fused_fraction", s.last_qa->fused_fraction},
+    j["qa"] = {{"coverage", figure_json(s.last_qa->coverage)},
+               {"residual_mm", figure_json(s.last_qa->residual_mm)},
+               {"fused_fraction", figure_json(s.last_qa->fused_fraction)},
                {"passed", s.last_qa->passed},
                {"reason", s.last_qa->reason},
                {"landmarks", s.last_qa->landmarks},
                {"fit", s.last_qa->fit},
-               {"landmark_score", s.last_qa->landmark_score},
+               {"landmark_score", figure_json(s.last_qa->landmark_score)},
                {"landmarks_3d", s.last_qa->landmarks_3d},
-               {"landmark_error_mm", s.last_qa->landmark_error_mm},
-               {"fit_rms_mm", s.last_qa->fit_rms_mm},
-               {"fit_rms_initial_mm", s.last_qa->fit_rms_initial_mm},
-               {"fit_ms", s.last_qa->fit_ms},
+               {"landmark_error_mm", figure_json(s.last_qa->landmark_error_mm)},
+               {"fit_rms_mm", figure_json(s.last_qa->fit_rms_mm)},
+               {"fit_rms_initial_mm", figure_json(s.last_qa->fit_rms_initial_mm)},
+               {"fit_ms", figure_json(s.last_qa->fit_ms)},
                {"corrections", s.last_qa->corrections}};
     if (s.qa_capture.index >= 0) {
       j["qa"]["capture"] = {
@@ -356,13 +357,21 @@ nlohmann::json Daemon::Impl::status_json() const {
 // ---------------------------------------------------------------------------------------------
 // Worker: the frame loop and the state machine
 
-void Daemon::Impl::set_state(KioskState s, const std::string& input_name) {
+void Daemon::Impl::set_state(KioskState s, const std::string& input_name,
+                             const std::string& message) {
   std::lock_guard lock(led_mutex);
   gpio->set_pattern(led_pattern(s));
   update_status([&](StatusData& st) {
     st.state = s;
     st.last_input = input_name;
+    if (!message.empty()) st.message = message;
   });
+}
+
+std::string Daemon::Impl::qa_failure_reason() {
+  std::lock_guard lock(status_mutex);
+  if (!status.last_qa) return "no quality report";
+  return status.last_qa->reason.empty() ? "no reason given" : status.last_qa->reason;
 }
 
 void Daemon::Impl::watchdog_ping() {
@@ -518,14 +527,19 @@ void Daemon::Impl::handle(const QueuedInput& first) {
       });
       return;
     }
-    // One line per transition: the journal then tells the story of every session.
-    std::fprintf(stderr, "faceboothd: %s --%s--> %s\n", to_string(state), to_string(in.input),
-                 to_string(t->next));
+    // One line per transition: the journal then tells the story of every session. A failed
+    // quality check says why on the same line (the fit thread published its report first).
+    const std::string why = in.input == KioskInput::kQaFailed ? qa_failure_reason() : "";
+    std::fprintf(stderr, "faceboothd: %s --%s--> %s%s%s\n", to_string(state), to_string(in.input),
+                 to_string(t->next), why.empty() ? "" : ": ", why.c_str());
     // A guide screen is published together with its capture (index, attempts): a client that
     // keys its presses on (state, capture) must never see "guide" with the previous capture.
+    // Likewise the retry screen comes with its reason, never with the "checking" text.
     const bool prepare_first =
         t->action == KioskAction::kShowGuide || t->action == KioskAction::kResumeSession;
-    if (!prepare_first) set_state(t->next, to_string(in.input));
+    const std::string message =
+        why.empty() ? "" : "Quality check failed (" + why + "). Press the button to record again.";
+    if (!prepare_first) set_state(t->next, to_string(in.input), message);
     bool followup = false;
     const KioskInput next = do_action(t->action, in, &followup);
     if (prepare_first) set_state(t->next, to_string(in.input));
@@ -547,12 +561,7 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
   };
   switch (action) {
     case KioskAction::kNone:
-      if (in.input == KioskInput::kQaFailed)
-        update_status([](StatusData& s) {
-          s.message = "Quality check failed (" + (s.last_qa ? s.last_qa->reason : "") +
-                      "). Press the button to record again.";
-        });
-      else
+      if (in.input != KioskInput::kQaFailed)  // the retry's message came with its state
         update_status([](StatusData& s) {
           s.error.clear();
           s.message = "Press the button to start";

@@ -1,6 +1,8 @@
 #include "firmware/daemon/daemon_config.hpp"
 
 #include <toml++/toml.h>
+
+#include <charconv>
 #include <cstdlib>
 #include <fstream>
 #include <set>
@@ -84,6 +86,34 @@ class Reader {
   std::map<std::string, std::set<std::string>> known_keys_;
   std::string first_error_;
 };
+
+// The shortest text that reads back as the same double (0.6, not toml++'s 0.59999999999999998).
+std::string shortest_float(double v) {
+  char buf[64];
+  const auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+  std::string text(buf, end);
+  if (text.find_first_of(".eEn") == std::string::npos) text += ".0";  // TOML floats need a point
+  return text;
+}
+
+// toml++ prints floats with max_digits10 digits; everything else is printed by toml++.
+std::string print_sections(const toml::table& root) {
+  std::ostringstream out;
+  bool first = true;
+  for (const auto& [name, section] : root) {
+    out << (first ? "" : "\n") << "[" << name.str() << "]\n";
+    first = false;
+    for (const auto& [key, node] : *section.as_table()) {
+      out << key.str() << " = ";
+      if (const auto* f = node.as_floating_point())
+        out << shortest_float(f->get());
+      else
+        node.visit([&](const auto& value) { out << value; });
+      out << "\n";
+    }
+  }
+  return out.str();
+}
 
 std::filesystem::path resolve(const std::filesystem::path& p, const std::filesystem::path& base) {
   if (p.empty() || p.is_absolute() || base.empty()) return p;
@@ -265,9 +295,7 @@ std::string to_toml(const DaemonConfig& c) {
                                 {"max_take_frames", c.streaming.max_take_frames}}},
       {"systemd", toml::table{{"watchdog_divisor", c.watchdog_divisor}}},
   };
-  std::ostringstream out;
-  out << root << "\n";
-  return out.str();
+  return print_sections(root);
 }
 
 }  // namespace fb

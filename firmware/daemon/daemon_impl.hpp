@@ -253,7 +253,9 @@ struct Daemon::Impl {
   void post_input(KioskInput input, std::int64_t session = 0);
   void watchdog_ping();
   bool cancel_pending();
-  void set_state(KioskState s, const std::string& input_name);
+  // Publishes the state (and, when given, the kiosk message with it, in one status update).
+  void set_state(KioskState s, const std::string& input_name, const std::string& message = "");
+  std::string qa_failure_reason();  // the last quality report's reason (for a qa_failed input)
   template <class F>
   void update_status(F&& f) {
     {

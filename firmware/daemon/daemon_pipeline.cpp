@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "algo/core/figure_text.hpp"
 #include "algo/tracking/rig_view.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 #include "firmware/streaming/live_json.hpp"
@@ -27,10 +28,8 @@ double ms_since(Clock::time_point t) {
 }
 
 std::string fixed(double v, int digits = 2) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
+  return figure_text(v, digits);
+}  // n/a, not nan
 
 }  // namespace
 
@@ -208,10 +207,11 @@ void Daemon::Impl::process_capture(std::int64_t session, int index, QaReport qa,
     qa.fit_ms = ms_since(t0);
     fold_fit_into_qa(fit, qa);
     std::fprintf(stderr,
-                 "faceboothd: capture %d: %s, fit %s in %.0f ms (RMS %.2f mm, landmarks %.1f mm, "
-                 "score %.2f)%s%s\n",
-                 index, qa.landmarks.c_str(), qa.fit.c_str(), qa.fit_ms, qa.fit_rms_mm,
-                 qa.landmark_error_mm, qa.landmark_score, qa.passed ? "" : ": ", qa.reason.c_str());
+                 "faceboothd: capture %d: %s, fit %s in %.0f ms (RMS %s mm, landmarks %s mm, "
+                 "score %s)%s%s\n",
+                 index, qa.landmarks.c_str(), qa.fit.c_str(), qa.fit_ms,
+                 fixed(qa.fit_rms_mm).c_str(), fixed(qa.landmark_error_mm, 1).c_str(),
+                 fixed(qa.landmark_score).c_str(), qa.passed ? "" : ": ", qa.reason.c_str());
     if (fit) {
       if (fit->neutral) {
         std::lock_guard lock(identity_mutex);
@@ -362,17 +362,20 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
                             {"qa",
                              {{"passed", qa.passed},
                               {"reason", qa.reason},
-                              {"fit_rms_mm", qa.fit_rms_mm},
-                              {"landmark_error_mm", qa.landmark_error_mm},
+                              {"fit_rms_mm", figure_json(qa.fit_rms_mm)},
+                              {"landmark_error_mm", figure_json(qa.landmark_error_mm)},
                               {"landmarks_3d", qa.landmarks_3d},
                               {"corrections", qa.corrections},
-                              {"fit_ms", qa.fit_ms}}}};
+                              {"fit_ms", figure_json(qa.fit_ms)}}}};
     };
     auto result = answer();
     if (result)
-      std::fprintf(stderr,
-                   "faceboothd: capture %d: %zu landmark correction(s), refit RMS %.2f mm\n", index,
-                   corrections.size(), (*result)["qa"]["fit_rms_mm"].get<double>());
+      std::fprintf(stderr, "faceboothd: capture %d: %zu landmark correction(s), refit RMS %s mm\n",
+                   index, corrections.size(),
+                   fixed((*result)["qa"]["fit_rms_mm"].is_number()
+                             ? (*result)["qa"]["fit_rms_mm"].get<double>()
+                             : NAN)
+                       .c_str());
     else
       std::fprintf(stderr, "faceboothd: capture %d: correction refused: %s\n", index,
                    result.error().message.c_str());

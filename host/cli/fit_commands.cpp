@@ -21,6 +21,7 @@
 #include <random>
 #include <sstream>
 
+#include "algo/core/figure_text.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
 #include "algo/fusion/face_fusion.hpp"
@@ -119,7 +120,8 @@ cv::Mat error_panel(const FaceModel& model, std::span<const float> mesh, const R
   cv::Mat framed(big.rows + 30, big.cols, CV_8UC3, cv::Scalar(255, 255, 255));
   big.copyTo(framed(cv::Rect(0, 30, big.cols, big.rows)));
   char text[160];
-  std::snprintf(text, sizeof text, "%s: RMS %.2f mm (0-%.1f mm)", title.c_str(), rms, scale_mm);
+  std::snprintf(text, sizeof text, "%s: RMS %s mm (0-%.1f mm)", title.c_str(),
+                figure_text(rms).c_str(), scale_mm);
   cv::putText(framed, text, cv::Point(4, 20), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0),
               1, cv::LINE_AA);
   return framed;
@@ -308,11 +310,11 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         j["vertex_error_mm_initial"] = vi;
         j["vertex_error_mm"] = vr;
         j["fit_ms"] = neutral.times.total_ms();
-        std::fprintf(
-            stderr,
-            "  neutral: RMS to depth %.3f -> %.3f mm, vertex error %.3f -> %.3f mm, %.0f ms\n",
-            neutral.rms_to_depth_mm_initial, neutral.rms_to_depth_mm, vi, vr,
-            neutral.times.total_ms());
+        std::fprintf(stderr,
+                     "  neutral: RMS to depth %s -> %s mm, vertex error %s -> %s mm, %.0f ms\n",
+                     figure_text(neutral.rms_to_depth_mm_initial, 3).c_str(),
+                     figure_text(neutral.rms_to_depth_mm, 3).c_str(), figure_text(vi, 3).c_str(),
+                     figure_text(vr, 3).c_str(), neutral.times.total_ms());
         // Robustness: the same capture with stronger landmark noise.
         if (*robust_noise > 0) {
           auto t2 = make_fit_target(*cap, noisy(cap->truth_color_px, *robust_noise, rng),
@@ -399,10 +401,10 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         j["vertex_error_mm_initial"] = vi;
         j["vertex_error_mm"] = vr;
         j["fit_ms"] = fit->times.total_ms();
-        std::fprintf(stderr,
-                     "  %s: RMS to depth %.3f -> %.3f mm, vertex error %.3f -> %.3f mm, %.0f ms\n",
-                     ge.name.c_str(), fit->rms_to_depth_mm_initial, fit->rms_to_depth_mm, vi, vr,
-                     fit->times.total_ms());
+        std::fprintf(stderr, "  %s: RMS to depth %s -> %s mm, vertex error %s -> %s mm, %.0f ms\n",
+                     ge.name.c_str(), figure_text(fit->rms_to_depth_mm_initial, 3).c_str(),
+                     figure_text(fit->rms_to_depth_mm, 3).c_str(), figure_text(vi, 3).c_str(),
+                     figure_text(vr, 3).c_str(), fit->times.total_ms());
       }
       exprs.push_back(j);
     }

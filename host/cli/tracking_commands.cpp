@@ -13,6 +13,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -94,6 +95,26 @@ Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, Sub
       tracker_rig_view(out.data.neutral, out.data.shape_names, out.data.shapes, model, mapping);
   out.matched = static_cast<int>(out.view.shapes.size());
   return std::optional<LoadedRig>(std::move(out));
+}
+
+// Why `track` ended without a calibrated subject, and what to do.
+std::string never_calibrated_message(int needed, long long frames, long long with_face, int most,
+                                     int rejected_sets, const std::string& rejection,
+                                     const std::string& last_reason) {
+  std::string why;
+  if (rejected_sets > 0) {
+    why = "a full set of " + std::to_string(needed) + " calibration frames was rejected " +
+          (rejected_sets == 1 ? std::string("once") : std::to_string(rejected_sets) + " times") +
+          " (" + rejection + ")";
+  } else {
+    why = "only " + std::to_string(most) + " of the " + std::to_string(needed) +
+          " calibration frames came in (the face was found on " + std::to_string(with_face) +
+          " of " + std::to_string(frames) + " frames" +
+          (last_reason.empty() ? "" : "; last: " + last_reason) + ")";
+  }
+  return "track: the subject never calibrated, so no weights of this face were tracked: " + why +
+         ". Give a take with the face in view for at least " + std::to_string(needed) +
+         " frames in a row (face the camera, neutral, still), or lower --calibration-frames";
 }
 
 // The calibrated subject as a rig in the face model's topology: the fitted neutral and, per
@@ -272,6 +293,10 @@ int run_track(const ParsedOptions& options) {
   std::vector<double> latency, cost;
   long long read = 0, found = 0, lost_reports = 0, timeouts_in_row = 0;
   std::string last_reason;  // the tracker's loss reason on the previous frame
+  // Why a take never calibrated: the most calibration frames that came in, and the full sets
+  // the tracker rejected (it starts over with a loss reason saying why).
+  int most_calibration_frames = 0, rejected_sets = 0;
+  std::string rejection;
   std::map<std::string, long long> states;
   std::string stop_reason = "end of stream";
   bool camera_failed = false;
@@ -357,6 +382,14 @@ int run_track(const ParsedOptions& options) {
       // Once per reason: "no face found" every frame of an empty room says nothing new.
       std::cerr << "track: frame " << frame.index << ": searching (" << report.loss_reason << ")\n";
     }
+    if (report.state == TrackState::kCalibrating)
+      most_calibration_frames =
+          std::max(most_calibration_frames,
+                   tracker_options.calibration_frames - report.calibration_frames_left);
+    if (!report.face_found && std::string_view(report.loss_reason).starts_with("calibration")) {
+      ++rejected_sets;
+      rejection = report.loss_reason;
+    }
     last_reason = report.loss_reason;
     ++states[to_string(report.state)];
     progress.update(read);
@@ -391,9 +424,10 @@ int run_track(const ParsedOptions& options) {
     // above, and one that fell back to calibration for want of a rig is calibrated here).
     if (!(*tracker)->calibrated() || !subject) {
       std::cout << result.dump(2) << std::endl;
-      return report_failure(
-          {"--save-rig: the subject was never calibrated (no face for "
-           "--calibration-frames frames in a row), so no rig was stored"});
+      return report_failure({never_calibrated_message(tracker_options.calibration_frames, read,
+                                                      found, most_calibration_frames, rejected_sets,
+                                                      rejection, last_reason) +
+                             "; --save-rig stored no rig"});
     }
     const RigData saved = calibrated_rig(tracker_model, (*tracker)->identity(),
                                          bilinear ? &*bilinear->blendshapes : nullptr);
@@ -433,6 +467,12 @@ int run_track(const ParsedOptions& options) {
   }
   if (csv) result["csv"] = options.get("csv");
   std::cout << result.dump(2) << std::endl;
+  if (!camera_failed && !(*tracker)->calibrated()) {
+    // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.
+    return report_failure(
+        {never_calibrated_message(tracker_options.calibration_frames, read, found,
+                                  most_calibration_frames, rejected_sets, rejection, last_reason)});
+  }
   return camera_failed ? kExitFailure : kExitOk;
 }
 

@@ -43,27 +43,42 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
                     {"store", store.root().string()},
                     {"session", std::to_string(session)},
                     {"subject", std::to_string(info->subject)}};
+  auto meshes = store.meshes(session);
+  if (!meshes) return meshes.failure();
   auto rigs = store.rigs(info->subject);
   if (!rigs) return rigs.failure();
   if (rigs->empty()) {
-    return fail("subject " + std::to_string(info->subject) + " of session " +
-                std::to_string(session) +
-                " has no rig yet: build one from the session first (or try --from-face-model)");
-  }
-  RigId chosen = rigs->front().id;
-  for (const auto& r : *rigs) {
-    if (r.session == session) {
-      chosen = r.id;
-      break;
+    // A session with only its neutral fitted cannot be rigged (rigging needs an expression),
+    // but its neutral is a result of its own: exported as a rig without blendshapes.
+    const MeshInfo* neutral = nullptr;
+    for (const auto& m : *meshes)
+      if (m.role == MeshRole::kNeutral && (neutral == nullptr || m.id > neutral->id)) neutral = &m;
+    if (neutral == nullptr) {
+      return fail("subject " + std::to_string(info->subject) + " of session " +
+                  std::to_string(session) +
+                  " has no rig yet and no fitted neutral: fit the session's neutral capture (and "
+                  "build a rig from its expressions) first, or try --from-face-model");
     }
+    auto mesh = store.read_mesh(neutral->id);
+    if (!mesh) return mesh.failure();
+    content.rig.neutral = std::move(mesh->positions);
+    content.rig.triangles = std::move(mesh->triangles);
+    content.source["rig"] =
+        "none: the fitted neutral alone (mesh " + std::to_string(neutral->id) + "), no blendshapes";
+  } else {
+    RigId chosen = rigs->front().id;
+    for (const auto& r : *rigs) {
+      if (r.session == session) {
+        chosen = r.id;
+        break;
+      }
+    }
+    content.source["rig"] = std::to_string(chosen);
+    auto rig = store.read_rig(chosen);
+    if (!rig) return rig.failure();
+    content.rig = std::move(*rig);
   }
-  content.source["rig"] = std::to_string(chosen);
-  auto rig = store.read_rig(chosen);
-  if (!rig) return rig.failure();
-  content.rig = std::move(*rig);
 
-  auto meshes = store.meshes(session);
-  if (!meshes) return meshes.failure();
   auto captures = store.captures(session);
   if (!captures) return captures.failure();
   for (const auto& c : *captures) {
@@ -159,6 +174,11 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
   manifest.details["blendshape_names"] = names;
   switch (request.format) {
     case ExportFormat::kFaceWarehouse: {
+      if (c.rig.shape_count() == 0)
+        return fail(
+            "FaceWarehouse's layout is a blendshape set and this export has only the "
+            "neutral (no rig): use --format obj, ply or glb, or fit the session's "
+            "expressions and build a rig first");
       FaceWarehouseTester tester;
       tester.number = request.tester_number;
       tester.rig = c.rig;
@@ -179,7 +199,9 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
       if (!glb) return glb.failure();
       if (auto r = folder->write_file(c.name + ".glb", *glb); !r) return r.failure();
       manifest.details["units"] = "metres (glTF)";
-      manifest.details["morph_targets"] = "POSITION deltas, names in mesh.extras.targetNames";
+      manifest.details["morph_targets"] = c.rig.shape_count() > 0
+                                              ? "POSITION deltas, names in mesh.extras.targetNames"
+                                              : "none (the neutral alone)";
       break;
     }
     case ExportFormat::kObj:

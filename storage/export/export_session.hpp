@@ -34,7 +34,8 @@ struct ExportContent {
 
 // The session's subject's newest rig (preferring one built from this session), the session's
 // fitted meshes by capture index (a kNeutral mesh counts as pose 0), and each done capture's
-// first colour frame and landmarks.
+// first colour frame and landmarks. A subject without a rig exports the session's fitted
+// neutral as a rig without blendshapes (OBJ, PLY, glTF; FaceWarehouse needs blendshapes).
 Result<ExportContent> load_session_content(const SessionStore& store, SessionId session);
 ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t seed,
                                 const std::string& face_model_path);

@@ -13,6 +13,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "drivers/camera/openni2/oni_writer.hpp"
 #include "drivers/camera/openni2/openni2_camera.hpp"
@@ -253,6 +254,122 @@ TEST(Openni2Camera, RestartAfterTheEndAsksToReopen) {
   auto restarted = camera->start();
   ASSERT_FALSE(restarted);
   EXPECT_NE(restarted.error().message.find("open the camera again"), std::string::npos);
+}
+
+// Issue 35: `openni2:FILE,loop=1` failed with NO_DEVICE (the whole text was taken for a device
+// URI). The backend now takes replay's options; loop=1 plays the recording again and again.
+TEST(Openni2Camera, LoopPlaysTheRecordingAgainAndAgain) {
+  TempDir dir;
+  const fs::path path = dir / "loop.oni";
+  write_recording(path, 3);
+  RgbdFrame frame;
+  {
+    auto camera = open_or_die(path.string() + ",loop=1");
+    ASSERT_TRUE(camera);
+    EXPECT_EQ(camera->info().uri, "openni2:" + path.string() + ",loop=1");
+    EXPECT_EQ(camera->info().frame_count, -1);  // endless
+    ASSERT_TRUE(camera->start());
+    constexpr int kFrames = 3 * 3 + 2;  // three whole loops and two frames of the fourth
+    for (int n = 0; n < kFrames; ++n) {
+      auto status = camera->next_frame(frame, milliseconds(5000));
+      ASSERT_TRUE(status) << status.error().message;
+      ASSERT_EQ(*status, FrameStatus::kFrame) << "frame " << n;
+      EXPECT_EQ(frame.index, static_cast<std::uint64_t>(n));
+      EXPECT_EQ(depth_mismatches(frame.depth_mm, n % 3), 0) << "frame " << n;
+      EXPECT_EQ(color_mismatches(frame.color, n % 3), 0) << "frame " << n;
+    }
+  }  // closed: OpenNI shares one device per open file
+  // Without the option the same file still ends after its 3 frames.
+  auto once = open_or_die(path.string() + ",loop=0");
+  ASSERT_TRUE(once);
+  EXPECT_EQ(once->info().frame_count, 3);
+  ASSERT_TRUE(once->start());
+  for (int n = 0; n < 3; ++n)
+    ASSERT_EQ(*once->next_frame(frame, milliseconds(5000)), FrameStatus::kFrame);
+  EXPECT_EQ(*once->next_frame(frame, milliseconds(1000)), FrameStatus::kEndOfStream);
+}
+
+// realtime=1 holds each frame until its recorded time (0.5 s apart here) is due on the wall
+// clock, counted from the first frame of each loop (without it, as fast as they are read).
+TEST(Openni2Camera, RealtimePacesByRecordedTimestamps) {
+  TempDir dir;
+  const fs::path path = dir / "paced.oni";
+  constexpr std::uint64_t kApartUs = 500000;
+  {
+    auto writer = OniWriter::create(path);
+    ASSERT_TRUE(writer) << writer.error().message;
+    DepthImage depth;
+    ColorImage color;
+    for (int k = 0; k < 3; ++k) {
+      fill_frame(k, depth, color);
+      ASSERT_TRUE((*writer)->write(depth, color, kApartUs * k));
+    }
+    ASSERT_TRUE((*writer)->close());
+  }
+  auto camera = open_or_die(path.string() + ",realtime=1,loop=1");
+  ASSERT_TRUE(camera);
+  EXPECT_EQ(camera->info().uri, "openni2:" + path.string() + ",realtime=1,loop=1");
+  ASSERT_TRUE(camera->start());
+  RgbdFrame frame;
+  using Clock = std::chrono::steady_clock;
+  // Each frame's call is timed from before it starts: pacing starts inside the call that
+  // delivers a loop's first frame, so these spans are lower bounds that sleeping guarantees.
+  std::vector<Clock::time_point> before, after;
+  auto next = [&](milliseconds timeout) {
+    before.push_back(Clock::now());
+    auto status = camera->next_frame(frame, timeout);
+    after.push_back(Clock::now());
+    return status;
+  };
+  ASSERT_EQ(*next(milliseconds(5000)), FrameStatus::kFrame);
+  // Frame 1 is due 0.5 s after frame 0: a short wait times out, and the frame is not lost.
+  auto early = camera->next_frame(frame, milliseconds(20));
+  ASSERT_TRUE(early) << early.error().message;
+  EXPECT_EQ(*early, FrameStatus::kTimeout);
+  for (int n = 1; n < 5; ++n) {  // frames 1, 2, then 0 and 1 of the second loop
+    auto status = next(milliseconds(5000));
+    ASSERT_TRUE(status) << status.error().message;
+    ASSERT_EQ(*status, FrameStatus::kFrame) << "frame " << n;
+    EXPECT_EQ(depth_mismatches(frame.depth_mm, n % 3), 0) << "frame " << n;
+  }
+  auto seconds = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+  };
+  const double first_loop = seconds(before[0], after[2]);   // recorded 0 -> 1.0 s
+  const double second_loop = seconds(before[3], after[4]);  // recorded 0 -> 0.5 s
+  std::printf(
+      "realtime: first loop's 3 frames in %.3f s (recorded 1.0), second loop's first 2 "
+      "in %.3f s (recorded 0.5); the loop's first frame came after %.3f s\n",
+      first_loop, second_loop, seconds(before[3], after[3]));
+  EXPECT_GE(first_loop, 1.0);
+  EXPECT_GE(second_loop, 0.5);  // paced again from the second loop's own first frame
+}
+
+TEST(Openni2Camera, UnknownOptionsAreErrorsListingTheAcceptedOnes) {
+  TempDir dir;
+  const fs::path path = dir / "options.oni";
+  write_recording(path, 1);
+  auto speed = open_openni2_camera(path.string() + ",speed=2");
+  ASSERT_FALSE(speed);
+  EXPECT_NE(speed.error().message.find("unknown openni2 option 'speed'"), std::string::npos)
+      << speed.error().message;
+  EXPECT_NE(speed.error().message.find("realtime=0|1, loop=0|1"), std::string::npos)
+      << speed.error().message;
+  auto value = open_openni2_camera(path.string() + ",loop=2");
+  ASSERT_FALSE(value);
+  EXPECT_NE(value.error().message.find("'loop=2' must be 0 or 1"), std::string::npos)
+      << value.error().message;
+  auto live = open_openni2_camera("freenect://0,loop=1");
+  ASSERT_FALSE(live);
+  EXPECT_NE(live.error().message.find("loop and realtime apply to recordings only"),
+            std::string::npos)
+      << live.error().message;
+  // A recording whose name has a comma still opens.
+  const fs::path comma = dir / "take,1.oni";
+  write_recording(comma, 1);
+  auto named = open_openni2_camera(comma.string());
+  ASSERT_TRUE(named) << named.error().message;
+  EXPECT_EQ((*named)->info().frame_count, 1);
 }
 
 // The real recorder path: openni::Recorder records the streams of a playback device (playing

@@ -172,6 +172,28 @@ TEST_F(CliTest, EvalTrackOccluderTakesCanLoadTheTrueIdentity) {
   EXPECT_LE(take.at("occluded_unaffected_weight_error").get<double>(), 0.05);
 }
 
+// Issue 35: `track` exited 0 with "calibrated": false when the take was too short to fill the
+// calibration frames. It now fails (exit 1) and says how many of the N came in; the JSON figures
+// are still printed on stdout.
+TEST_F(CliTest, TrackThatNeverCalibratedFailsAndSaysWhy) {
+  const auto shortened = run_cli("track --camera synthetic:seed=5,frames=4");
+  EXPECT_EQ(shortened.exit_code, 1) << shortened.out;
+  EXPECT_NE(shortened.out.find("the subject never calibrated"), std::string::npos) << shortened.out;
+  EXPECT_NE(shortened.out.find("only 4 of the 10 calibration frames came in (the face was found "
+                               "on 4 of 4 frames)"),
+            std::string::npos)
+      << shortened.out;
+  EXPECT_NE(shortened.out.find("lower --calibration-frames"), std::string::npos) << shortened.out;
+  const auto json = run_cli("track --camera synthetic:seed=5,frames=4", false);
+  EXPECT_FALSE(nlohmann::json::parse(json.out).at("calibrated").get<bool>()) << json.out;
+
+  // The same take with fewer calibration frames calibrates and succeeds.
+  const auto enough =
+      run_cli("track --camera synthetic:seed=5,frames=4 --calibration-frames 3", false);
+  ASSERT_EQ(enough.exit_code, 0) << enough.out;
+  EXPECT_TRUE(nlohmann::json::parse(enough.out).at("calibrated").get<bool>());
+}
+
 // Calibration with a bilinear model (`facebooth model build`): `track` and `eval track` take
 // --model, report which subject model they used, and meet the issue's weight and pose figures
 // on a take; a model whose expression knobs cannot hold the blendshapes is tracked with a note
@@ -212,8 +234,14 @@ TEST_F(CliTest, TrackAndEvalTrackCalibrateWithABilinearModel) {
                 .exit_code,
             0);
   const auto noted = run_cli("track --camera synthetic:seed=5,frames=12 --model " + small);
-  EXPECT_EQ(noted.exit_code, 0) << noted.out;
   EXPECT_NE(noted.out.find("keeps 5 expression knobs for 53 blendshapes"), std::string::npos)
+      << noted.out;
+  // Its 4 identity knobs cannot hold this face: the calibration set is rejected, and `track`
+  // says so and fails (it exited 0 with "calibrated": false before issue 35).
+  EXPECT_EQ(noted.exit_code, 1) << noted.out;
+  EXPECT_NE(noted.out.find("a full set of 10 calibration frames was rejected once (calibration "
+                           "did not fit this face"),
+            std::string::npos)
       << noted.out;
 
   const std::string junk = (dir_ / "junk.fbbm").string();

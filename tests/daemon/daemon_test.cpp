@@ -9,10 +9,16 @@
 
 #include <sys/socket.h>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <memory>
 #include <thread>
+#include <vector>
 
+#include "algo/core/figure_text.hpp"
 #include "algo/fitting/face_fit.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "firmware/daemon/daemon.hpp"
@@ -110,6 +116,55 @@ TEST(DaemonConfig, DefaultsAreValidAndRoundTrip) {
   EXPECT_EQ(back->storage.data_dir, c.storage.data_dir);
 }
 
+// Issue 35: toml++ printed min_fused_fraction = 0.59999999999999998. Floats print as written
+// (shortest text) and still read back bit for bit, the defaults and awkward values alike.
+TEST(DaemonConfig, FloatsPrintAsWrittenAndRoundTripExactly) {
+  std::string printed;
+  {
+    std::unique_ptr<FILE, int (*)(FILE*)> pipe(
+        ::popen(FB_FACEBOOTHD " --print-default-config", "r"), ::pclose);
+    ASSERT_TRUE(pipe);
+    char buf[4096];
+    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0;)
+      printed.append(buf, n);
+  }
+  EXPECT_NE(printed.find("\nmin_fused_fraction = 0.6\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\nmax_fit_rms_mm = 1.5\n"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("\npreview_fps = 5.0\n"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("99999"), std::string::npos) << printed;
+  auto defaults = parse_daemon_config(printed, "printed");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_EQ(defaults->session.min_fused_fraction, 0.6);
+
+  DaemonConfig c = default_daemon_config();
+  double* floats[] = {&c.camera.preview_fps,
+                      &c.camera.max_misregistration_px,
+                      &c.session.min_coverage,
+                      &c.session.max_residual_mm,
+                      &c.session.min_fused_fraction,
+                      &c.session.max_fit_rms_mm,
+                      &c.session.max_landmark_error_mm,
+                      &c.session.min_landmark_score};
+  const double awkward[] = {0.1 + 0.2,          2.0 / 3.0,           1e-7,
+                            19.999999999999996, 1.0 / 3.0,           1.4999999999999998,
+                            5.000000000000001,  -0.30000000000000004};
+  for (std::size_t i = 0; i < std::size(floats); ++i) *floats[i] = awkward[i];
+  auto back = parse_daemon_config(to_toml(c), "roundtrip");
+  ASSERT_TRUE(back) << back.error().message << "\n" << to_toml(c);
+  DaemonConfig& b = *back;
+  const double read[] = {b.camera.preview_fps,
+                         b.camera.max_misregistration_px,
+                         b.session.min_coverage,
+                         b.session.max_residual_mm,
+                         b.session.min_fused_fraction,
+                         b.session.max_fit_rms_mm,
+                         b.session.max_landmark_error_mm,
+                         b.session.min_landmark_score};
+  for (std::size_t i = 0; i < std::size(awkward); ++i)
+    EXPECT_EQ(read[i], awkward[i]) << "float " << i << " in\n" << to_toml(c);
+  EXPECT_NE(to_toml(c).find("min_coverage = 1e-07\n"), std::string::npos) << to_toml(c);
+}
+
 TEST(DaemonConfig, ReadsEverySection) {
   auto c = parse_daemon_config(R"(
 [camera]
@@ -165,6 +220,20 @@ TEST(DaemonConfig, ErrorsNameTheProblem) {
   ASSERT_FALSE(section);
   EXPECT_NE(section.error().message.find("[cameras]"), std::string::npos);
   EXPECT_FALSE(load_daemon_config("/nonexistent/faceboothd.toml"));
+}
+
+// Issue 35: no "nan" reaches a user. A missing figure (a fit that did not run, a mean over
+// nothing) reads "n/a" in the daemon's log lines, QA reasons and `eval fit`'s console lines,
+// and null in the status JSON, also for in-process readers (nlohmann keeps NaN until dump).
+TEST(DaemonFigures, MissingFiguresAreNaInTextAndNullInJson) {
+  EXPECT_EQ(figure_text(std::nan(""), 2), "n/a");
+  EXPECT_EQ(figure_text(std::numeric_limits<double>::infinity(), 1), "n/a");
+  EXPECT_EQ(figure_text(0.255, 1), "0.3");
+  EXPECT_EQ(figure_text(1.0 / 3.0, 3), "0.333");
+  EXPECT_TRUE(figure_json(std::nan("")).is_null());
+  EXPECT_EQ(figure_json(0.5).get<double>(), 0.5);
+  const nlohmann::json j = {{"fit_rms_mm", figure_json(std::nan(""))}};
+  EXPECT_EQ(j.dump(), R"({"fit_rms_mm":null})");
 }
 
 TEST(GuideSteps, TheProjectGuideHasTwentyExpressions) {
@@ -643,6 +712,49 @@ TEST_F(DaemonTest, FailedQualityCheckAsksForRetryAndCountsAttempts) {
   EXPECT_EQ(caps["captures"][0]["state"], "rejected");
   EXPECT_EQ(caps["captures"][0]["attempts"], 2);
   EXPECT_EQ(caps["captures"][1]["state"], "pending");
+}
+
+// Issue 35: headless retries printed only "processing --qa_failed--> retry"; the reason came
+// only when the whole session failed. Now each failed check says why at once, in the log line
+// of the transition and in the status that shows the retry screen.
+TEST_F(DaemonTest, HeadlessRetriesPrintTheQaReasonAtOnce) {
+  DaemonConfig c = config();
+  c.session.min_coverage = 0.99;  // impossible: every take fails on coverage
+  std::ofstream(dir_ / "faceboothd.toml") << to_toml(c);
+  const std::string command =
+      std::string(FB_FACEBOOTHD) + " --config " + (dir_ / "faceboothd.toml").string() +
+      " --run-session-headless --subject Qa 2>" + (dir_ / "stderr.txt").string();
+  const int rc = std::system(command.c_str());
+  EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 1) << rc;
+  std::ifstream log(dir_ / "stderr.txt");
+  std::vector<std::string> retries;
+  int retry_lines_before_the_end = 0;
+  bool ended = false;
+  for (std::string line; std::getline(log, line);) {
+    if (line.find("headless session failed") != std::string::npos) ended = true;
+    if (line.find("--qa_failed--> retry") == std::string::npos) continue;
+    retries.push_back(line);
+    retry_lines_before_the_end += !ended;
+  }
+  EXPECT_TRUE(ended);
+  ASSERT_EQ(retries.size(), 3u);  // the default three attempts
+  EXPECT_EQ(retry_lines_before_the_end, 3);
+  for (const auto& line : retries)
+    EXPECT_NE(line.find("retry: face coverage "), std::string::npos) << line;
+
+  c.storage.data_dir = dir_ / "in-process";  // not the headless run's unfinished session
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  d->post(KioskInput::kStart, "Qa");
+  wait_for(*d, [](auto& s) { return s["state"] == "guide"; });
+  ASSERT_TRUE(d->press({ButtonId::kMain, PressKind::kShort}));
+  auto s = wait_for(*d, [](auto& s) { return s["state"] == "retry"; });
+  const std::string message = s["message"];
+  EXPECT_NE(message.find("Quality check failed (face coverage "), std::string::npos) << message;
+  EXPECT_EQ(s["last_input"], "qa_failed");
+  std::printf("first retry line: %s\nstatus message: %s\n", retries.front().c_str(),
+              message.c_str());
 }
 
 TEST_F(DaemonTest, HttpControlsAndRejectsBadRequests) {

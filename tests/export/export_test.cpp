@@ -192,6 +192,75 @@ TEST_F(Export, SessionExportCarriesColourFramesAndLandmarks) {
   EXPECT_NE(no_rig.error().message.find("no rig"), std::string::npos);
 }
 
+// Issue 35: a session with only its neutral fitted could not be exported (no rig, and rigging
+// needs an expression). Its neutral exports as OBJ, PLY and a glTF without morph targets that
+// still validates; FaceWarehouse (a blendshape set) says what to do instead.
+TEST_F(Export, NeutralOnlySessionExportsItsNeutral) {
+  auto store = SessionStore::open(dir_ / "store");
+  ASSERT_TRUE(store);
+  auto subject = store->add_subject("neutral only");
+  ASSERT_TRUE(subject);
+  auto session = store->create_session(*subject, {"neutral", "smile"});
+  ASSERT_TRUE(session);
+  const MeshData& neutral = subject_->poses[0];
+  ASSERT_TRUE(store->add_mesh(*session, 0, MeshRole::kNeutral, "neutral", neutral));
+  auto content = load_session_content(*store, *session);
+  ASSERT_TRUE(content) << content.error().message;
+  EXPECT_EQ(content->rig.shape_count(), 0);
+  EXPECT_EQ(content->rig.neutral, neutral.positions);
+  ASSERT_EQ(content->poses.size(), 1u);
+
+  auto export_to = [&](ExportFormat format, const std::string& name) {
+    ExportRequest request;
+    request.format = format;
+    request.out = dir_ / name;
+    return export_content(*content, request);
+  };
+  for (auto format : {ExportFormat::kObj, ExportFormat::kPly}) {
+    const std::string ext = to_string(format);
+    auto summary = export_to(format, ext);
+    ASSERT_TRUE(summary) << summary.error().message;
+    EXPECT_TRUE(verify_export_folder(summary->path));
+    EXPECT_TRUE(fs::exists(summary->path / ("neutral." + ext)));
+    EXPECT_TRUE(fs::exists(summary->path / "poses" / ("pose_0." + ext)));
+    EXPECT_FALSE(fs::exists(summary->path / "blendshapes"));
+    EXPECT_EQ(summary->files, 3) << ext;  // neutral, pose 0, manifest
+  }
+  auto back = read_obj(dir_ / "obj" / "neutral.obj");
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->mesh.positions, neutral.positions);
+  EXPECT_EQ(back->mesh.triangles, neutral.triangles);
+
+  auto glb_summary = export_to(ExportFormat::kGlb, "glb");
+  ASSERT_TRUE(glb_summary) << glb_summary.error().message;
+  const fs::path glb = glb_summary->path / (content->name + ".glb");
+  auto bytes = read_file_bytes(glb);
+  ASSERT_TRUE(bytes);
+  std::uint32_t head[5];
+  std::memcpy(head, bytes->data(), sizeof head);
+  auto j = nlohmann::json::parse(bytes->begin() + 20, bytes->begin() + 20 + head[3]);
+  EXPECT_FALSE(j["meshes"][0]["primitives"][0].contains("targets"));
+  EXPECT_FALSE(j["meshes"][0].contains("weights"));
+  EXPECT_EQ(j["accessors"][1]["count"], neutral.positions.size() / 3);
+
+  auto fw = export_to(ExportFormat::kFaceWarehouse, "fw");
+  ASSERT_FALSE(fw);
+  EXPECT_NE(fw.error().message.find("use --format obj, ply or glb"), std::string::npos)
+      << fw.error().message;
+
+  if (std::string(FB_NODE_PATH).empty()) GTEST_SKIP() << "node is not installed";
+  ASSERT_TRUE(fs::exists(FB_GLTF_VALIDATOR_MODULE))
+      << "gltf-validator is missing: run ctest (fixture export_install_gltf_validator)";
+  const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
+                             FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
+  ASSERT_EQ(validated.exit_code, 0) << validated.out;
+  auto report = nlohmann::json::parse(validated.out, nullptr, false);
+  ASSERT_FALSE(report.is_discarded()) << validated.out;
+  std::cout << "neutral-only glb: " << report["numErrors"] << " errors, " << report["numWarnings"]
+            << " warnings\n";
+  EXPECT_EQ(report["numErrors"], 0) << report["messages"].dump(1);
+}
+
 TEST_F(Export, GlbPassesTheKhronosValidatorAndLoadsInAssimp) {
   const auto summary = export_as(ExportFormat::kGlb, "glb");
   const fs::path glb = summary.path / "synthetic5.glb";

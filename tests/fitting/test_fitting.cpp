@@ -253,6 +253,38 @@ TEST(Fitting, BadInputGivesClearErrors) {
   ASSERT_FALSE(f.ok());
 }
 
+// Issue 35: a fit whose face had no depth sample within its gate reported "RMS nan mm". The
+// landmarks keep their 3D points but the depth lies 300 mm behind them (e.g. a wall seen
+// through a misregistered face): the fit now fails and says what to do.
+TEST(Fitting, NoDepthSampleInTheGateIsAClearErrorNotNaN) {
+  const auto truth = face({});
+  FitTarget far = render_target(truth, truth_pose(truth));
+  int moved = 0;
+  for (float& z : far.depth_mm.pixels)
+    if (z > 0) z += 300.0f, ++moved;
+  far.normals = {};
+  ASSERT_TRUE(prepare_fit_target(far).ok());  // 3D landmarks are there: the fit runs
+  ASSERT_GT(moved, 10000);
+  for (const bool refine : {true, false}) {
+    NeutralFitOptions o;
+    o.refine = refine;
+    auto f = fit_neutral(test::face_model(), far, o);
+    ASSERT_FALSE(f.ok()) << "RMS " << f->rms_to_depth_mm << " mm over " << f->depth_correspondences
+                         << " correspondences";
+    const std::string& why = f.error().message;
+    std::printf("refine %d: %s\n", refine, why.c_str());
+    EXPECT_NE(why.find("no depth sample lies within 10 mm of the fitted face"), std::string::npos)
+        << why;
+    EXPECT_NE(why.find("record again"), std::string::npos) << why;
+    EXPECT_EQ(why.find("nan"), std::string::npos) << why;
+  }
+  // The same face with its depth in place still fits.
+  const FitTarget near = render_target(truth, truth_pose(truth));
+  auto ok = fit_neutral(test::face_model(), near);
+  ASSERT_TRUE(ok.ok()) << ok.error().message;
+  EXPECT_GT(ok->depth_correspondences, 3000);
+}
+
 // A ray-cast view comes with its own normals, one-sided on its rims; the fit keeps them only
 // inside one surface, so the rims of holes and the silhouette never enter Epos.
 TEST(Fitting, GivenNormalsAreClearedOnRimsOfHolesAndSilhouettes) {

@@ -1,5 +1,8 @@
 #include "drivers/camera/common/camera_uri.hpp"
 
+#include <filesystem>
+#include <optional>
+
 namespace fb {
 
 Result<CameraUri> parse_camera_uri(std::string_view uri) {
@@ -35,6 +38,48 @@ Result<std::map<std::string, std::string>> parse_key_values(std::string_view arg
     start = comma + 1;
   }
   return values;
+}
+
+namespace {
+
+Result<RecordingOptions> parse_recording_options(std::string_view text, std::string_view backend) {
+  auto values = parse_key_values(text);
+  if (!values) return values.failure();
+  RecordingOptions options;
+  for (const auto& [key, value] : *values) {
+    bool* target = key == "realtime" ? &options.realtime : key == "loop" ? &options.loop : nullptr;
+    if (target == nullptr) {
+      return fail("unknown " + std::string(backend) + " option '" + key +
+                  "'; the accepted ones are " + std::string(kRecordingOptionsHelp));
+    }
+    if (value == "1" || value == "true" || value == "yes") {
+      *target = true;
+    } else if (value == "0" || value == "false" || value == "no") {
+      *target = false;
+    } else {
+      return fail(std::string(backend) + " option '" + key + "=" + value + "' must be 0 or 1");
+    }
+  }
+  return options;
+}
+
+}  // namespace
+
+Result<std::pair<std::string, RecordingOptions>> split_recording_options(std::string_view arguments,
+                                                                         std::string_view backend) {
+  std::optional<Error> option_error;
+  for (std::size_t comma = arguments.find(','); comma != std::string_view::npos;
+       comma = arguments.find(',', comma + 1)) {
+    auto options = parse_recording_options(arguments.substr(comma + 1), backend);
+    if (options) return std::pair{std::string(arguments.substr(0, comma)), *options};
+    if (!option_error) option_error = options.error();
+  }
+  // No option list found. If the whole thing is not a file or directory but a suffix looked
+  // like options, report the option error: it is the likelier mistake.
+  std::error_code ec;
+  if (option_error && !std::filesystem::exists(std::string(arguments), ec))
+    return fail(option_error->message);
+  return std::pair{std::string(arguments), RecordingOptions{}};
 }
 
 }  // namespace fb

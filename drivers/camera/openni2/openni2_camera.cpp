@@ -14,6 +14,7 @@
 #include <system_error>
 #include <thread>
 
+#include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/openni2/oni_writer.hpp"
 
 namespace fb {
@@ -206,10 +207,20 @@ class Openni2Camera final : public DepthCamera {
   }
 
   Result<void> open(std::string_view arguments) {
-    info_.uri = std::string(kBackend) + ":" + std::string(arguments);
+    // `FILE.oni,loop=1,realtime=1`: the same options as replay (camera_uri.hpp).
+    auto split = split_recording_options(arguments, kBackend);
+    if (!split) return split.failure();
+    const std::string target = split->first;
+    options_ = split->second;
     info_.backend = std::string(kBackend);
-    playback_ = is_recording_argument(arguments);
-    const std::string target(arguments);
+    playback_ = is_recording_argument(target);
+    info_.uri = std::string(kBackend) + ":" + target + (options_.realtime ? ",realtime=1" : "") +
+                (options_.loop ? ",loop=1" : "");
+    if (!playback_ && (options_.loop || options_.realtime)) {
+      return fail("openni2: '" + target +
+                  "' is not a recording; loop and realtime apply to recordings only "
+                  "(openni2:FILE.oni,loop=1,realtime=1)");
+    }
 
     if (playback_) {
       std::error_code ec;
@@ -275,6 +286,7 @@ class Openni2Camera final : public DepthCamera {
       }
     }
     started_ = true;
+    pacing_started_ = false;
     return success();
   }
 
@@ -315,6 +327,8 @@ class Openni2Camera final : public DepthCamera {
         wait_until = std::min(wait_until, color_deadline);
       }
       if (pending_depth_.isValid() && !need_color) {
+        if (options_.realtime && !paced(pending_depth_.getTimestamp(), deadline))
+          return FrameStatus::kTimeout;  // the frame stays pending until it is due
         auto ok = deliver(frame);
         if (!ok) {
           pending_depth_.release();  // skip the bad frame rather than failing on it forever
@@ -477,11 +491,12 @@ class Openni2Camera final : public DepthCamera {
     info_.depth_intrinsics =
         intrinsics_from_fov(info_.width, info_.height, depth_.getHorizontalFieldOfView(),
                             depth_.getVerticalFieldOfView());
-    info_.frame_count = playback_ ? depth_frame_count_ : -1;
+    info_.frame_count = playback_ && !options_.loop ? depth_frame_count_ : -1;
     if (playback_) {
       info_.description = "OpenNI2 recording " + target + " (" +
                           std::to_string(depth_frame_count_) + " frames, " + describe(depth_mode) +
-                          (has_color_ ? ", colour)" : ")");
+                          (has_color_ ? ", colour" : "") + (options_.loop ? ", looped" : "") +
+                          (options_.realtime ? ", at the recorded pace" : "") + ")";
     } else {
       std::string name = device_info.getVendor();
       const std::string model = device_info.getName();
@@ -545,12 +560,40 @@ class Openni2Camera final : public DepthCamera {
     pending_depth_.release();
 
     // After the last frame of a recording, stop at once, so that frames of the player's next
-    // loop (repeat is on, see configure_playback) go nowhere.
+    // loop (repeat is on, see configure_playback) go nowhere; with loop=1 those frames are the
+    // next ones delivered.
     if (playback_ && last_depth_index_ >= depth_frame_count_ &&
         (!has_color_ || last_color_index_ >= color_frame_count_)) {
-      finish_playback();
+      if (options_.loop) {
+        last_depth_index_ = last_color_index_ = 0;  // the player numbers the next loop from 1
+        pacing_started_ = false;  // the recorded clock starts over: pace from here again
+      } else {
+        finish_playback();
+      }
     }
     return success();
+  }
+
+  // realtime=1: waits until the recorded time of a frame (microseconds) is due on the wall
+  // clock, counted from the first frame of the loop. False when that is after `deadline` (the
+  // wait then ran to the deadline).
+  bool paced(std::uint64_t timestamp_us, std::chrono::steady_clock::time_point deadline) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!pacing_started_) {
+      pacing_started_ = true;
+      pacing_wall_start_ = now;
+      pacing_recorded_start_us_ = timestamp_us;
+    }
+    const auto offset_us = timestamp_us >= pacing_recorded_start_us_
+                               ? timestamp_us - pacing_recorded_start_us_
+                               : std::uint64_t{0};
+    const auto due = pacing_wall_start_ + std::chrono::microseconds(offset_us);
+    if (due > deadline) {
+      std::this_thread::sleep_until(deadline);
+      return false;
+    }
+    std::this_thread::sleep_until(due);
+    return true;
   }
 
   // OpenNI timestamps are microseconds of the device clock; the Kinect's native clock runs at
@@ -607,6 +650,10 @@ class Openni2Camera final : public DepthCamera {
   openni::VideoFrameRef latest_color_;  // colour of the last delivered frame, reused if no newer
   CameraInfo info_;
   std::string device_uri_;
+  RecordingOptions options_;  // loop, realtime (recordings only)
+  bool pacing_started_ = false;
+  std::chrono::steady_clock::time_point pacing_wall_start_{};
+  std::uint64_t pacing_recorded_start_us_ = 0;
   bool playback_ = false;
   bool has_color_ = false;
   bool depth_is_100um_ = false;
@@ -654,7 +701,8 @@ Result<std::unique_ptr<DepthCamera>> open_openni2_camera(std::string_view argume
 
 CameraBackend openni2_camera_backend() {
   return {kBackend, &open_openni2_camera, &list_openni2,
-          "openni2:[URI|PATH.oni]  OpenNI2 device (first one when empty) or .oni recording"};
+          "openni2:[URI|PATH.oni[,realtime=1][,loop=1]]  OpenNI2 device (first one when empty) "
+          "or .oni recording (paced at its recorded times, looped)"};
 }
 
 }  // namespace fb

@@ -5,6 +5,9 @@
 //   openni2:             the first device OpenNI2 finds
 //   openni2:URI          a device by its OpenNI URI (as `facebooth camera list` prints it)
 //   openni2:PATH.oni     a recording; also any existing regular file
+//   openni2:PATH.oni,loop=1,realtime=1   options as replay's (camera_uri.hpp): loop starts over
+//                        at the end instead of kEndOfStream, realtime paces frames at their
+//                        recorded times; other options are errors listing the accepted ones
 //
 // What it delivers: depth in millimetres straight from PIXEL_FORMAT_DEPTH_1_MM (100 um depth is
 // divided by 10), so RgbdFrame::raw_disparity stays empty; colour from RGB888. Depth and colour
@@ -14,8 +17,9 @@
 //
 // Recordings are stepped manually (PlaybackControl::setSpeed(-1)): each next_frame() reads the
 // next depth frame and the colour frame recorded with it, as fast as the caller consumes them,
-// without dropping any. After the last frame next_frame() returns kEndOfStream; a recording plays
-// once per open.
+// without dropping any (realtime=1 holds each until its recorded time is due). After the last
+// frame next_frame() returns kEndOfStream (a recording plays once per open), or with loop=1 the
+// first frame again.
 #pragma once
 
 #include <memory>

@@ -82,53 +82,11 @@ class ReplayCamera final : public DepthCamera {
 constexpr std::string_view kUsage =
     "replay:DIR[,realtime=1][,loop=1]  play a fakenect dump directory (INDEX.txt + d-/r- files)";
 
-// Splits `DIR[,options]`. A comma starts the options only if everything after it is a valid
-// option list, so directory names containing commas still work.
-Result<std::pair<std::string, ReplayOptions>> parse_arguments(std::string_view arguments) {
-  const auto parse_options = [](std::string_view text) -> Result<ReplayOptions> {
-    auto values = parse_key_values(text);
-    if (!values) return values.failure();
-    ReplayOptions options;
-    for (const auto& [key, value] : *values) {
-      bool* target = key == "realtime" ? &options.realtime
-                     : key == "loop"   ? &options.loop
-                                       : nullptr;
-      if (target == nullptr) {
-        return fail("unknown replay option '" + key + "'; use realtime=1 and/or loop=1");
-      }
-      if (value == "1" || value == "true" || value == "yes") {
-        *target = true;
-      } else if (value == "0" || value == "false" || value == "no") {
-        *target = false;
-      } else {
-        return fail("replay option '" + key + "=" + value + "' must be 0 or 1");
-      }
-    }
-    return options;
-  };
-  std::optional<Error> option_error;
-  for (std::size_t comma = arguments.find(','); comma != std::string_view::npos;
-       comma = arguments.find(',', comma + 1)) {
-    auto options = parse_options(arguments.substr(comma + 1));
-    if (options) {
-      return std::pair{std::string(arguments.substr(0, comma)), *options};
-    }
-    if (!option_error) option_error = options.error();
-  }
-  // No option list found. If the whole thing is not a directory but a suffix looked like
-  // options, report the option error: it is the likelier mistake.
-  std::error_code ec;
-  if (option_error && !std::filesystem::exists(std::string(arguments), ec)) {
-    return fail(option_error->message);
-  }
-  return std::pair{std::string(arguments), ReplayOptions{}};
-}
-
 Result<std::unique_ptr<DepthCamera>> open_replay(std::string_view arguments) {
   if (arguments.empty()) {
     return fail("replay needs a dump directory: use " + std::string(kUsage));
   }
-  auto parsed = parse_arguments(arguments);
+  auto parsed = split_recording_options(arguments, "replay");
   if (!parsed) return parsed.failure();
   return open_replay_camera(parsed->first, parsed->second);
 }

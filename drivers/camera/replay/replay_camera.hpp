@@ -13,13 +13,11 @@
 #include <memory>
 
 #include "drivers/camera/camera_backend.hpp"
+#include "drivers/camera/common/camera_uri.hpp"
 
 namespace fb {
 
-struct ReplayOptions {
-  bool realtime = false;  // pace at the recorded frame times
-  bool loop = false;      // restart at the end instead of kEndOfStream
-};
+using ReplayOptions = RecordingOptions;  // realtime, loop (camera_uri.hpp)
 
 // Opens a dump directly (the `replay:` URI parses into this).
 Result<std::unique_ptr<DepthCamera>> open_replay_camera(const std::filesystem::path& directory,

@@ -58,6 +58,10 @@ struct ArkitFrame {
   std::uint64_t index = 0;
   double time_s = 0.0;
   bool face_found = false;  // false: weights and pose hold the last good values
+  // Something in front of the face hides this share of it (TrackReport::occluded_fraction);
+  // `occluded` when that is over the tracker's report threshold.
+  bool occluded = false;
+  float occluded_fraction = 0.0f;
   std::array<float, kArkitShapeCount> weights{};
   // Head pose: camera_from_model (depth camera frame, mm), the filtered tracker output.
   RigidPose camera_from_model;

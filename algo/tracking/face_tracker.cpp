@@ -14,6 +14,7 @@
 #include <Eigen/SVD>
 
 #include "algo/tracking/depth_filter.hpp"
+#include "algo/tracking/occlusion_report.hpp"
 #include "algo/tracking/weight_uncertainty.hpp"
 
 namespace fb {
@@ -193,6 +194,7 @@ struct FaceTracker::State {
   // The same for the 68 landmarks: a detector's points under a hand sit on the hand.
   std::array<std::uint8_t, 68> landmark_occluded{};
   bool mask_on = false;
+  OcclusionState occlusion;  // what the report says (held while the face is searched for)
   ShapeMatrix h;
   ShapeVector g;
   ShapeMatrix h_hidden;  // imputed rows of the hidden samples, see solve_weights()
@@ -287,6 +289,7 @@ struct FaceTracker::State {
   void smooth_spatially(const Box& b);
   struct IcpStats {
     int facing = 0;
+    int hidden = 0;  // facing samples inside the image the occlusion mask hides
     int used = 0;
     int inliers = 0;
     float rms = 0.0f;
@@ -634,7 +637,10 @@ FaceTracker::State::IcpStats FaceTracker::State::icp(const Image<float>& image, 
       if (u < 0.0f || v < 0.0f || u > width - 1.0f || v > height - 1.0f) continue;
       // Hidden samples are not expected to be seen: the inlier fraction of loss detection is of
       // the visible ones (min_inliers still reports a face covered entirely).
-      if (mask_on && occluded[static_cast<std::size_t>(i)]) continue;
+      if (mask_on && occluded[static_cast<std::size_t>(i)]) {
+        ++s.hidden;
+        continue;
+      }
       ++s.facing;
       if (!measured_point(image, b, x, q)) continue;
       ++s.used;
@@ -1534,6 +1540,7 @@ void FaceTracker::reset() {
   s.weights.setZero();
   s.previous_weights.setZero();
   s.filter.reset();
+  s.occlusion.reset();
   s.landmark_offset.setZero();
   s.use_model_expressions();
   s.build_rig({});
@@ -1568,6 +1575,8 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   report.samples_used = report.inliers = report.landmarks_used = 0;
   report.rms_mm = 0.0f;
   report.calibration_frames_left = s.calibrated ? 0 : s.options.calibration_frames - s.calib_count;
+  report.occluded_fraction = s.occlusion.fraction();  // held unless this frame measures
+  report.occluded = s.occlusion.occluded();
   auto keep_last = [&](TrackState state, const char* reason) {
     report.state = state;
     report.loss_reason = reason;
@@ -1630,6 +1639,12 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   report.samples_used = stats.used;
   report.inliers = stats.inliers;
   report.rms_mm = stats.rms;
+  // Measured before the loss test: a hand that covers enough of the face to lose it is
+  // reported on that frame, and held while the face is searched for.
+  s.occlusion.measure(s.mask_on ? hidden_fraction(stats.hidden, stats.facing) : 0.0f,
+                      s.options.occlusion_report_fraction);
+  report.occluded_fraction = s.occlusion.fraction();
+  report.occluded = s.occlusion.occluded();
   const bool face_seen = landmarks != nullptr && landmarks->points.size() >= 68;
   if (!s.acceptable(stats, false, face_seen)) {
     s.lost = true;
@@ -1674,7 +1689,10 @@ void FaceTracker::track(const DepthImage& depth, double time_s, const TrackLandm
   s.have_last_good = true;
   report.face_found = true;
 
-  if (!s.calibrated) {
+  // A frame with the face occluded is no calibration frame: the identity would be fitted to
+  // the face with a hand in front of it (its samples are masked, but so much of the face is
+  // missing that hair and noise pull the fit).
+  if (!s.calibrated && !report.occluded) {
     const auto f = static_cast<std::size_t>(s.calib_count);
     std::copy(s.smoothed.pixels.begin(), s.smoothed.pixels.end(), s.calib_depth[f].pixels.begin());
     s.calib_box[f] = s.box;

@@ -80,6 +80,11 @@ struct TrackerOptions {
   // Landmarks under an occluder are dropped; above this fraction of the 51 inner points hidden,
   // all are.
   float max_hidden_landmark_fraction = 0.5f;
+  // The face is reported occluded (TrackReport::occluded) on frames where the mask hides at
+  // least this share of its samples facing the camera. A hand resting beside the face hides
+  // its rim (the mask's radius): 0.05-0.09 on eval track's clutter takes, so 0.1 gave false
+  // reports; a hand over the nose and mouth hides 0.3 or more.
+  float occlusion_report_fraction = 0.2f;
 
   // --- Blendshape weights ---
   int weight_iterations = 2;  // IRLS rounds (re-association + robust weights)
@@ -340,6 +345,13 @@ struct TrackReport {
   float rms_mm = 0.0f;   // point-to-plane RMS of the inliers
   int landmarks_used = 0;
   int calibration_frames_left = 0;
+  // Occlusion as data: the share of the face's samples (facing the camera, inside the image)
+  // the occlusion mask hides on this frame, and whether it is at least
+  // TrackerOptions::occlusion_report_fraction. Frames that measure nothing (searching after a
+  // loss) hold the last values; the weights of the shapes under the occluder are held too
+  // (TrackerOptions::hidden_hold).
+  float occluded_fraction = 0.0f;
+  bool occluded = false;
   TrackTimes times;  // wall clock of the calling thread's work
 };
 

@@ -20,6 +20,7 @@
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
+#include "algo/tracking/occlusion_report.hpp"
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
@@ -113,6 +114,11 @@ struct StatusData {
   long long vmc_datagrams = 0;
   std::string tracking_reacquire;     // how a lost face is found again
   long long tracking_detections = 0;  // frames the face detector found the face on
+  // Occlusion as data: something in front of the face (TrackReport::occluded), the share of it
+  // hidden, and on how many frames of this tracking run the face was occluded.
+  bool tracking_occluded = false;
+  double tracking_hidden_fraction = 0;
+  long long tracking_occluded_frames = 0;
   // Over the last kLatencyWindow tracked frames: from the frame leaving the camera driver to its
   // VMC datagrams sent (or the weights ready, with VMC off), and the tracker's own share.
   double tracking_latency_median_ms = 0, tracking_latency_p95_ms = 0;
@@ -177,10 +183,12 @@ struct Daemon::Impl {
   std::unique_ptr<VmcSender> vmc;
   std::optional<ArkitMapping> arkit;
   std::vector<float> take_values;
-  // Re-acquisition by detection: dlib on the colour image while the tracker has no face (the
-  // fitter's shape predictor, shared); its pose seeds the ICP. Set only in tracking mode.
+  // Re-acquisition by detection: dlib on the colour image while the tracker has no face or
+  // calibrates the identity (the fitter's shape predictor, shared); its pose seeds the ICP,
+  // its points guide the calibration. Set only in tracking mode.
   std::optional<TrackLandmarkSource> reacquire_source;
-  bool face_before = false;  // the last tracked frame had the face
+  bool face_before = false;    // the last tracked frame had the face
+  OcclusionLog occlusion_log;  // this tracking run's occluded frames
   // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).
   static constexpr int kLatencyWindow = 300;
   std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};

@@ -434,6 +434,7 @@ Result<void> Daemon::Impl::start_tracking() {
   take_frames = 0;
   latency_count = 0;
   face_before = false;
+  occlusion_log = OcclusionLog();
   reacquire_source.emplace(fitter->share_landmark_detector(), preview_camera->info().calibration);
   {
     std::lock_guard lock(status_mutex);
@@ -500,6 +501,9 @@ Result<void> Daemon::Impl::start_tracking() {
     s.tracking_latency_median_ms = s.tracking_latency_p95_ms = s.tracking_ms_median = 0;
     s.tracking_reacquire = "dlib face detection on the colour image, then depth";
     s.tracking_detections = 0;
+    s.tracking_occluded = false;
+    s.tracking_hidden_fraction = 0;
+    s.tracking_occluded_frames = 0;
   });
   std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", identity_note.c_str(),
                target.empty() ? "off" : target.c_str());
@@ -521,7 +525,9 @@ void Daemon::Impl::stop_tracking() {
     auto id = records->add_take(take, take_values);
     if (id) {
       take_id = *id;
-      note = "take " + std::to_string(*id) + " stored (" + std::to_string(take_frames) + " frames)";
+      note = "take " + std::to_string(*id) + " stored (" + std::to_string(take_frames) +
+             " frames; the face was occluded on " +
+             std::to_string(occlusion_log.occluded_frames()) + ")";
     } else {
       note = "take not stored: " + id.error().message;
     }
@@ -572,9 +578,11 @@ void Daemon::Impl::tracking_tick() {
   bool state_changed = false;
   if (tracker) {
     // While the face is not found (start, after loss) the detector looks for it: its
-    // landmarks give the tracker a pose to start from. Tracked frames use depth alone.
+    // landmarks give the tracker a pose to start from, not the nearest surface (a hand, the
+    // desk). While the identity calibrates they guide it (depth alone lets hair and noise pull
+    // it off). Tracked frames use depth alone.
     const TrackLandmarks* landmarks = nullptr;
-    if (reacquire_source && !face_before &&
+    if (reacquire_source && (!face_before || !tracker->calibrated()) &&
         reacquire_source->detect(frame.color, frame.depth_mm).found) {
       landmarks = reacquire_source->landmarks();
       update_status([](StatusData& s) { ++s.tracking_detections; });
@@ -586,6 +594,10 @@ void Daemon::Impl::tracking_tick() {
     track_frame.index = frame.index;
     track_frame.time_s = frame.depth_host_time_s;
     track_frame.face_found = track_report.face_found;
+    track_frame.occluded = track_report.occluded;
+    track_frame.occluded_fraction = track_report.occluded_fraction;
+    const bool occlusion_changed =
+        occlusion_log.add(track_report.occluded) != OcclusionLog::Change::kNone;
     track_frame.camera_from_model = track_report.camera_from_model;
     arkit->to_arkit(std::span<const float>(track_report.weights.data(),
                                            static_cast<std::size_t>(track_report.shape_count)),
@@ -616,11 +628,15 @@ void Daemon::Impl::tracking_tick() {
     }
     live_cv.notify_all();
     std::lock_guard lock(status_mutex);
-    state_changed = status.tracking_state != to_string(track_report.state);
+    // A hand arriving or leaving is pushed at once too, not at the next half-second.
+    state_changed = status.tracking_state != to_string(track_report.state) || occlusion_changed;
   }
   const long long vmc_sent = vmc ? vmc->datagrams_sent() : 0;
   const char* state = tracker ? to_string(track_report.state) : "";
   const char* reason = tracker ? track_report.loss_reason : "";
+  const bool occluded = tracker && track_report.occluded;
+  const double hidden = tracker ? track_report.occluded_fraction : 0.0;
+  const long long occluded_frames = occlusion_log.occluded_frames();
   // The status (and its SSE stream) changes on tracker state changes and twice a second; the
   // per-frame weights go through the live stream.
   long long frames;
@@ -637,6 +653,9 @@ void Daemon::Impl::tracking_tick() {
     update_status([&](StatusData& s) {
       s.tracking_state = state;
       s.tracking_reason = reason;
+      s.tracking_occluded = occluded;
+      s.tracking_hidden_fraction = hidden;
+      s.tracking_occluded_frames = occluded_frames;
       s.vmc_datagrams = vmc_sent;
       s.tracking_latency_median_ms = latency_median;
       s.tracking_latency_p95_ms = latency_p95;

@@ -159,8 +159,11 @@ function renderTracking(s) {
   $("tracking").hidden = !on;
   if (on) {
     const t = s.tracking || {};
+    const hidden = typeof t.hidden_fraction === "number" ? Math.round(100 * t.hidden_fraction) : 0;
+    const occlusion = t.occluded ? `, face occluded (${hidden} % hidden)` : "";
+    const occludedFrames = t.occluded_frames ? `, occluded on ${t.occluded_frames} frames` : "";
     $("tracking-info").textContent = `tracker: ${t.state || "starting"}` +
-        `${t.reason ? " (" + t.reason + ")" : ""}, identity: ` +
+        `${t.reason ? " (" + t.reason + ")" : ""}${occlusion}${occludedFrames}, identity: ` +
         `${t.identity || "-"}, VMC: ${t.vmc_target || "off"} (${t.vmc_datagrams || 0} datagrams)`;
   }
   if (on && !live) {

@@ -30,6 +30,8 @@ void append_frame_json(const ArkitFrame& frame, std::string& out) {
   out += ",\"t\":";
   append_fixed(out, frame.time_s, 4);
   out += frame.face_found ? ",\"face\":true" : ",\"face\":false";
+  out += frame.occluded ? ",\"occluded\":true,\"hidden\":" : ",\"occluded\":false,\"hidden\":";
+  append_fixed(out, frame.occluded_fraction, 2);
   out += ",\"head\":{\"yaw\":";
   append_fixed(out, a.yaw * kDeg, 2);
   out += ",\"pitch\":";

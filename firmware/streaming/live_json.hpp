@@ -2,10 +2,12 @@
 // event (`event: face`, `id: <frame>`, `data: <json>`, blank line). The daemon's HTTP server
 // writes these strings to its `text/event-stream` clients; nothing here does I/O.
 //
-// JSON: {"frame":N,"t":s,"face":true|false,
+// JSON: {"frame":N,"t":s,"face":true|false,"occluded":true|false,"hidden":0.42,
 //        "head":{"yaw":deg,"pitch":deg,"roll":deg,"x":mm,"y":mm,"z":mm},
 //        "weights":{"eyeBlinkLeft":0.123,...}}  (ARKit's 52 names, 3 decimals; head angles as in
-// Live Link Face but in degrees; x, y, z = the model origin in the depth camera frame).
+// Live Link Face but in degrees; x, y, z = the model origin in the depth camera frame;
+// "hidden" = the share of the face something in front of it hides, "occluded" when that is
+// over the tracker's threshold).
 // Formatting reuses the caller's string (no allocation once it has grown to a frame's size).
 #pragma once
 

@@ -95,6 +95,7 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       {"hidden_hold", &TrackerOptions::hidden_hold},
       {"occluder_margin_mm", &TrackerOptions::occluder_margin_mm},
       {"occluder_radius_px", &TrackerOptions::occluder_radius_px},
+      {"occlusion_report_fraction", &TrackerOptions::occlusion_report_fraction},
       {"report_weight_sigma", &TrackerOptions::report_weight_sigma},
   };
   TrackerOptions o;
@@ -211,6 +212,8 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
   results.reserve(take.frames.size());
   TrackReport report;
   ArkitFrame out;
+  if (run.reacquire != nullptr) run.reacquire->reset();
+  bool face_before = false;
   for (std::size_t f = 0; f < take.frames.size(); ++f) {
     const TakeFrame& tf = take.frames[f];
     TrackLandmarks landmarks{tf.landmarks, {}};
@@ -218,9 +221,13 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
     const double cpu0 = thread_cpu_ms();
     const TrackLandmarks* used = run.landmarks ? &landmarks : nullptr;
     FrameResult r;
-    if (run.dlib != nullptr) {
-      const LandmarkFrameResult found = run.dlib->detect(tf.color, tf.depth);
-      used = run.dlib->landmarks();
+    TrackLandmarkSource* source = run.dlib;
+    if (source == nullptr && used == nullptr && run.reacquire != nullptr &&
+        (!face_before || !(*tracker)->calibrated()))
+      source = run.reacquire;
+    if (source != nullptr) {
+      const LandmarkFrameResult found = source->detect(tf.color, tf.depth);
+      used = source->landmarks();
       r.landmark_ms = found.ms;
       r.detected = found.found;
       if (used != nullptr) {
@@ -234,10 +241,15 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
     }
     (*tracker)->track(tf.depth, static_cast<double>(f) / 30.0, used, report);
     const double cpu1 = thread_cpu_ms();
+    // Lost: the next detection searches the whole image, not around the last face.
+    if (face_before && !report.face_found && run.reacquire != nullptr) run.reacquire->reset();
+    face_before = report.face_found;
     if (run.sender) {
       out.index = f;
       out.time_s = static_cast<double>(f) / 30.0;
       out.face_found = report.face_found;
+      out.occluded = report.occluded;
+      out.occluded_fraction = report.occluded_fraction;
       out.camera_from_model = report.camera_from_model;
       mapping.to_arkit(std::span<const float>(report.weights.data(), static_cast<std::size_t>(k)),
                        out.weights);
@@ -249,6 +261,8 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
     r.times = report.times;
     r.cpu_ms = cpu1 - cpu0;
     r.landmarks_used = report.landmarks_used;
+    r.occluded = report.occluded;
+    r.occluded_fraction = report.occluded_fraction;
     r.abs_error.resize(static_cast<std::size_t>(k));
     for (int j = 0; j < k; ++j) {
       const float truth = static_cast<std::size_t>(j) < tf.truth.expression_weights.size()

@@ -73,13 +73,20 @@ struct FrameResult {
   double landmark_sq_error_px2 = 0;
   int landmark_axes = 0;
   bool detected = false;
+  // TrackReport::occluded / occluded_fraction: what the tracker says something in front of the
+  // face hides.
+  bool occluded = false;
+  float occluded_fraction = 0.0f;
   RigidPose estimate, truth;  // filtered estimate and truth (camera_from_model)
 };
 
 struct RunOptions {
   bool landmarks = true;
   TrackLandmarkSource* dlib = nullptr;  // landmarks from dlib on the colour images instead
-  bool known_identity = false;          // load the true identity instead of calibrating
+  // Without landmarks (depth-only runs): dlib on the colour image while the tracker has no face
+  // or calibrates, as `track --reacquire dlib` and the device do; null = depth alone.
+  TrackLandmarkSource* reacquire = nullptr;
+  bool known_identity = false;  // load the true identity instead of calibrating
   VmcSender* sender = nullptr;
   std::vector<float>* identity_out = nullptr;  // the tracker's identity after the take
   // Calibrate with a bilinear model instead of the face model's identity PCA (not with

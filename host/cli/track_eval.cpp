@@ -18,6 +18,7 @@
 
 #include "drivers/camera/synthetic/world_presets.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/occlusion_eval.hpp"
 #include "host/cli/take_runner.hpp"
 #include "host/cli/tracking_commands.hpp"
 #include "host/cli/unit_calibration.hpp"
@@ -153,14 +154,19 @@ nlohmann::json top_shapes(const nlohmann::json& per_shape, std::size_t n) {
 }
 
 // One scenario of the realistic world (world_presets.hpp) over seeds 1..N: the take's usual
-// figures with landmarks and depth only, the neutral segment's weights (truth 0 there), and
-// the frames a hand hides >= 30 % of the face (FrameTruth::face_hidden_fraction).
+// figures with landmarks and depth only, the neutral segment's weights (truth 0 there), the
+// frames a hand hides >= 30 % of the face (FrameTruth::face_hidden_fraction) and whether the
+// tracker reports them (occlusion_eval.hpp), and acquisition among nearer distractors. The
+// depth-only run finds the face with `reacquire` (dlib on the colour image; null = depth
+// alone) while it has none and while it calibrates, as `track` and the device do.
 Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping& mapping,
                                       const TakeSpec& design, long long seeds,
                                       const std::string& world, const RunOptions& base,
-                                      TrackLandmarkSource* dlib) {
+                                      TrackLandmarkSource* dlib, TrackLandmarkSource* reacquire) {
   const int k = model.fitting_expression_count;
   Score with_landmarks, depth_only;
+  OcclusionScore occlusion, depth_only_occlusion;
+  AcquisitionScore acquisition, depth_only_acquisition;
   std::vector<double> neutral_mean, neutral_max, hidden_error;
   double worst_neutral = -1.0;
   std::string worst_neutral_shape;
@@ -169,14 +175,15 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
     TakeSpec spec = design;
     spec.seed = static_cast<std::uint64_t>(seed);
     spec.world = world == "baseline" ? "" : world;
-    spec.color = dlib != nullptr;
+    spec.color = dlib != nullptr || reacquire != nullptr;
     std::cerr << "eval track: scenario " << world << ", seed " << seed << ": rendering "
               << spec.frames << " frames...\n";
     auto take = render_take(model, spec);
     if (!take) return take.failure();
-    if (dlib) {
-      dlib->reset();
-      dlib->set_calibration(take->calibration);
+    for (TrackLandmarkSource* source : {dlib, reacquire}) {
+      if (source == nullptr) continue;
+      source->reset();
+      source->set_calibration(take->calibration);
     }
     RunOptions run = base;
     run.landmarks = true;
@@ -185,10 +192,16 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
     if (!a) return a.failure();
     run.dlib = nullptr;
     run.landmarks = false;
+    run.reacquire = reacquire;
     auto b = run_take(model, mapping, *take, run);
     if (!b) return b.failure();
     score(*take, *a, with_landmarks, k);
     score(*take, *b, depth_only, k);
+    occlusion.add(*take, *a);
+    depth_only_occlusion.add(*take, *b);
+    acquisition.add(*take, *a);
+    acquisition.add(*take, *b);
+    depth_only_acquisition.add(*take, *b);
     bool calibrated = false;
     for (std::size_t f = 0; f < a->size(); ++f) {
       const FrameResult& r = (*a)[f];
@@ -233,6 +246,14 @@ Result<nlohmann::json> evaluate_world(const FaceModel& model, const ArkitMapping
   j["frames_lost_while_hidden"] = hidden_lost;
   j["weight_mae_while_hidden"] =
       hidden_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(stats_of(hidden_error).mean);
+  j.update(occlusion.json());
+  const nlohmann::json depth_only_figures = depth_only_occlusion.json();
+  for (const auto& [key, value] : depth_only_figures.items()) j["depth_only_" + key] = value;
+  // Acquisition over both runs: the one with landmarks and the depth-only one (which finds
+  // the face by detection, or with `reacquire` null by depth alone).
+  j.update(acquisition.json());
+  j["depth_only_acquired_with_nearer_distractors"] =
+      depth_only_acquisition.json()["acquired_with_nearer_distractors"];
   return j;
 }
 
@@ -455,12 +476,24 @@ int run_eval_track(const ParsedOptions& options) {
       if (!detector) return report_failure(detector.error());
       dlib.emplace(std::move(*detector), KinectCalibration::defaults());
     }
+    // The depth-only runs find the face by detection, as `track` and the device do; without
+    // the shape predictor, by depth alone (the JSON says which).
+    std::optional<TrackLandmarkSource> reacquire;
+    std::string reacquire_note = "dlib detection on the colour image, then depth";
+    if (auto detector = load_landmark_detector(options.get("shape-predictor")); detector) {
+      reacquire.emplace(std::move(*detector), KinectCalibration::defaults());
+    } else {
+      reacquire_note = "depth only (" + detector.error().message + ")";
+      std::cerr << "eval track: " << reacquire_note << "\n";
+    }
+    TrackLandmarkSource* const reacquire_source = reacquire ? &*reacquire : nullptr;
     RunOptions base;
     base.tracker = *overrides;
     base.bilinear = bilinear.get();
     nlohmann::json scenarios, out;
     for (const auto& part : parts) {
-      auto j = evaluate_world(model, *mapping, design, *seeds, part, base, dlib ? &*dlib : nullptr);
+      auto j = evaluate_world(model, *mapping, design, *seeds, part, base, dlib ? &*dlib : nullptr,
+                              reacquire_source);
       if (!j) return report_failure(j.error());
       if (decalibrates_unit(part) && design.unit_calibration == UnitCalibration::kSelfCalibrated) {
         // The same run with the depth law known (registration self-calibrated), and on the
@@ -468,8 +501,8 @@ int run_eval_track(const ParsedOptions& options) {
         for (const auto mode : {UnitCalibration::kSelfWithDepthLaw, UnitCalibration::kCalibrated}) {
           TakeSpec other = design;
           other.unit_calibration = mode;
-          auto c =
-              evaluate_world(model, *mapping, other, *seeds, part, base, dlib ? &*dlib : nullptr);
+          auto c = evaluate_world(model, *mapping, other, *seeds, part, base,
+                                  dlib ? &*dlib : nullptr, reacquire_source);
           if (!c) return report_failure(c.error());
           (*j)[std::string("unit_") + unit_calibration_name(mode)] = std::move(*c);
         }
@@ -495,7 +528,8 @@ int run_eval_track(const ParsedOptions& options) {
                     {"frames_per_take", *frames},
                     {"neutral_weight", "over the neutral frames after calibration (truth 0)"},
                     {"frames_face_hidden_30pct", "frames a hand hides >= 30 % of the face"},
-                    {"note", "the tracker reports no occlusion yet (issue 35)"}};
+                    {"depth_only_reacquire", reacquire_note}};
+    out["setup"].update(occlusion_setup_notes());
     std::cout << out.dump(2) << std::endl;
     return kExitOk;
   }

@@ -20,6 +20,7 @@
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
+#include "algo/tracking/occlusion_report.hpp"
 #include "algo/tracking/rig_view.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/live_json.hpp"
@@ -248,7 +249,9 @@ int run_track(const ParsedOptions& options) {
   int take_frames = 0;
   double take_start_s = 0.0;
   // dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
-  // for (--reacquire dlib: detection gives the tracker a starting pose after loss).
+  // for (--reacquire dlib: detection gives the tracker a starting pose after loss, not the
+  // nearest surface, which a hand, a desk or the chest can be) and while the identity
+  // calibrates (depth alone lets hair and noise pull the calibration off).
   std::optional<TrackLandmarkSource> detector;
   std::string reacquire_note = "depth only (nearest surface, last pose)";
   if (landmark_source == "dlib" || reacquire == "dlib") {
@@ -297,6 +300,7 @@ int run_track(const ParsedOptions& options) {
   // the tracker rejected (it starts over with a loss reason saying why).
   int most_calibration_frames = 0, rejected_sets = 0;
   std::string rejection;
+  OcclusionLog occlusion;
   std::map<std::string, long long> states;
   std::string stop_reason = "end of stream";
   bool camera_failed = false;
@@ -334,7 +338,8 @@ int run_track(const ParsedOptions& options) {
         landmarks = &truth_landmarks;
       }
     }
-    if (detector && (landmark_source == "dlib" || (reacquire == "dlib" && !face_before))) {
+    const bool reacquiring = reacquire == "dlib" && (!face_before || !(*tracker)->calibrated());
+    if (detector && (landmark_source == "dlib" || reacquiring)) {
       const LandmarkFrameResult found = detector->detect(frame.color, frame.depth_mm);
       landmark_ms.push_back(found.ms);
       if (found.found) {
@@ -349,6 +354,8 @@ int run_track(const ParsedOptions& options) {
     out.index = frame.index;
     out.time_s = frame.depth_host_time_s;
     out.face_found = report.face_found;
+    out.occluded = report.occluded;
+    out.occluded_fraction = report.occluded_fraction;
     out.camera_from_model = report.camera_from_model;
     mapping->to_arkit(
         std::span<const float>(report.weights.data(), static_cast<std::size_t>(report.shape_count)),
@@ -391,6 +398,17 @@ int run_track(const ParsedOptions& options) {
       rejection = report.loss_reason;
     }
     last_reason = report.loss_reason;
+    switch (occlusion.add(report.occluded)) {
+      case OcclusionLog::Change::kOccluded:
+        std::cerr << "track: frame " << frame.index << ": face occluded ("
+                  << std::lround(100.0 * report.occluded_fraction) << " % of it hidden)\n";
+        break;
+      case OcclusionLog::Change::kClear:
+        std::cerr << "track: frame " << frame.index << ": face clear again\n";
+        break;
+      case OcclusionLog::Change::kNone:
+        break;
+    }
     ++states[to_string(report.state)];
     progress.update(read);
   }
@@ -415,6 +433,8 @@ int run_track(const ParsedOptions& options) {
     if (!id) return report_failure(id.error());
     result["take"] = *id;
     result["subject"] = *subject;
+    std::cerr << "track: stored take " << *id << " (" << take_frames << " frames; the face was "
+              << "occluded on " << occlusion.occluded_frames() << ")\n";
     result["store"] = store_path;
   } else if (store) {
     result["take"] = nullptr;  // no frame: nothing to store
@@ -444,6 +464,7 @@ int run_track(const ParsedOptions& options) {
   result["frames"] = read;
   result["frames_with_face"] = found;
   result["loss_reports"] = lost_reports;
+  result["occluded_frames"] = occlusion.occluded_frames();
   result["states"] = states;
   result["calibrated"] = (*tracker)->calibrated();
   result["stopped"] = stop_reason;
@@ -519,8 +540,9 @@ std::vector<Command> tracking_commands() {
           "+ noise (synthetic camera only), or none",
           "none"},
          {"reacquire", "dlib|depth",
-          "finding the face at the start and after loss: dlib detection on the colour image "
-          "(falls back to depth when the model is missing), or depth only",
+          "finding the face at the start and after loss: dlib detection on the colour image, "
+          "whose points also guide the identity calibration (falls back to depth when the "
+          "model is missing), or depth only",
           "dlib"},
          {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
          {"sse", "", "also print the kiosk's SSE events to stderr", ""}}},

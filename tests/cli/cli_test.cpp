@@ -134,6 +134,44 @@ TEST_F(CliTest, BenchTrackPrintsItsContractFields) {
   EXPECT_EQ(run_cli("bench track --frames 59").exit_code, 1);
 }
 
+// eval track's clutter scenario (torso, desk, a hand beside the face: all nearer than it; a
+// hand passing in front of it): both runs (landmarks, and depth only finding the face with
+// dlib) acquire the face, and the frames the hand hides >= 30 % of it are reported occluded,
+// the clear ones not, and "clear" comes within 5 frames of the hand leaving.
+TEST_F(CliTest, EvalTrackClutterAcquiresAndReportsTheHand) {
+  if (!std::filesystem::exists("/usr/share/dlib/shape_predictor_68_face_landmarks.dat"))
+    GTEST_SKIP() << "needs dlib's shape predictor (Debian libdlib-data)";
+  const auto run = run_cli("eval track --scenario clutter --seeds 1 --frames 90 --json", false);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto json = nlohmann::json::parse(run.out);
+  EXPECT_EQ(json.at("runs_with_nearer_distractors").get<int>(), 2) << run.out;
+  EXPECT_EQ(json.at("acquired_with_nearer_distractors").get<double>(), 1.0) << run.out;
+  EXPECT_EQ(json.at("depth_only_acquired_with_nearer_distractors").get<double>(), 1.0);
+  ASSERT_GE(json.at("occlusion_frames").at("hidden_30pct").get<int>(), 3) << run.out;
+  EXPECT_GE(json.at("occlusion_reported_fraction").get<double>(), 0.9) << run.out;
+  EXPECT_EQ(json.at("occlusion_false_reports").get<int>(), 0) << run.out;
+  const int recovery = json.at("occlusion_recovery_frames").get<int>();
+  EXPECT_GE(recovery, 0);
+  EXPECT_LE(recovery, 5);
+}
+
+// `track` says when a hand covers the face and when it is clear again, once each, and counts
+// the occluded frames in its JSON.
+TEST_F(CliTest, TrackSaysWhenTheFaceIsOccludedAndClearAgain) {
+  const auto run =
+      run_cli("track --camera synthetic:seed=4,frames=70,hand_pass=30 --reacquire depth");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto occluded = run.out.find("face occluded (");
+  ASSERT_NE(occluded, std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("% of it hidden)", occluded), std::string::npos) << run.out;
+  const auto clear = run.out.find("face clear again", occluded);
+  EXPECT_NE(clear, std::string::npos) << run.out;
+  EXPECT_EQ(run.out.find("face occluded (", occluded + 1), std::string::npos) << run.out;
+  const auto json = nlohmann::json::parse(run.out.substr(run.out.find("{\n")));
+  EXPECT_GE(json.at("occluded_frames").get<int>(), 5) << run.out;
+  EXPECT_LE(json.at("occluded_frames").get<int>(), 30) << run.out;
+}
+
 }  // namespace
 
 // The take design's calibration window is an eval option; values that leave the takes no

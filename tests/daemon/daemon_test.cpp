@@ -531,11 +531,14 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   EXPECT_GE(latency["p95"].get<double>(), latency["median"].get<double>());
   EXPECT_GT(s["tracking"]["track_ms_median"].get<double>(), 0.0);
   EXPECT_LE(s["tracking"]["track_ms_median"].get<double>(), latency["median"].get<double>());
-  // The face was first found by detection (the tracker starts without one), then tracked on
-  // depth: a few detections, not one a frame.
+  // The face was first found by detection (the tracker starts without one), guided the
+  // identity calibration (10 frames), then was tracked on depth: a few detections, not one a
+  // frame.
   EXPECT_EQ(s["tracking"]["reacquire"], "dlib face detection on the colour image, then depth");
   EXPECT_GE(s["tracking"]["detections"].get<int>(), 1) << s.dump();
-  EXPECT_LT(s["tracking"]["detections"].get<int>(), 10) << s.dump();
+  EXPECT_LT(s["tracking"]["detections"].get<int>(), 20) << s.dump();
+  EXPECT_EQ(s["tracking"]["occluded"], false) << s.dump();  // nothing in front of the face
+  EXPECT_EQ(s["tracking"]["occluded_frames"], 0) << s.dump();
   // Why the tracker has no face, when it has none (TrackReport::loss_reason): empty here.
   ASSERT_TRUE(s["tracking"].contains("reason")) << s.dump();
   if (s["tracking"]["state"] == "tracking") {
@@ -562,6 +565,36 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   // The head is about 700 mm in front of the camera in the synthetic scene.
   const float tz = (*values)[static_cast<std::size_t>((info.frame_count - 1) * info.stride() + 2)];
   EXPECT_NEAR(tz, 700.0f, 150.0f);
+}
+
+// A hand passes in front of the face (the synthetic world's hand pass, frames 30-59 of the
+// looping 90-frame take): the status says the face is occluded and how much of it is hidden,
+// then that it is clear again, and the stored take's note counts the occluded frames.
+TEST_F(DaemonTest, TrackingReportsAHandInFrontOfTheFace) {
+  DaemonConfig c = config();
+  c.camera.uri = "synthetic:seed=4,hand_pass=30";
+  c.camera.realtime = true;  // 30 fps: the hand stays long enough to be seen in the status
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  httplib::Client http("127.0.0.1", d->http_port());
+  ASSERT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
+  const auto occluded = wait_for(
+      *d, [](auto& s) { return s["state"] == "tracking" && s["tracking"]["occluded"] == true; });
+  EXPECT_GE(occluded["tracking"]["hidden_fraction"].get<double>(), 0.2) << occluded.dump();
+  EXPECT_LE(occluded["tracking"]["hidden_fraction"].get<double>(), 1.0) << occluded.dump();
+  const auto clear = wait_for(*d, [](auto& s) {
+    return s["tracking"]["occluded"] == false && s["tracking"]["occluded_frames"] > 0;
+  });
+  const int frames = clear["tracking"]["occluded_frames"].get<int>();
+  EXPECT_GE(frames, 5) << clear.dump();
+  EXPECT_LE(frames, 30) << clear.dump();
+  EXPECT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
+  const auto stored =
+      wait_for(*d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
+  const std::string note = stored["tracking"]["note"].get<std::string>();
+  EXPECT_NE(note.find("the face was occluded on "), std::string::npos) << note;
+  EXPECT_EQ(note.find("the face was occluded on 0)"), std::string::npos) << note;
 }
 
 // Tracking mode with a rig the host uploaded for the subject: the tracker uses the subject's

@@ -13,6 +13,8 @@ TEST(LiveJson, SseEventCarriesTheFrameAsJson) {
   frame.time_s = 1.4;
   frame.face_found = true;
   frame.weights[17] = 0.5f;  // jawOpen
+  frame.occluded = true;     // a hand in front of the face
+  frame.occluded_fraction = 0.42f;
   const Eigen::Quaterniond flip(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
   frame.camera_from_model.rotation = flip * head_from_angles({0.1, 0.0, 0.0});
   frame.camera_from_model.translation = Eigen::Vector3d(1, 2, 700);
@@ -24,6 +26,8 @@ TEST(LiveJson, SseEventCarriesTheFrameAsJson) {
   const auto json = nlohmann::json::parse(event.substr(start, event.size() - start - 2));
   EXPECT_EQ(json["frame"], 42);
   EXPECT_EQ(json["face"], true);
+  EXPECT_EQ(json["occluded"], true);
+  EXPECT_NEAR(json["hidden"].get<double>(), 0.42, 1e-9);
   EXPECT_NEAR(json["weights"]["jawOpen"].get<double>(), 0.5, 1e-9);
   EXPECT_EQ(json["weights"].size(), 52u);
   EXPECT_NEAR(json["head"]["yaw"].get<double>(), 0.1 * 180 / M_PI, 0.01);

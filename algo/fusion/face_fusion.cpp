@@ -72,6 +72,8 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   options_ = options;
   intrinsics_ = intrinsics;
   box_ = box;
+  start_box_ = box;
+  anchor_depth_ = 0.0f;
   if (runner_->parts() != options.threads)
     runner_ = std::make_unique<ParallelRunner>(options.threads);
   preprocessor_.configure(options_);
@@ -92,12 +94,23 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
 void FaceFusion::place_volume(const PoseF& world_from_camera) {
   // The nearest part of the box is the face (nose, cheeks): take a low percentile of the depths
   // so background or shoulders do not pull the cube away, then centre the cube laterally on the
-  // pixels near that depth and put its centre a fixed distance behind the face.
-  scratch_depths_.clear();
+  // pixels near that depth and put its centre a fixed distance behind the face. With a detected
+  // face only depths near its landmarks count: a hand, the chest or a desk nearer than the face
+  // must not take the volume.
   const FaceBox& b = box_;
-  for (int y = b.y; y < b.y + b.height; ++y)
-    for (int x = b.x; x < b.x + b.width; ++x)
-      if (const float d = pyramid_.raw.at(x, y); d > 0.0f) scratch_depths_.push_back(d);
+  const bool detected = b.face_depth_mm > 0.0f;
+  float lo = detected ? b.face_depth_mm - options_.face_band_front_mm : 0.0f;
+  float hi = detected ? b.face_depth_mm + options_.face_band_back_mm : options_.max_depth_mm;
+  for (int pass = 0; pass < 2; ++pass) {
+    scratch_depths_.clear();
+    for (int y = b.y; y < b.y + b.height; ++y)
+      for (int x = b.x; x < b.x + b.width; ++x)
+        if (const float d = pyramid_.raw.at(x, y); d > 0.0f && d >= lo && d <= hi)
+          scratch_depths_.push_back(d);
+    if (!scratch_depths_.empty()) break;
+    lo = 0.0f;  // no depth near the detected face's: the box's nearest surface after all
+    hi = options_.max_depth_mm;
+  }
   const std::size_t nth = static_cast<std::size_t>(
       std::clamp(options_.near_percentile, 0.0f, 1.0f) * (scratch_depths_.size() - 1));
   std::nth_element(scratch_depths_.begin(), scratch_depths_.begin() + nth, scratch_depths_.end());
@@ -109,7 +122,7 @@ void FaceFusion::place_volume(const PoseF& world_from_camera) {
   for (int y = b.y; y < b.y + b.height; ++y)
     for (int x = b.x; x < b.x + b.width; ++x) {
       const float d = pyramid_.raw.at(x, y);
-      if (d <= 0.0f || d > near + face_depth_band) continue;
+      if (d <= 0.0f || d < lo || d > near + face_depth_band) continue;
       sum += Eigen::Vector3d((x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d);
       ++count;
     }
@@ -117,9 +130,37 @@ void FaceFusion::place_volume(const PoseF& world_from_camera) {
   centre.z() = near + options_.volume_center_behind_face_mm;
   volume_.set_origin(world_from_camera.apply(centre) -
                      Eigen::Vector3f::Constant(0.5f * volume_.size_mm()));
+  // What the box follows: the face surface behind the box's centre (the landmarks' depth, or
+  // about the eyes' depth behind the nearest surface, the nose).
+  const float z = detected ? b.face_depth_mm : near + 30.0f;
+  const float u = static_cast<float>(b.x) + 0.5f * static_cast<float>(b.width - 1);
+  const float v = static_cast<float>(b.y) + 0.5f * static_cast<float>(b.height - 1);
+  anchor_world_ =
+      world_from_camera.apply(Eigen::Vector3f((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
+  anchor_depth_ = z;
+}
+
+FaceBox FaceFusion::box_at(const PoseF& world_from_camera) const {
+  if (!options_.box_follows_face || !(anchor_depth_ > 0.0f)) return start_box_;
+  const Eigen::Vector3f p = world_from_camera.inverse().apply(anchor_world_);
+  if (!(p.z() > 1.0f)) return start_box_;
+  const LevelIntrinsics k = LevelIntrinsics::from(intrinsics_);
+  const float s = anchor_depth_ / p.z();  // nearer face, larger box
+  const float w = static_cast<float>(start_box_.width) * s;
+  const float h = static_cast<float>(start_box_.height) * s;
+  const float u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
+  FaceBox out{static_cast<int>(std::lround(u - 0.5f * (w - 1.0f))),
+              static_cast<int>(std::lround(v - 0.5f * (h - 1.0f))),
+              static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h)),
+              start_box_.face_depth_mm > 0.0f ? p.z() : 0.0f};
+  out = out.clipped(intrinsics_.width, intrinsics_.height);
+  // A face leaving the image keeps the last box that still holds a useful part of it.
+  return out.width < 16 || out.height < 16 ? box_ : out;
 }
 
 void FaceFusion::cast_model(const PoseF& pose) {
+  // The model view covers the box the next frame will be read in (predicted from this pose).
+  if (options_.box_follows_face) model_.move_box(box_at(pose));
   // The frame just fused is the hint: raw depth at full resolution, the pyramid level otherwise.
   const Image<float>& hint = model_.first_level > 0 ? pyramid_.levels[model_.first_level].depth
                              : options_.integrate_filtered_depth ? pyramid_.levels[0].depth
@@ -149,6 +190,20 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
     return report;
   }
   Stopwatch t;
+  if (started_ && options_.box_follows_face) {
+    // This frame's box: where the face is at the last good pose (the motion of one frame is
+    // small against the box's margins; a lost face is looked for where it was last).
+    const FaceBox next = box_at(last_good_);
+    if (next.x != box_.x || next.y != box_.y || next.width != box_.width ||
+        next.height != box_.height) {
+      pyramid_.move_box(next);
+      box_ = next;
+    }
+  }
+  if (box_.face_depth_mm > 0.0f)  // a detected face: only depths near it are the face
+    preprocessor_.set_depth_gate(
+        std::max(options_.min_depth_mm, box_.face_depth_mm - options_.face_band_front_mm),
+        std::min(options_.max_depth_mm, box_.face_depth_mm + options_.face_band_back_mm));
   preprocessor_.run(depth_mm, pyramid_, *runner_);
   t.lap(report.times.preprocess_ms, report.cpu_times.preprocess_ms);
   report.valid_pixels = pyramid_.valid_pixels;
@@ -235,11 +290,12 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
 }
 
 void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
+  const FaceBox box = box_for(world_from_camera);
   if (render_level_.depth.width != intrinsics_.width ||
-      render_level_.depth.height != intrinsics_.height ||
-      !(render_level_.box.x == box_.x && render_level_.box.y == box_.y &&
-        render_level_.box.width == box_.width && render_level_.box.height == box_.height))
-    render_level_.allocate(LevelIntrinsics::from(intrinsics_), box_);
+      render_level_.depth.height != intrinsics_.height)
+    render_level_.allocate(LevelIntrinsics::from(intrinsics_), box);
+  else
+    render_level_.move_box(box);
   std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
   ray_caster_.cast(volume_, PoseF::from(world_from_camera), nullptr, false, true, render_level_,
                    *runner_);

@@ -51,7 +51,12 @@ class FaceFusion {
   bool started() const { return started_; }
   bool lost() const { return lost_; }
   RigidPose last_good_pose() const { return last_good_.to_rigid(); }
-  const FaceBox& face_box() const { return box_; }
+  const FaceBox& face_box() const { return box_; }  // this frame's (it follows the face)
+  // The face box for a camera pose: reset()'s box moved and scaled with the face when
+  // box_follows_face (the box a frame at that pose is fused over), else reset()'s box.
+  FaceBox box_for(const RigidPose& world_from_camera) const {
+    return box_at(PoseF::from(world_from_camera));
+  }
   const FusionOptions& options() const { return options_; }
   const TsdfVolume& volume() const { return volume_; }
   const ModelView& model_view() const { return model_; }
@@ -66,10 +71,16 @@ class FaceFusion {
  private:
   void place_volume(const PoseF& world_from_camera);
   void cast_model(const PoseF& pose);
+  FaceBox box_at(const PoseF& world_from_camera) const;
 
   FusionOptions options_;
   PinholeIntrinsics intrinsics_;
-  FaceBox box_;
+  FaceBox box_;        // the current frame's
+  FaceBox start_box_;  // reset()'s, clipped
+  // The point the box follows: the face at the start box's centre (world frame), and its depth
+  // in the first frame (0 until fusion starts).
+  Eigen::Vector3f anchor_world_ = Eigen::Vector3f::Zero();
+  float anchor_depth_ = 0.0f;
   std::unique_ptr<ParallelRunner> runner_;
   DepthPreprocessor preprocessor_;
   IcpTracker tracker_;

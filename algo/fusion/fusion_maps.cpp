@@ -7,14 +7,14 @@ namespace fb {
 FaceBox FaceBox::clipped(int w, int h) const {
   const int x0 = std::clamp(x, 0, w), y0 = std::clamp(y, 0, h);
   const int x1 = std::clamp(x + width, 0, w), y1 = std::clamp(y + height, 0, h);
-  return {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0)};
+  return {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0), face_depth_mm};
 }
 
 FaceBox FaceBox::at_level(int level) const {
   const int x0 = x >> level, y0 = y >> level;
   const int x1 = (x + width + (1 << level) - 1) >> level;
   const int y1 = (y + height + (1 << level) - 1) >> level;
-  return {x0, y0, x1 - x0, y1 - y0};
+  return {x0, y0, x1 - x0, y1 - y0, face_depth_mm};
 }
 
 FaceBox default_face_box(int width, int height) {
@@ -49,6 +49,36 @@ void MapLevel::allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_b
   std::fill(vertices.pixels.begin(), vertices.pixels.end(), Eigen::Vector3f::Zero());
   normals.resize(k.width, k.height);
   std::fill(normals.pixels.begin(), normals.pixels.end(), Eigen::Vector3f::Zero());
+}
+
+namespace {
+
+// Zeroes `image` over `box` grown by one pixel (clipped to the image).
+template <typename T>
+void clear_box(Image<T>& image, const FaceBox& box, const T& zero) {
+  if (image.empty()) return;
+  const FaceBox b = FaceBox{box.x - 1, box.y - 1, box.width + 2, box.height + 2}.clipped(
+      image.width, image.height);
+  for (int y = b.y; y < b.y + b.height; ++y) std::fill_n(&image.at(b.x, y), b.width, zero);
+}
+
+}  // namespace
+
+void MapLevel::move_box(const FaceBox& face_box) {
+  clear_box(depth, box, 0.0f);
+  clear_box(vertices, box, Eigen::Vector3f(Eigen::Vector3f::Zero()));
+  clear_box(normals, box, Eigen::Vector3f(Eigen::Vector3f::Zero()));
+  box = face_box.clipped(k.width, k.height);
+}
+
+void DepthPyramid::move_box(const FaceBox& face_box) {
+  clear_box(raw, levels[0].box, 0.0f);
+  clear_box(fused, levels[0].box, 0.0f);
+  for (int l = 0; l < kPyramidLevels; ++l) levels[l].move_box(face_box.at_level(l));
+}
+
+void ModelView::move_box(const FaceBox& face_box) {
+  for (int j = 0; j < kPyramidLevels; ++j) levels[j].move_box(face_box.at_level(first_level + j));
 }
 
 void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {

@@ -65,6 +65,9 @@ struct MapLevel {
   Image<Eigen::Vector3f> normals;   // camera frame, unit; zero where invalid
 
   void allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_box);
+  // Moves the box without reallocating: what the old box held (and a 1 px rim, which filters
+  // and normals read) is cleared, so nothing stale is read from outside the new box.
+  void move_box(const FaceBox& face_box);
 };
 
 // The preprocessed input frame: raw depth (gated, float) plus 3 filtered levels.
@@ -75,6 +78,7 @@ struct DepthPyramid {
   int valid_pixels = 0;  // valid raw pixels inside the face box
 
   void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box);
+  void move_box(const FaceBox& face_box);  // level-0 box; every level and raw/fused follow
 };
 
 // The ray-cast model view (vertices and normals in the frame of the camera it was cast from).
@@ -87,6 +91,7 @@ struct ModelView {
   bool valid = false;
 
   void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first);
+  void move_box(const FaceBox& face_box);  // level-0 box, as DepthPyramid::move_box
   const MapLevel& for_input_level(int l) const {
     return levels[l > first_level ? l - first_level : 0];
   }

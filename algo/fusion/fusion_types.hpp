@@ -21,6 +21,9 @@ struct FaceBox {
   int y = 0;
   int width = 0;
   int height = 0;
+  // Depth of the detected face in this box (median of its landmarks' depths), 0 = unknown. With
+  // it the volume is placed on the face, not on the nearest surface (a hand, the chest, a desk).
+  float face_depth_mm = 0.0f;
 
   bool empty() const { return width <= 0 || height <= 0; }
   bool contains(int px, int py) const {
@@ -51,6 +54,14 @@ struct FusionOptions {
   // by this much, so the face and the sides of the head fit in the cube.
   float volume_center_behind_face_mm = 70.0f;
   float near_percentile = 0.10f;
+  // Depths this far in front of / behind a detected face (FaceBox::face_depth_mm) are not the
+  // face: a hand 130 mm in front, the chest, a desk.
+  float face_band_front_mm = 80.0f;
+  float face_band_back_mm = 150.0f;
+  // The face box follows the fused pose: each frame's box is the first frame's box moved (and
+  // scaled) with the face, predicted from the last good pose, so a face that turns or moves
+  // stays in its box. false: the box stays where reset() put it.
+  bool box_follows_face = true;
 
   // --- Depth gating and preprocessing ---
   float min_depth_mm = 300.0f;

@@ -7,6 +7,8 @@ namespace fb {
 
 void DepthPreprocessor::configure(const FusionOptions& options) {
   options_ = options;
+  gate_min_ = options.min_depth_mm;
+  gate_max_ = options.max_depth_mm;
   const int r = std::max(0, options.bilateral_radius_px);
   const float ss = std::max(0.1f, options.bilateral_sigma_space_px);
   spatial_weights_.assign(static_cast<std::size_t>((2 * r + 1) * (2 * r + 1)), 0.0f);
@@ -107,7 +109,7 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
                             ParallelRunner& runner) const {
   MapLevel& l0 = pyramid.levels[0];
   const FaceBox box = l0.box;
-  const float dmin = options_.min_depth_mm, dmax = options_.max_depth_mm;
+  const float dmin = gate_min_, dmax = gate_max_;
   // Gate the raw depth into float (inside the box only; outside stays 0 from allocate()).
   int valid = 0;
   for (int y = box.y; y < box.y + box.height; ++y) {

@@ -13,11 +13,18 @@ namespace fb {
 class DepthPreprocessor {
  public:
   void configure(const FusionOptions& options);
+  // Depths kept this frame (the options' range after configure()): fusion narrows it to the
+  // band around a detected face, so nearer hands, chest or desk never enter the pyramid.
+  void set_depth_gate(float min_mm, float max_mm) {
+    gate_min_ = min_mm;
+    gate_max_ = max_mm;
+  }
   // Fills `pyramid` (already allocated for this image size and face box) from `depth`.
   void run(const DepthImage& depth, DepthPyramid& pyramid, ParallelRunner& runner) const;
 
  private:
   FusionOptions options_;
+  float gate_min_ = 0.0f, gate_max_ = 0.0f;
   std::vector<float> spatial_weights_;  // (2r+1)^2
   std::vector<float> range_weights_;    // exp(-d^2 / 2 sigma^2) sampled every kRangeStep mm
   static constexpr float kRangeStep = 0.25f;

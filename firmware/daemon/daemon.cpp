@@ -781,8 +781,13 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     camera = take_camera.get();
   }
   const CameraInfo& info = camera->info();
-  const FaceBox box = default_face_box(info.width, info.height);
-  if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
+  // The face box comes from the face dlib finds on the take's first frames (up to
+  // kDetectFrames of them, not fused until it is found); without a face the kiosk's fixed
+  // rectangle, and the log says why.
+  constexpr int kDetectFrames = 3;
+  FaceBox box = default_face_box(info.width, info.height);
+  bool box_detected = false, fusion_ready = false;
+  std::string box_note;
 
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(1.0 / (info.fps > 0 ? info.fps : 30.0)));
@@ -792,6 +797,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   int fused = 0, recorded = 0;
   RigidPose frontal_pose;
   long long dropped = 0;
+  int fusion_dropped = 0;  // frames fusion could not follow (lost): kept out, counted
   RgbdFrame frame;
   while (recorded < n) {
     watchdog_ping();
@@ -818,7 +824,21 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     if (*got == FrameStatus::kTimeout) continue;
     // No live registration check here: the take's own frames are checked after it, on the fit
     // thread (registration_allows_fit), so the check never competes with fusion for the CPU.
-    const FrameReport report = fusion.process(frame.depth_mm);
+    if (!fusion_ready) {
+      auto detected = detect_take_face_box(frame, info);
+      if (detected) {
+        box = *detected;
+        box_detected = true;
+      } else {
+        box_note = detected.error().message;
+      }
+      if (box_detected || recorded + 1 >= kDetectFrames) {
+        if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
+        fusion_ready = true;
+      }
+    }
+    const FrameReport report = fusion_ready ? fusion.process(frame.depth_mm) : FrameReport{};
+    if (fusion_ready && !report.fused) ++fusion_dropped;
     if (report.fused) {
       if (fused == 0) {
         // The frontal frame: its colour image gets the landmarks, its pose the fused view.
@@ -834,7 +854,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     ++recorded;
     if (recorded % 5 == 0 || recorded == n) {
       std::lock_guard lock(preview_mutex);
-      make_preview(frame, box, preview);
+      make_preview(frame, fusion_ready ? fusion.face_box() : box, preview);
     }
     update_status([&](StatusData& s) {
       s.take_frames = recorded;
@@ -846,11 +866,13 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
 
   // Quality: how much of the face box the fused surface covers, how well frames aligned, and how
   // many frames could be fused at all.
+  if (!fusion_ready) return fail("the take ended before fusion could start");
   SurfaceView view = fusion.render(frontal_pose);
   pending_view.intrinsics = info.depth_intrinsics;
   pending_view.calibration = info.calibration;
   long long covered = 0;
-  const FaceBox clipped = box.clipped(view.depth_mm.width, view.depth_mm.height);
+  const FaceBox clipped =
+      fusion.box_for(frontal_pose).clipped(view.depth_mm.width, view.depth_mm.height);
   commit.fused_depth.resize(view.depth_mm.width, view.depth_mm.height);
   for (int y = 0; y < view.depth_mm.height; ++y)
     for (int x = 0; x < view.depth_mm.width; ++x) {
@@ -879,8 +901,29 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
                       {"residual_mm", qa.residual_mm},
                       {"fused_fraction", qa.fused_fraction},
                       {"frames_recorded", recorded},
-                      {"frames_dropped", static_cast<double>(dropped)}};
+                      {"frames_dropped", static_cast<double>(dropped)},
+                      {"frames_fused", fused},
+                      {"frames_fusion_dropped", fusion_dropped},
+                      {"face_box_detected", box_detected ? 1.0 : 0.0}};
+  // The take keeps the frames it fused; the log says how many it could not follow and where
+  // the face box came from.
+  std::fprintf(stderr,
+               "faceboothd: take: %d of %d frames fused, %d dropped (fusion could not follow "
+               "the face); face box %d,%d %dx%d %s%s\n",
+               fused, recorded, fusion_dropped, clipped.x, clipped.y, clipped.width, clipped.height,
+               box_detected ? "from dlib" : "fixed (no face found: ",
+               box_detected ? "" : (box_note + ")").c_str());
   return true;
+}
+
+Result<FaceBox> Daemon::Impl::detect_take_face_box(const RgbdFrame& frame, const CameraInfo& info) {
+  if (!fitter) return fail("no landmark detector (" + fitter_error + ")");
+  if (!take_detector) take_detector.emplace(fitter->share_landmark_detector());
+  if (!take_proportions) take_proportions = face_proportions(fitter->model());
+  auto region = detect_face_region(*take_detector, frame.color, frame.depth_mm,
+                                   KinectRegistration(info.calibration), *take_proportions);
+  if (!region) return region.failure();
+  return region->box;
 }
 
 }  // namespace fb

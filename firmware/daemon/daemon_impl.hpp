@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "algo/fusion/face_fusion.hpp"
+#include "algo/landmarks/face_region_box.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
@@ -149,7 +150,11 @@ struct Daemon::Impl {
   std::unique_ptr<DepthCamera> preview_camera;  // worker only
   long long frames_since_loop = 0;              // preview_camera's frames since it (re)started
   FaceFusion fusion;                            // worker only
-  QaReport pending_qa;                          // the last take, between record and process
+  // A take's face box: dlib (the fitter's shape predictor, shared) on the take's first frames,
+  // grown by the face model's proportions. Worker only; made at the first take.
+  std::optional<LandmarkDetector> take_detector;
+  std::optional<FaceProportions> take_proportions;
+  QaReport pending_qa;  // the last take, between record and process
   CaptureCommit pending_commit;
   CaptureView pending_view;  // frontal colour + fused surface of the last take
 
@@ -241,6 +246,9 @@ struct Daemon::Impl {
   Result<void> enroll(const std::string& subject);
   Result<void> show_next_guide();
   Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
+  // The face box of a take from its frame (dlib, through the camera's registration); fails
+  // when there is no detector or no face (the caller keeps the fixed box and says why).
+  Result<FaceBox> detect_take_face_box(const RgbdFrame& frame, const CameraInfo& info);
   void preview_tick();
   void tracking_tick();
   // At the end of a recording or synthetic take: starts it over (see daemon.cpp).

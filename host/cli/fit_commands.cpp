@@ -204,8 +204,8 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
   nlohmann::json per_subject = nlohmann::json::array();
   nlohmann::json per_expression = nlohmann::json::object();
   std::map<int, Samples> expr_err;
-  const FaceBox box = default_face_box(640, 480);
   const double scale = 3.0;
+  int frames_fused = 0, frames_dropped = 0, boxes_detected = 0;
   for (long long s = 0; s < *identities; ++s) {
     const std::uint64_t seed = static_cast<std::uint64_t>(*first_seed + s);
     const std::vector<float> identity = identity_draw(seed, model->identity_count);
@@ -236,7 +236,7 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
       };
       auto cap = capture(*model, identity, *weights, seed * 1000 + static_cast<std::uint64_t>(e),
                          static_cast<int>(*frames), detector && e == 0 && s == 0, {}, world, seed,
-                         setup.unit_calibration);
+                         setup.unit_calibration, detector);
       if (!cap) {
         auto stop = failed("capture", cap.error());
         if (!stop) return stop.failure();
@@ -273,6 +273,16 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         continue;
       }
       j["fused_frames"] = cap->fused_frames;
+      j["dropped_frames"] = cap->dropped_frames;
+      j["face_box"] = {{"source", cap->box_source},
+                       {"x", cap->box.x},
+                       {"y", cap->box.y},
+                       {"width", cap->box.width},
+                       {"height", cap->box.height}};
+      if (!cap->box_note.empty()) j["face_box"]["note"] = cap->box_note;
+      frames_fused += cap->fused_frames;
+      frames_dropped += cap->dropped_frames;
+      boxes_detected += cap->box_source == "dlib";
       {  // how well the colour -> depth lifting puts the points (vs the true depth-image points)
         double sum = 0;
         int n = 0;
@@ -365,10 +375,10 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
           const std::filesystem::path png = options.get("png");
           if (!png.empty()) {
             cv::Mat a =
-                error_panel(*model, neutral.initial_vertices, neutral.camera_from_model, *cap, box,
-                            scale, "initial (PCA)", neutral.rms_to_depth_mm_initial);
-            cv::Mat b = error_panel(*model, neutral.vertices, neutral.camera_from_model, *cap, box,
-                                    scale, "refined", neutral.rms_to_depth_mm);
+                error_panel(*model, neutral.initial_vertices, neutral.camera_from_model, *cap,
+                            cap->box, scale, "initial (PCA)", neutral.rms_to_depth_mm_initial);
+            cv::Mat b = error_panel(*model, neutral.vertices, neutral.camera_from_model, *cap,
+                                    cap->box, scale, "refined", neutral.rms_to_depth_mm);
             cv::Mat row;
             cv::hconcat(
                 std::vector<cv::Mat>{a, cv::Mat(a.rows, 10, CV_8UC3, cv::Scalar(255, 255, 255)), b},
@@ -420,6 +430,11 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
   out["captures"] = captures;
   out["captures_failed"] = captures_failed;
   out["capture_failures_by_stage"] = failure_reasons;
+  // Fusion: frames fused and frames it could not follow (dropped, not fused) over the captures
+  // that got that far; the face box from dlib on frame 0 or the fixed rectangle.
+  out["fused_frames"] = frames_fused;
+  out["dropped_frames"] = frames_dropped;
+  out["face_boxes_detected"] = boxes_detected;
   out["fit_landmark_source"] =
       setup.dlib_fit ? "dlib on the colour image of frame 0 (what runs on real frames)"
                      : "ground-truth colour-image landmarks + Gaussian noise";

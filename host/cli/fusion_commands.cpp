@@ -20,11 +20,13 @@
 #include <sstream>
 
 #include "algo/fusion/face_fusion.hpp"
+#include "algo/landmarks/face_region_box.hpp"
 #include "drivers/camera/synthetic/world_presets.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/scratch_directory.hpp"
 #include "host/cli/stats.hpp"
+#include "host/cli/take_runner.hpp"
 
 namespace fb::cli {
 namespace {
@@ -40,6 +42,8 @@ struct Sequence {
   std::string uri;
   PinholeIntrinsics intrinsics;
   std::vector<DepthImage> depth;
+  ColorImage first_color;                    // frame 0's, where the face box is detected
+  KinectCalibration calibration;             // the registration the camera reports
   std::vector<RigidPose> camera_from_model;  // truth, empty for real recordings
   std::vector<std::vector<Eigen::Vector3d>> landmarks_3d;
   // Truth of the frontal frame only (the one the fused depth is scored on).
@@ -54,6 +58,7 @@ Result<Sequence> load_sequence(const std::string& uri, long long max_frames, int
   Sequence seq;
   seq.uri = uri;
   seq.intrinsics = (*camera)->info().depth_intrinsics;
+  seq.calibration = (*camera)->info().calibration;
   seq.frontal = frontal;
   RgbdFrame frame;
   int timeouts = 0;
@@ -66,6 +71,7 @@ Result<Sequence> load_sequence(const std::string& uri, long long max_frames, int
       continue;
     }
     const int index = static_cast<int>(seq.depth.size());
+    if (index == 0) seq.first_color = frame.color;
     seq.depth.push_back(frame.depth_mm);
     if (const FrameTruth* truth = (*camera)->truth()) {
       seq.camera_from_model.push_back(truth->camera_from_model);
@@ -87,10 +93,12 @@ Result<Sequence> load_sequence(const std::string& uri, long long max_frames, int
 
 std::vector<OptionSpec> fusion_option_specs() {
   return {
-      {"box", "X,Y,W,H",
-       "face box in the depth image (default: the kiosk rectangle, 200x240 "
-       "in the middle of 640x480)",
-       ""},
+      {"box", "detect|kiosk|X,Y,W,H",
+       "face box in the depth image: detect = dlib on frame 0's colour image through the "
+       "registration, grown to the forehead and chin (the kiosk rectangle when no face is "
+       "found); kiosk = the fixed 200x240 rectangle in the middle of 640x480",
+       "detect"},
+      {"box-follows", "on|off", "the face box follows the fused pose over the take", "on"},
       {"volume-mm", "MM", "TSDF cube side", "300"},
       {"resolution", "N", "voxels per side (multiple of 8)", "256"},
       {"truncation-mm", "MM", "TSDF truncation", "8"},
@@ -113,7 +121,7 @@ std::vector<OptionSpec> fusion_option_specs() {
 }
 
 Result<FaceBox> parse_box(const std::string& text, const PinholeIntrinsics& k) {
-  if (text.empty()) return default_face_box(k.width, k.height);
+  if (text.empty() || text == "kiosk") return default_face_box(k.width, k.height);
   FaceBox box;
   char c1 = 0, c2 = 0, c3 = 0;
   std::istringstream in(text);
@@ -124,8 +132,63 @@ Result<FaceBox> parse_box(const std::string& text, const PinholeIntrinsics& k) {
   return box;
 }
 
+// The face box a sequence is fused in, and where it came from.
+struct BoxChoice {
+  FaceBox box;
+  std::string source;  // "dlib", "kiosk" or "given"
+  std::string note;    // why detection gave way to the kiosk rectangle
+};
+
+// `text`: detect (or empty), kiosk, or X,Y,W,H. Detection loads dlib's model once into
+// `detector`; without it, or without a face, the kiosk rectangle (the note says why).
+Result<BoxChoice> choose_box(const std::string& text, const Sequence& seq,
+                             std::optional<LandmarkDetector>& detector) {
+  BoxChoice c;
+  if (!text.empty() && text != "detect") {
+    auto box = parse_box(text, seq.intrinsics);
+    if (!box) return box.failure();
+    c.box = *box;
+    c.source = text == "kiosk" ? "kiosk" : "given";
+    return c;
+  }
+  c.box = default_face_box(seq.intrinsics.width, seq.intrinsics.height);
+  c.source = "kiosk";
+  if (!detector) {
+    auto loaded = load_landmark_detector("");
+    if (!loaded) {
+      c.note = loaded.error().message;
+      return c;
+    }
+    detector.emplace(std::move(*loaded));
+  }
+  auto region = detect_face_region(*detector, seq.first_color, seq.depth.front(),
+                                   KinectRegistration(seq.calibration), FaceProportions{});
+  if (!region) {
+    c.note = region.error().message;
+    return c;
+  }
+  c.box = region->box;
+  c.source = "dlib";
+  return c;
+}
+
+nlohmann::json box_json(const BoxChoice& c) {
+  nlohmann::json j = {{"source", c.source},
+                      {"x", c.box.x},
+                      {"y", c.box.y},
+                      {"width", c.box.width},
+                      {"height", c.box.height}};
+  if (c.box.face_depth_mm > 0.0f) j["face_depth_mm"] = c.box.face_depth_mm;
+  if (!c.note.empty()) j["note"] = c.note;
+  return j;
+}
+
 Result<FusionOptions> parse_fusion_options(const ParsedOptions& options) {
   FusionOptions o;
+  const std::string follows = options.get("box-follows");
+  if (follows != "on" && follows != "off") return fail("--box-follows must be on or off");
+  o.box_follows_face = follows == "on";
+
   auto volume = options.get_double("volume-mm");
   if (!volume) return volume.failure();
   auto resolution = options.get_int("resolution");
@@ -484,8 +547,9 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
   nlohmann::json per_seed = nlohmann::json::array();
   PoseErrors worst;
   double fused_sum = 0, raw_sum = 0, fill_min = 1.0, fill_sum = 0, fused_max_seed = 0;
-  int total_lost = 0;
+  int total_lost = 0, total_dropped = 0;
   FaceFusion fusion;
+  std::optional<LandmarkDetector> detector;
   for (long long s = 0; s < *seeds; ++s) {
     const int seed = static_cast<int>(*first_seed + s);
     std::string base = options.get("synthetic");
@@ -496,15 +560,18 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     if (!seq) return report_failure(seq.error());
     if (seq->camera_from_model.empty() || seq->frontal_noiseless.empty())
       return report_failure({"camera '" + uri + "' has no ground truth; use a synthetic URI"});
-    auto box = parse_box(options.get("box"), seq->intrinsics);
-    if (!box) return report_failure(box.error());
-    auto run = run_fusion(fusion, *seq, *box, *fusion_options, options.flag("verbose"),
+    auto choice = choose_box(options.get("box"), *seq, detector);
+    if (!choice) return report_failure(choice.error());
+    auto run = run_fusion(fusion, *seq, choice->box, *fusion_options, options.flag("verbose"),
                           options.flag("truth-poses"));
     if (!run) return report_failure(run.error());
     const PoseErrors pe = pose_errors(*seq, *run, options.flag("verbose"));
     const RigidPose frontal_pose = run->reports[seq->frontal].world_from_camera;
     const SurfaceView view = fusion.render(frontal_pose);
-    const cv::Mat region = face_region(*seq, *box);
+    // Scored inside the box the frontal frame was fused in (the landmark hull within it).
+    const FaceBox frontal_box = fusion.box_for(frontal_pose);
+    const cv::Mat region = face_region(*seq, frontal_box);
+    const int dropped = static_cast<int>(seq->depth.size()) - run->fused;
     const DepthErrors de = depth_errors(*seq, view, region);
     nlohmann::json j;
     j["seed"] = seed;
@@ -512,6 +579,7 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     j["frames"] = seq->depth.size();
     j["fused_frames"] = run->fused;
     j["lost_frames"] = run->lost;
+    j["dropped_frames"] = dropped;
     j["pose_error_mm_max"] = pe.max_mm;
     j["pose_error_mm_mean"] = pe.mean_mm;
     j["pose_error_deg_max"] = pe.max_deg;
@@ -528,11 +596,14 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     j["raw_depth_max_mm"] = de.raw_max_mm;
     j["fill_fraction"] = de.fill;
     j["face_pixels"] = de.face_pixels;
-    j["box"] = {box->x, box->y, box->width, box->height};
+    j["box"] = {frontal_box.x, frontal_box.y, frontal_box.width, frontal_box.height};
+    j["face_box"] = box_json(*choice);
     per_seed.push_back(j);
     std::cerr << "  pose max " << pe.max_mm << " mm " << pe.max_deg << " deg; fused "
               << de.fused_mae_mm << " mm vs raw " << de.raw_mae_mm << " mm; fill " << de.fill
-              << "; lost " << run->lost << "\n";
+              << "; lost " << run->lost << ", dropped " << dropped << " of " << seq->depth.size()
+              << " (box: " << choice->source << (choice->note.empty() ? "" : ", " + choice->note)
+              << ")\n";
     worst.max_mm = std::max(worst.max_mm, pe.max_mm);
     worst.max_deg = std::max(worst.max_deg, pe.max_deg);
     worst.camera_max_mm = std::max(worst.camera_max_mm, pe.camera_max_mm);
@@ -545,10 +616,11 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     fill_min = std::min(fill_min, de.fill);
     fill_sum += de.fill;
     total_lost += run->lost;
+    total_dropped += dropped;
     if (s == 0) {
       const std::filesystem::path png = options.get("png");
       if (!png.empty()) {
-        if (auto ok = write_error_map(png, de, *box, *scale); !ok)
+        if (auto ok = write_error_map(png, de, frontal_box, *scale); !ok)
           return report_failure(ok.error());
         result["error_map_png"] = std::filesystem::absolute(png).string();
         std::cerr << "  error map: " << png.string() << "\n";
@@ -582,6 +654,9 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
   result["fill_fraction"] = fill_sum / *seeds;
   result["fill_fraction_min"] = fill_min;
   result["lost_frames"] = total_lost;
+  // Frames fusion could not follow (lost, or before it started): not fused, counted; the take
+  // keeps the frames it fused.
+  result["dropped_frames"] = total_dropped;
   result["per_seed"] = per_seed;
 
   // The real dump: must run to the end without losing track, and give a mesh.
@@ -595,10 +670,10 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     std::cerr << "eval fusion: real dump " << uri << " ...\n";
     auto seq = load_sequence(uri, 1 << 20, 0);
     if (!seq) return report_failure(seq.error());
-    auto box = parse_box(options.get("real-box"), seq->intrinsics);
-    if (!box) return report_failure(box.error());
+    auto choice = choose_box(options.get("real-box"), *seq, detector);
+    if (!choice) return report_failure(choice.error());
     FusionOptions real_options = *fusion_options;
-    auto run = run_fusion(fusion, *seq, *box, real_options, options.flag("verbose"));
+    auto run = run_fusion(fusion, *seq, choice->box, real_options, options.flag("verbose"));
     if (!run) return report_failure(run.error());
     nlohmann::json j;
     j["uri"] = real;
@@ -606,7 +681,9 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
     j["fused_frames"] = run->fused;
     j["lost_frames"] = run->lost;
     j["lost_frame_indices"] = run->lost_frames;
-    j["box"] = {box->x, box->y, box->width, box->height};
+    j["dropped_frames"] = static_cast<int>(seq->depth.size()) - run->fused;
+    j["box"] = {choice->box.x, choice->box.y, choice->box.width, choice->box.height};
+    j["face_box"] = box_json(*choice);
     double max_step_mm = 0, max_step_deg = 0;
     for (std::size_t i = 1; i < run->reports.size(); ++i) {
       const Eigen::Isometry3d d = run->reports[i - 1].world_from_camera.isometry().inverse() *
@@ -815,13 +892,16 @@ int run_bench_fusion(const ParsedOptions& options) {
   std::cerr << "bench fusion: loading " << uri << " ...\n";
   auto seq = load_sequence(uri, *frames, 0);
   if (!seq) return report_failure(seq.error());
-  auto box = parse_box(options.get("box"), seq->intrinsics);
-  if (!box) return report_failure(box.error());
+  std::optional<LandmarkDetector> detector;
+  auto choice = choose_box(options.get("box"), *seq, detector);
+  if (!choice) return report_failure(choice.error());
+  const FaceBox* box = &choice->box;
 
   nlohmann::json result;
   result["source"] = uri;
   result["frames"] = seq->depth.size();
   result["box"] = {box->x, box->y, box->width, box->height};
+  result["face_box"] = box_json(*choice);
   result["volume_mm"] = fusion_options->volume_size_mm;
   result["resolution"] = fusion_options->volume_resolution;
   result["truncation_mm"] = fusion_options->truncation_mm;
@@ -998,7 +1078,7 @@ std::vector<Command> fusion_commands() {
       {"error-scale-mm", "MM", "top of the error map's colour scale", "2"},
       {"mesh", "PATH", "write the first seed's fused mesh as PLY (empty: none)", ""},
       {"real", "PATH", "real fakenect dump (directory or .tar.xz), or off", FB_REAL_DUMP_DEFAULT},
-      {"real-box", "X,Y,W,H", "face box for the real dump (default: the kiosk rectangle)", ""},
+      {"real-box", "detect|kiosk|X,Y,W,H", "face box for the real dump (as --box)", "detect"},
       {"real-mesh", "PATH", "PLY mesh written from the real dump", "fusion_real_mesh.ply"},
       {"verbose", "", "per-frame tracking state and stage times on stderr", ""},
       {"truth-poses", "", "diagnosis: fuse at the ground-truth poses instead of tracking", ""},

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "algo/landmarks/face_region_box.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "drivers/camera/synthetic/world_presets.hpp"
@@ -34,7 +35,8 @@ Result<GuideSet> load_guide(const FaceModel& model, const std::string& option) {
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis,
-                        std::string_view world, std::uint64_t world_seed, UnitCalibration unit) {
+                        std::string_view world, std::uint64_t world_seed, UnitCalibration unit,
+                        LandmarkDetector* face_detector) {
   SyntheticOptions so;
   so.personal_expression_basis.assign(personal_expression_basis.begin(),
                                       personal_expression_basis.end());
@@ -53,10 +55,6 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   c.intrinsics = (*camera)->info().depth_intrinsics;
   c.calibration = *calibration;
   FaceFusion fusion;
-  if (auto ok =
-          fusion.reset(c.intrinsics, default_face_box(c.intrinsics.width, c.intrinsics.height));
-      !ok)
-    return ok.failure();
   RgbdFrame frame;
   RigidPose first;
   bool started = false;
@@ -65,8 +63,29 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
     auto st = (*camera)->next_frame(frame, std::chrono::milliseconds(1000));
     if (!st) return st.failure();
     if (*st != FrameStatus::kFrame) break;
+    if (i == 0) {
+      // The face box: where dlib finds the face on this frame (the registration the capture
+      // believes in maps it into the depth image), else the kiosk's fixed rectangle.
+      c.box = default_face_box(c.intrinsics.width, c.intrinsics.height);
+      c.box_source = "fixed";
+      if (!face_detector) {
+        c.box_note = "no face detector";
+      } else {
+        auto region =
+            detect_face_region(*face_detector, frame.color, frame.depth_mm,
+                               KinectRegistration(c.calibration), face_proportions(model));
+        if (region) {
+          c.box = region->box;
+          c.box_source = "dlib";
+        } else {
+          c.box_note = region.error().message;
+        }
+      }
+      if (auto ok = fusion.reset(c.intrinsics, c.box); !ok) return ok.failure();
+    }
     const FrameReport r = fusion.process(frame.depth_mm);
     c.fused_frames += r.fused;
+    c.dropped_frames += r.state == TrackingState::kLost;
     if (i == 0) {
       const FrameTruth* t = (*camera)->truth();
       if (!t) return fail("the synthetic camera gave no ground truth");
@@ -82,8 +101,9 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
         for (int a = 0; a < 3; ++a) c.truth_mesh[3 * v + a] = rendered[v][a];
       if (r.state != TrackingState::kStarted)
         return fail(
-            "fusion did not start on the frontal frame (too little face depth in the "
-            "fixed face box)");
+            std::string(
+                "fusion did not start on the frontal frame (too little face depth in the ") +
+            (c.box_source == "dlib" ? "detected" : "fixed") + " face box)");
       first = r.world_from_camera;
       started = true;
     }

@@ -20,6 +20,7 @@
 #include "algo/fitting/face_fit.hpp"
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/guide/guide_expressions.hpp"
+#include "algo/landmarks/landmark_detector.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
 #include "host/cli/unit_calibration.hpp"
 
@@ -43,6 +44,10 @@ struct Capture {
   RigidPose truth_pose;           // camera_from_model of frame 0
   std::vector<float> truth_mesh;  // model frame
   int fused_frames = 0;
+  int dropped_frames = 0;  // frames fusion could not follow (lost): not fused, counted
+  FaceBox box;             // the face box of frame 0 (depth image) fusion started in
+  std::string box_source;  // "dlib" (detected on frame 0's colour image) or "fixed"
+  std::string box_note;    // why the fixed box was used, when it was
   double fusion_ms = 0;
 };
 
@@ -50,11 +55,15 @@ struct Capture {
 // for the model's generic ones. `world`: a scenario of the realistic synthetic world
 // (world_presets.hpp) for subject `world_seed`, or empty for the plain camera. `unit`: the
 // registration a decalibrated unit (the unit part) is used with (unit_calibration.hpp).
+// `face_detector`: the face box comes from dlib on frame 0's colour image, lifted through the
+// registration (face_region_box.hpp), as on the device; null or no face found: the kiosk's
+// fixed rectangle (box_note says why).
 Result<Capture> capture(const FaceModel& model, const std::vector<float>& identity,
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis = {},
                         std::string_view world = {}, std::uint64_t world_seed = 0,
-                        UnitCalibration unit = UnitCalibration::kSelfCalibrated);
+                        UnitCalibration unit = UnitCalibration::kSelfCalibrated,
+                        LandmarkDetector* face_detector = nullptr);
 
 // A fit's model frame -> the capture's true model frame: truth_pose^-1 * the fit's
 // camera_from_model (both of frame 0). Fits are scored against the truth through it.

@@ -790,6 +790,34 @@ TEST_F(DaemonTest, HeadlessRetriesPrintTheQaReasonAtOnce) {
               message.c_str());
 }
 
+// A face high and off-centre with the chest and a desk nearer than it (the fixed kiosk box cut
+// its forehead and let the chest take the volume): the take's face box comes from dlib on its
+// first frame, every frame is fused, and the QA scores say how many fusion dropped.
+TEST_F(DaemonTest, TakeFusesTheDetectedFaceWhereverItSits) {
+  DaemonConfig c = config();
+  c.camera.uri = "synthetic:seed=4,offset_x=70,offset_y=-95,torso=on,desk=on";
+  c.camera.capture_frames = 12;
+  auto d = make(c);
+  ASSERT_TRUE(d);
+  ASSERT_TRUE(d->start());
+  d->post(KioskInput::kStart, "Grace");
+  wait_for(*d, [](auto& s) { return s["state"] == "guide"; });
+  ASSERT_TRUE(d->press({ButtonId::kMain, PressKind::kShort}));
+  auto s = wait_for(*d, [](auto& s) {
+    return s["state"] == "retry" || (s["state"] == "guide" && s["capture_index"] == 1);
+  });
+  httplib::Client http("127.0.0.1", d->http_port());
+  auto caps = nlohmann::json::parse(
+      http.Get("/api/sessions/" + std::to_string(s["session"].get<int>()) + "/captures")->body);
+  const auto& qa = caps["captures"][0]["qa"];
+  std::printf("take QA: %s\n", qa.dump().c_str());
+  EXPECT_EQ(qa["face_box_detected"].get<double>(), 1.0);
+  EXPECT_EQ(qa["frames_fused"].get<double>(), 12.0);
+  EXPECT_EQ(qa["frames_fusion_dropped"].get<double>(), 0.0);
+  EXPECT_GT(qa["coverage"].get<double>(), c.session.min_coverage);  // the face fills its box
+  EXPECT_EQ(caps["captures"][0]["state"], "done") << s.dump();
+}
+
 TEST_F(DaemonTest, HttpControlsAndRejectsBadRequests) {
   auto d = make(config());
   ASSERT_TRUE(d);

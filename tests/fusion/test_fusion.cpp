@@ -242,6 +242,105 @@ TEST(Fusion, FaceLeavingTheFrameReportsLossAndRecovers) {
   EXPECT_LE(final_error_deg, 0.4);
 }
 
+// A head moving across the image (280 mm sideways while it turns): the face box follows the
+// fused pose, so every frame is fused; the box fixed where reset() put it loses the head.
+TEST(Fusion, FaceBoxFollowsAHeadMovingAcrossTheImage) {
+  const PinholeIntrinsics k = kinect_intrinsics();
+  constexpr int kFrames = 40;
+  auto pose_at = [](int f) {
+    RigidPose p = head_turn_pose(f, 2 * kFrames);
+    p.translation.x() += 7.0 * f;
+    return p;
+  };
+  for (bool follow : {true, false}) {
+    FusionOptions o;
+    o.box_follows_face = follow;
+    FaceFusion fusion;
+    ASSERT_TRUE(fusion.reset(k, head_box(), o).ok());
+    std::mt19937 rng(11);
+    Image<float> truth;
+    DepthImage depth;
+    int fused = 0;
+    double worst_mm = 0;
+    const RigidPose m0 = pose_at(0);
+    for (int f = 0; f < kFrames; ++f) {
+      const RigidPose mk = pose_at(f);
+      test::render_head(k, mk, truth);
+      test::kinect_noise(truth, rng, depth);
+      const FrameReport r = fusion.process(depth);
+      fused += r.fused;
+      if (!r.fused) continue;
+      const Eigen::Isometry3d err =
+          (m0.isometry() * mk.isometry().inverse()).inverse() * r.world_from_camera.isometry();
+      worst_mm = std::max(worst_mm, err.translation().norm());
+    }
+    // The head's centre at the last frame projects inside the box the last frame was read in.
+    const Eigen::Vector3d c = pose_at(kFrames - 1).translation;
+    const int u = static_cast<int>(k.fx * c.x() / c.z() + k.cx);
+    const FaceBox last = fusion.face_box();
+    std::printf(
+        "box follows %s: %d of %d fused, worst camera error %.2f mm, last box x %d-%d, "
+        "head at x %d\n",
+        follow ? "on" : "off", fused, kFrames, worst_mm, last.x, last.x + last.width, u);
+    if (follow) {
+      EXPECT_EQ(fused, kFrames);
+      EXPECT_LE(worst_mm, 5.0);
+      EXPECT_TRUE(last.contains(u, last.y + last.height / 2));
+      EXPECT_GT(last.x, head_box().x + 80);  // it moved with the head
+    } else {
+      EXPECT_LT(fused, kFrames - 5);
+    }
+  }
+}
+
+// A head that turns faster than fusion follows (a 60 degree jump for 10 frames): those frames
+// are dropped (lost, not fused), counted, and the volume keeps what the frames before fused.
+TEST(Fusion, TurnFusionCannotFollowDropsThoseFramesAndKeepsTheFused) {
+  const PinholeIntrinsics k = kinect_intrinsics();
+  FaceFusion fusion;
+  ASSERT_TRUE(fusion.reset(k, head_box()).ok());
+  std::mt19937 rng(5);
+  Image<float> truth, first_truth;
+  DepthImage depth;
+  int fused = 0, dropped = 0;
+  for (int f = 0; f < 35; ++f) {
+    RigidPose mk = head_turn_pose(std::min(f, 24), 90);
+    if (f >= 25)
+      mk.rotation = Eigen::AngleAxisd(60.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) * mk.rotation;
+    test::render_head(k, mk, truth);
+    if (f == 0) first_truth = truth;
+    test::kinect_noise(truth, rng, depth);
+    const FrameReport r = fusion.process(depth);
+    fused += r.fused;
+    dropped += r.state == TrackingState::kLost;
+    if (f >= 25) EXPECT_FALSE(r.fused) << "frame " << f;
+  }
+  // What the 25 followed frames fused is still there, seen from the first frame.
+  const SurfaceView view = fusion.render(RigidPose{});
+  double sum = 0;
+  int n = 0, face = 0;
+  float near = 1e9f;
+  for (float z : first_truth.pixels)
+    if (z > 0) near = std::min(near, z);
+  const FaceBox b = head_box();
+  for (int y = b.y; y < b.y + b.height; ++y)
+    for (int x = b.x; x < b.x + b.width; ++x) {
+      const float z = first_truth.at(x, y);
+      if (z <= 0 || z > near + 60) continue;
+      ++face;
+      if (view.depth_mm.at(x, y) > 0) {
+        sum += std::abs(view.depth_mm.at(x, y) - z);
+        ++n;
+      }
+    }
+  std::printf("turn beyond: %d fused, %d dropped; kept surface %.3f mm MAE, fill %.3f\n", fused,
+              dropped, sum / std::max(n, 1), static_cast<double>(n) / std::max(face, 1));
+  EXPECT_EQ(fused, 25);
+  EXPECT_EQ(dropped, 10);
+  EXPECT_LE(sum / std::max(n, 1), 0.4);
+  EXPECT_GE(static_cast<double>(n) / std::max(face, 1), 0.95);
+}
+
 // The 8-lane voxel update (AVX2 CPUs) and the 4-lane one (SSE4.1/SSE2, the device's NEON)
 // compute the same running average: fused at the true poses, their volumes agree voxel for voxel
 // but for rounding (FMA contraction differs between the two builds).

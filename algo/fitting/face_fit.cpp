@@ -226,6 +226,20 @@ Result<void> check_ready(const FaceModel& model, const FitTarget& target) {
   return success();
 }
 
+// The rigid subset without its neck (the vertices below the chin point of `v`, 285 of the
+// model's 910): the neck lies outside the face region the neutral fit shapes, so its identity
+// is not fitted to the subject, and an open jaw drags and covers it. Where the target's depth
+// reaches under the chin (a face box grown below the face) it tilted the expression's pose.
+std::vector<std::uint32_t> rigid_above_chin(const FaceModel& model, const Points& v) {
+  const double chin = v(model.landmark_vertices[8], 1);
+  const double up = v(model.landmark_vertices[19], 1) > chin ? 1.0 : -1.0;
+  std::vector<std::uint32_t> out;
+  out.reserve(model.rigid_vertices.size());
+  for (std::uint32_t i : model.rigid_vertices)
+    if (up * (v(i, 1) - chin) >= 0.0) out.push_back(i);
+  return out;
+}
+
 }  // namespace
 
 Eigen::Vector3d FitResult::camera_vertex(int i) const {
@@ -354,8 +368,10 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
     }
     if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
   }
-  // Point-to-plane ICP on the rigid vertices, with the interior landmarks (weight as Efea).
+  // Point-to-plane ICP on the rigid vertices above the chin, with the interior landmarks
+  // (weight as Efea).
   const Points n_model = vertex_normals(v, model.triangles);
+  const std::vector<std::uint32_t> rigid = rigid_above_chin(model, v);
   const double cos_min = std::cos(70.0 * M_PI / 180.0);
   // `iterations` steps with the gate shrinking from 15 to 4 mm, then steps at 4 mm until the
   // pose settles: from a landmark Procrustes start a few degrees off, 8 steps left half the
@@ -367,7 +383,7 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
     const double gate = std::max(
         4.0, 15.0 * (1.0 - std::min(it, iterations - 1) / std::max(1.0, iterations - 1.0)));
-    for (std::uint32_t i : model.rigid_vertices) {
+    for (std::uint32_t i : rigid) {
       const Eigen::Vector3d a = r * v.row(i).transpose();
       const Eigen::Vector3d x = a + t;
       Correspondence c;

@@ -166,7 +166,8 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
                              const RefineSystem* system = nullptr);
 
 // Rigid pose of a fixed-shape mesh (model frame) against the target: Procrustes on the
-// interior landmarks, then point-to-plane ICP on the model's rigid vertices.
+// interior landmarks, then point-to-plane ICP on the model's rigid vertices above the chin (the
+// neck is neither fitted by the neutral nor still when the jaw opens).
 Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
                               std::span<const float> mesh, int iterations,
                               const std::optional<RigidPose>& initial = std::nullopt);

@@ -12,33 +12,14 @@
 #include "algo/tracking/face_tracker.hpp"
 #include "algo/tracking/occlusion_report.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "tests/common/synthetic_take.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {
 namespace {
 
-struct Take {
-  std::vector<DepthImage> depth;
-  std::vector<FrameTruth> truth;
-  PinholeIntrinsics intrinsics;
-};
-
-Take render(const SyntheticOptions& options) {
-  Take out;
-  auto camera = make_synthetic_camera(test::face_model(), options);
-  EXPECT_TRUE(camera.ok()) << (camera.ok() ? "" : camera.error().message);
-  if (!camera) return out;
-  EXPECT_TRUE((*camera)->start().ok());
-  out.intrinsics = (*camera)->info().depth_intrinsics;
-  RgbdFrame frame;
-  while (true) {
-    auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
-    if (!status || *status != FrameStatus::kFrame) break;
-    out.depth.push_back(frame.depth_mm);
-    out.truth.push_back(*(*camera)->truth());
-  }
-  return out;
-}
+using Take = test::RenderedTake;
+using test::render;
 
 struct OcclusionRun {
   int covered = 0, covered_reported = 0;  // frames hidden >= 30 %

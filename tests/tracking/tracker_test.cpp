@@ -17,6 +17,7 @@
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/allocation_counter.hpp"
+#include "tests/common/synthetic_take.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {
@@ -24,28 +25,8 @@ namespace {
 
 constexpr double kDeg = 180.0 / std::numbers::pi;
 
-struct Frames {
-  std::vector<DepthImage> depth;
-  std::vector<FrameTruth> truth;
-  PinholeIntrinsics intrinsics;
-};
-
-Frames render(const SyntheticOptions& options) {
-  Frames out;
-  auto camera = make_synthetic_camera(test::face_model(), options);
-  EXPECT_TRUE(camera.ok()) << (camera.ok() ? "" : camera.error().message);
-  if (!camera) return out;
-  EXPECT_TRUE((*camera)->start().ok());
-  out.intrinsics = (*camera)->info().depth_intrinsics;
-  RgbdFrame frame;
-  while (true) {
-    auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
-    if (!status || *status != FrameStatus::kFrame) break;
-    out.depth.push_back(frame.depth_mm);
-    out.truth.push_back(*(*camera)->truth());
-  }
-  return out;
-}
+using Frames = test::RenderedTake;
+using test::render;
 
 bool create_bad_model_ok() {
   FaceModel empty;

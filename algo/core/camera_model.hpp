@@ -23,7 +23,8 @@ struct PinholeIntrinsics {
   }
 };
 
-// Maps points from a source frame into a target frame: p_target = rotation * p_source + translation.
+// Maps points from a source frame into a target frame: p_target = rotation * p_source +
+// translation.
 struct RigidPose {
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();  // millimetres
@@ -42,5 +43,14 @@ struct RigidPose {
     return inv;
   }
 };
+
+// The pose of frame b in frame a, from both in a common world: a_from_b = w_from_a^-1 w_from_b.
+inline RigidPose relative_pose(const RigidPose& world_from_a, const RigidPose& world_from_b) {
+  const RigidPose a_from_world = world_from_a.inverse();
+  RigidPose p;
+  p.rotation = a_from_world.rotation * world_from_b.rotation;
+  p.translation = a_from_world.apply(world_from_b.translation);
+  return p;
+}
 
 }  // namespace fb

@@ -43,8 +43,9 @@ Points posed(const Points& v, const Eigen::Matrix3d& r, const Eigen::Vector3d& t
 // Projective correspondence: the depth sample under the vertex's projection, its normal, and
 // gates on distance and on the angle between the vertex normal and the depth normal.
 struct Correspondence {
-  Eigen::Vector3d q;  // depth point
-  Eigen::Vector3d n;  // unit, towards the camera
+  Eigen::Vector3d q;        // depth point
+  Eigen::Vector3d n;        // unit, towards the camera
+  double confidence = 1.0;  // the target's, at the sample
 };
 
 bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vector3d& vn,
@@ -59,6 +60,7 @@ bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vecto
   if (nf.squaredNorm() < 0.5f) return false;
   c.n = nf.cast<double>();
   c.q = t.intrinsics.unproject(px, py, d);
+  c.confidence = t.confidence.empty() ? 1.0 : static_cast<double>(t.confidence.at(px, py));
   if (vn.squaredNorm() > 0.5 && vn.dot(c.n) < cos_min) return false;
   const double plane = c.n.dot(x - c.q);
   return std::abs(plane) <= gate_mm && (x - c.q).norm() <= 2.0 * gate_mm + 3.0;
@@ -321,6 +323,8 @@ Result<void> prepare_fit_target(FitTarget& target) {
       if (nn.z() > 0) nn = -nn;  // towards the camera
       n = nn.cast<float>();
     }
+  if (!target.confidence.empty() && (target.confidence.width != w || target.confidence.height != h))
+    return fail("fit: the depth confidence map is not the depth map's size");
   int valid = 0;
   for (const auto& lm : target.landmarks) valid += lm.valid;
   if (valid == 0) return fail("fit: no face landmarks (no face found in the image)");
@@ -485,8 +489,15 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
         has_target[static_cast<std::size_t>(f)] =
             vis0[static_cast<std::size_t>(v)] &&
             correspond(target, p, vn.row(v).transpose(), o.max_distance_mm, cos_min, c);
-        if (has_target[static_cast<std::size_t>(f)])
-          depth_target[static_cast<std::size_t>(f)] = p - c.n * c.n.dot(p - c.q);
+        if (has_target[static_cast<std::size_t>(f)]) {
+          // Weighted by confidence and a Cauchy weight on the residual, with the fixed matrix:
+          // the pull towards the sample is scaled, the rest stays where the vertex is, which
+          // has the weighted term's fixed point (see refine_system.hpp).
+          const double plane = c.n.dot(p - c.q);
+          const double rs = o.robust_scale_mm > 0 ? plane / o.robust_scale_mm : 0.0;
+          const double w = c.confidence / (1.0 + rs * rs);
+          depth_target[static_cast<std::size_t>(f)] = p - w * c.n * plane;
+        }
       }
       rhs.row(f) +=
           o.w_pos *

@@ -47,6 +47,11 @@ struct FitTarget {
   PinholeIntrinsics intrinsics;
   Image<float> depth_mm;           // z in mm, 0 = no data
   Image<Eigen::Vector3f> normals;  // optional; computed from depth when empty
+  // Optional, [0, 1] per depth pixel: how far the take's frames agreed there
+  // (algo/fusion/view_consistency.hpp). The refinement's depth term is weighted by it, so hair,
+  // beard and the rims of the eyes and mouth are held by the Laplacian rather than chased; the
+  // PCA step (step 1) does not use it (docs/tuning.md: it cost vertex error). Empty = all 1.
+  Image<float> confidence;
   std::array<FitLandmark, kFitLandmarkCount> landmarks;
 };
 
@@ -80,6 +85,9 @@ struct RefineOptions {
   int reassociate_every = 1;         // closest points are re-found every k steps
   double max_distance_mm = 6.0;      // depth correspondence gate
   double max_normal_angle_deg = 70;  // between the vertex normal and the depth normal
+  // Cauchy weight on the point-to-plane residual: a sample this far off pulls half as hard, so
+  // outliers (a fold into a hole, a hair strand) do not drag the surface.
+  double robust_scale_mm = 3.0;
 };
 
 struct NeutralFitOptions {

@@ -834,6 +834,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
       }
       if (box_detected || recorded + 1 >= kDetectFrames) {
         if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
+        if (auto ok = consistency.reset(info.depth_intrinsics); !ok) return ok.failure();
         fusion_ready = true;
       }
     }
@@ -847,6 +848,8 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
       }
       ++fused;
       rms_sum += report.rms_mm;
+      consistency.add(frame.depth_mm, fusion.model_view().levels[0].depth,
+                      relative_pose(frontal_pose, report.world_from_camera), fusion.face_box());
     }
     if (recorded % config.camera.stored_frame_stride == 0) {
       if (auto ok = commit.frames->append(frame); !ok) return ok.failure();
@@ -897,6 +900,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   qa.passed = qa.reason.empty();
   pending_view.depth_mm = std::move(view.depth_mm);
   pending_view.normals = std::move(view.normals);
+  consistency.confidence(pending_view.confidence);
   commit.qa_scores = {{"coverage", qa.coverage},
                       {"residual_mm", qa.residual_mm},
                       {"fused_fraction", qa.fused_fraction},

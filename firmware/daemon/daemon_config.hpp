@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "algo/core/result.hpp"
+#include "algo/fitting/fit_qa.hpp"
 #include "drivers/gpio/gpio.hpp"
 
 namespace fb {
@@ -63,10 +64,11 @@ struct SessionConfig {
   // first capture, expression fits from it for the others), folded into the quality check.
   bool quick_fit = true;
   std::filesystem::path shape_predictor = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
-  std::filesystem::path face_model;    // default: facemodel.fbfm in the data directory
-  double max_fit_rms_mm = 1.5;         // RMS distance of the fitted mesh to the fused depth
-  double max_landmark_error_mm = 6.0;  // mean landmark residual of the fit
-  double min_landmark_score = -0.5;    // dlib's face detection margin
+  std::filesystem::path face_model;  // default: facemodel.fbfm in the data directory
+  // The fit's QA limits (algo/fitting/fit_qa.hpp holds the defaults the host evaluates with).
+  double max_fit_rms_mm = FitQaLimits{}.max_fit_rms_mm;
+  double max_landmark_error_mm = FitQaLimits{}.max_landmark_error_mm;
+  double min_landmark_score = -0.5;  // dlib's face detection margin
 };
 
 struct StreamingConfig {

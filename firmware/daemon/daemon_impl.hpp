@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "algo/fusion/face_fusion.hpp"
+#include "algo/fusion/view_consistency.hpp"
 #include "algo/landmarks/face_region_box.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
@@ -150,6 +151,7 @@ struct Daemon::Impl {
   std::unique_ptr<DepthCamera> preview_camera;  // worker only
   long long frames_since_loop = 0;              // preview_camera's frames since it (re)started
   FaceFusion fusion;                            // worker only
+  ViewConsistency consistency;                  // worker only: the take's depth confidence
   // A take's face box: dlib (the fitter's shape predictor, shared) on the take's first frames,
   // grown by the face model's proportions. Worker only; made at the first take.
   std::optional<LandmarkDetector> take_detector;

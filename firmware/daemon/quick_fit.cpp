@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include "algo/fitting/expression_transfer.hpp"
+#include "algo/fitting/fit_qa.hpp"
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
@@ -58,6 +59,7 @@ Result<FitTarget> make_target(const CaptureView& view,
   target.intrinsics = view.intrinsics;
   target.depth_mm = view.depth_mm;
   target.normals = view.normals;
+  target.confidence = view.confidence;
   target.landmarks = *lifted;
   out.landmarks_valid = 0;
   out.landmarks_3d = 0;
@@ -67,19 +69,6 @@ Result<FitTarget> make_target(const CaptureView& view,
   }
   if (auto ok = prepare_fit_target(target); !ok) return ok.failure();
   return target;
-}
-
-double mean_landmark_error(const FitResult& fit, const FitTarget& target) {
-  double sum = 0;
-  int n = 0;
-  for (int i = 0; i < kFitLandmarkCount; ++i) {
-    const double r = fit.landmark_residual_mm[static_cast<std::size_t>(i)];
-    if (target.landmarks[static_cast<std::size_t>(i)].valid && std::isfinite(r)) {
-      sum += r;
-      ++n;
-    }
-  }
-  return n > 0 ? sum / n : 0.0;
 }
 
 }  // namespace
@@ -211,7 +200,7 @@ Result<QuickFitResult> QuickFitter::fit_with_points(
     if (!fit) return fit.failure();
     r.fit = std::move(*fit);
   }
-  r.landmark_error_mm = mean_landmark_error(r.fit, r.target);
+  r.landmark_error_mm = mean_landmark_residual_mm(r.fit, r.target);
   return r;
 }
 
@@ -250,7 +239,7 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
     if (!fit) return fit.failure();
     next.fit = std::move(*fit);
   }
-  next.landmark_error_mm = mean_landmark_error(next.fit, next.target);
+  next.landmark_error_mm = mean_landmark_residual_mm(next.fit, next.target);
   result = std::move(next);
   return success();
 }

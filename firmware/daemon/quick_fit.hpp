@@ -42,6 +42,7 @@ struct CaptureView {
   ColorImage color;
   Image<float> depth_mm;           // 0 = no surface
   Image<Eigen::Vector3f> normals;  // may be empty (computed from depth)
+  Image<float> confidence;         // may be empty (all depth trusted); FitTarget::confidence
   PinholeIntrinsics intrinsics;    // depth camera
   KinectCalibration calibration;   // depth <-> colour registration
 };

@@ -24,6 +24,7 @@
 #include "algo/core/figure_text.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
+#include "algo/fitting/fit_qa.hpp"
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/landmarks/landmark_detector.hpp"
@@ -32,6 +33,7 @@
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "drivers/camera/synthetic/world_presets.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/fit_metrics.hpp"
 #include "host/cli/stats.hpp"
 #include "host/cli/synthetic_capture.hpp"
 #include "host/cli/unit_calibration.hpp"
@@ -205,6 +207,9 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
   nlohmann::json per_expression = nlohmann::json::object();
   std::map<int, Samples> expr_err;
   const double scale = 3.0;
+  const std::vector<std::uint32_t> eye_mouth = eye_mouth_vertices(*model);
+  std::vector<double> eye_mouth_err;
+  int qa_passed = 0;
   int frames_fused = 0, frames_dropped = 0, boxes_detected = 0;
   for (long long s = 0; s < *identities; ++s) {
     const std::uint64_t seed = static_cast<std::uint64_t>(*first_seed + s);
@@ -304,6 +309,9 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
           break;
         }
         neutral = std::move(*fit);
+        qa_passed += fit_passes_qa(neutral, *target);
+        append_vertex_distances(neutral.vertices, neutral.camera_from_model, cap->truth_mesh,
+                                cap->truth_pose, eye_mouth, eye_mouth_err);
         const double vi =
             mean_vertex_distance(neutral.initial_vertices, neutral.camera_from_model,
                                  cap->truth_mesh, cap->truth_pose, model->fitting_vertices);
@@ -373,6 +381,17 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         }
         if (s == 0) {
           const std::filesystem::path png = options.get("png");
+          if (!png.empty() && !cap->confidence.empty()) {
+            // The depth confidence the fit weighted its depth term with (white = 1).
+            cv::Mat conf(cap->confidence.height, cap->confidence.width, CV_8UC1);
+            for (int y = 0; y < conf.rows; ++y)
+              for (int x = 0; x < conf.cols; ++x)
+                conf.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(
+                    std::lround(255.0f * std::clamp(cap->confidence.at(x, y), 0.0f, 1.0f)));
+            std::filesystem::path cpng = png;
+            cpng.replace_extension(".confidence.png");
+            if (auto ok = write_png(cpng, conf); !ok) return ok.failure();
+          }
           if (!png.empty()) {
             cv::Mat a =
                 error_panel(*model, neutral.initial_vertices, neutral.camera_from_model, *cap,
@@ -395,6 +414,9 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
           if (!stop) return stop.failure();
           continue;
         }
+        qa_passed += fit_passes_qa(*fit, *target);
+        append_vertex_distances(fit->vertices, fit->camera_from_model, cap->truth_mesh,
+                                cap->truth_pose, eye_mouth, eye_mouth_err);
         const double vi =
             mean_vertex_distance(fit->initial_vertices, fit->camera_from_model, cap->truth_mesh,
                                  cap->truth_pose, model->fitting_vertices);
@@ -482,6 +504,24 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
     out["expression_fit_ms_mean"] = expr_ms.mean();
   }
   out["neutral_fit_ms_mean"] = neutral_ms.mean();
+  // Over every fitted capture, neutral and expressions: the tail shows a mesh pulled into
+  // holes or depth jumps at the eyes and mouth, which the mean hides.
+  out["eye_mouth_vertex_error_mm_p99"] = eye_mouth_err.empty()
+                                             ? nlohmann::json(nullptr)
+                                             : nlohmann::json(percentile(eye_mouth_err, 0.99));
+  out["eye_mouth_vertex_error_mm_mean"] =
+      eye_mouth_err.empty()
+          ? nlohmann::json(nullptr)
+          : nlohmann::json(std::accumulate(eye_mouth_err.begin(), eye_mouth_err.end(), 0.0) /
+                           static_cast<double>(eye_mouth_err.size()));
+  out["eye_mouth_region"] = "fitting vertices within 10 mm of an eye or mouth landmark vertex (" +
+                            std::to_string(eye_mouth.size()) + " vertices)";
+  // The device's QA rule (algo/fitting/fit_qa.hpp defaults); a capture that failed before its
+  // fit fails QA too.
+  out["qa_passed"] = std::to_string(qa_passed) + "/" + std::to_string(captures);
+  out["qa_passed_fraction"] = captures > 0
+                                  ? nlohmann::json(static_cast<double>(qa_passed) / captures)
+                                  : nlohmann::json(nullptr);
   if (detector) {
     out["landmark_error_px"] = lm_err.mean();
     out["landmark_error_px_interior"] = lm_err_interior.mean();

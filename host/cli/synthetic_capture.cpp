@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "algo/fusion/view_consistency.hpp"
 #include "algo/landmarks/face_region_box.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
@@ -55,6 +56,8 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   c.intrinsics = (*camera)->info().depth_intrinsics;
   c.calibration = *calibration;
   FaceFusion fusion;
+  ViewConsistency consistency;
+  if (auto ok = consistency.reset(c.intrinsics); !ok) return ok.failure();
   RgbdFrame frame;
   RigidPose first;
   bool started = false;
@@ -107,12 +110,16 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
       first = r.world_from_camera;
       started = true;
     }
+    if (r.fused)
+      consistency.add(frame.depth_mm, fusion.model_view().levels[0].depth,
+                      relative_pose(first, r.world_from_camera), fusion.face_box());
     if (keep_colors) c.colors.push_back(frame.color);
   }
   if (!started) return fail("no frames");
   c.fusion_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   c.fused = fusion.render(first);
+  consistency.confidence(c.confidence);
   return c;
 }
 
@@ -133,7 +140,10 @@ Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vecto
   FitTarget t;
   t.intrinsics = c.intrinsics;
   t.depth_mm = depth;
-  if (!noiseless_depth) t.normals = c.fused.normals;
+  if (!noiseless_depth) {
+    t.normals = c.fused.normals;
+    t.confidence = c.confidence;
+  }
   t.landmarks = *lifted;
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;

@@ -36,6 +36,7 @@ struct Capture {
   PinholeIntrinsics intrinsics;
   KinectCalibration calibration;
   SurfaceView fused;
+  Image<float> confidence;  // of the fused depth: the take's frames' agreement (view_consistency)
   ColorImage color;                // frame 0
   std::vector<ColorImage> colors;  // every frame (for landmark timing), when kept
   std::vector<Eigen::Vector2d> truth_color_px;

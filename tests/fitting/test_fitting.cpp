@@ -7,6 +7,7 @@
 
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
+#include "algo/fitting/mesh_ops.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/test_face_model.hpp"
@@ -347,6 +348,69 @@ TEST(Fitting, GivenNormalsAreClearedOnRimsOfHolesAndSilhouettes) {
     }
   EXPECT_GT(kept, 20000);
   EXPECT_EQ(silhouette_kept, 0);
+}
+
+}  // namespace
+}  // namespace fb
+
+namespace fb {
+namespace {
+
+// Hair over the forehead on a Kinect: the depth there sits several mm in front of the skin and
+// scatters. With the take's confidence map (low there) the refinement holds the forehead where
+// its start put it; without it, it chases the hair.
+TEST(Fitting, UnreliableDepthIsHeldByTheModel) {
+  const auto truth = face(random_identity(4));
+  const RigidPose pose = truth_pose(truth, 4.0);
+  FitTarget target = render_target(truth, pose, 0.5);
+  double brow_y = 1e9;
+  for (int l = 17; l <= 26; ++l) brow_y = std::min(brow_y, target.landmarks[l].pixel.y());
+  const int hair_below = static_cast<int>(brow_y) - 12;  // rows above this are "hair"
+  std::mt19937 rng(11);
+  std::normal_distribution<float> scatter(0.0f, 2.0f);
+  target.confidence.resize(640, 480);
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x) {
+      float& z = target.depth_mm.at(x, y);
+      const bool hair = y < hair_below && z > 0;
+      if (hair) z -= 6.0f + scatter(rng);
+      target.confidence.at(x, y) = hair ? 0.05f : 1.0f;
+    }
+  target.normals = {};
+  ASSERT_TRUE(prepare_fit_target(target).ok());
+  FitTarget blind = target;
+  blind.confidence = {};
+  // The forehead vertices under the hair.
+  std::vector<std::uint32_t> forehead;
+  for (std::uint32_t v : test::face_model().fitting_vertices) {
+    const Eigen::Vector3d p = pose.apply({truth[3 * v], truth[3 * v + 1], truth[3 * v + 2]});
+    if (target.intrinsics.project(p).y() < hair_below - 3) forehead.push_back(v);
+  }
+  ASSERT_GT(forehead.size(), 200u);
+  // The refinement from a start 1 mm off the true face along its normals.
+  std::vector<float> start = truth;
+  {
+    const auto normals = fitting_detail::vertex_normals(fitting_detail::to_points(truth),
+                                                        test::face_model().triangles);
+    for (Eigen::Index v = 0; v < normals.rows(); ++v)
+      for (int a = 0; a < 3; ++a) start[3 * v + a] += static_cast<float>(normals(v, a));
+  }
+  auto with = refine_fit(test::face_model(), target, start, pose);
+  auto without = refine_fit(test::face_model(), blind, start, pose);
+  ASSERT_TRUE(with.ok()) << with.error().message;
+  ASSERT_TRUE(without.ok()) << without.error().message;
+  const double e_with =
+      mean_vertex_distance(with->vertices, with->camera_from_model, truth, pose, forehead);
+  const double e_without =
+      mean_vertex_distance(without->vertices, without->camera_from_model, truth, pose, forehead);
+  const double all_with = mean_vertex_distance(with->vertices, with->camera_from_model, truth, pose,
+                                               test::face_model().fitting_vertices);
+  std::printf(
+      "forehead under hair: %.2f mm with the confidence map, %.2f mm without; face %.2f mm\n",
+      e_with, e_without, all_with);
+  EXPECT_LT(e_with, 0.5 * e_without);
+  EXPECT_LT(e_with, 1.5);
+  EXPECT_LT(all_with, 1.0);
 }
 
 }  // namespace

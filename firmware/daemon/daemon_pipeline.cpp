@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
 #include "algo/tracking/rig_view.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
@@ -20,12 +21,6 @@
 
 namespace fb {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 std::string fixed(double v, int digits = 2) {
   return figure_text(v, digits);
@@ -607,8 +602,7 @@ void Daemon::Impl::tracking_tick() {
         update_status([&](StatusData& s) { s.tracking_note = sent.error().message; });
     }
     const auto slot = static_cast<std::size_t>(latency_count++ % kLatencyWindow);
-    latency_ring[slot] = static_cast<float>(
-        std::chrono::duration<double, std::milli>(Clock::now() - arrival).count());
+    latency_ring[slot] = static_cast<float>(ms_since(arrival));
     track_ms_ring[slot] = static_cast<float>(track_report.times.total_ms());
     if (take_frames < config.streaming.max_take_frames) {
       const auto& p = track_frame.camera_from_model;

@@ -20,6 +20,7 @@
 
 #include "algo/bilinear/bootstrap.hpp"
 #include "algo/bilinear/image_fit.hpp"
+#include "algo/core/clock.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/rigging/example_rigging.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
@@ -35,11 +36,6 @@
 
 namespace fb::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // Mean distance over `subset` between mesh a (mapped by `a_to_b`) and mesh b.
 double mean_distance(std::span<const float> a, std::span<const float> b,

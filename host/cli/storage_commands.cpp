@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "algo/core/clock.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/scratch_directory.hpp"
@@ -27,7 +28,6 @@ namespace fb::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 std::string default_store() {
   const char* env = std::getenv("FACEBOOTH_STORE");
@@ -42,10 +42,6 @@ OptionSpec store_option() {
 int usage_error(const std::string& message) {
   std::cerr << "facebooth: " << message << "\n";
   return kExitUsage;
-}
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 Result<std::uintmax_t> folder_bytes(const fs::path& dir) {

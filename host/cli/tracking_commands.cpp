@@ -365,7 +365,7 @@ int run_track(const ParsedOptions& options) {
         std::cerr << "facebooth: " << sent.error().message << "\n";
       }
     }
-    latency.push_back(ms_between(arrival, Clock::now()));
+    latency.push_back(ms_since(arrival));
     cost.push_back(report.times.total_ms());
     if (csv) {
       if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());

@@ -4,7 +4,6 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "firmware/daemon/record_files.hpp"
 #include "firmware/daemon/session_records.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/export_session.hpp"
@@ -236,8 +235,7 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
       auto data = store_.read_capture(id, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->fused_depth.empty()) {
-        if (auto ok =
-                write(dir + std::string("fused_depth.pgm"), records::pgm16(data->fused_depth));
+        if (auto ok = write(dir + std::string("fused_depth.pgm"), encode_pgm16(data->fused_depth));
             !ok)
           return ok.failure();
         j["fused_depth"] = dir + std::string("fused_depth.pgm");

@@ -13,6 +13,7 @@
 #include <system_error>
 
 #include "storage/durable_file.hpp"
+#include "storage/frame_record.hpp"
 #include "storage/sha256.hpp"
 #include "storage/sqlite_util.hpp"
 
@@ -219,23 +220,6 @@ constexpr char kDepthMagic[9] = "FBDEP001";
 constexpr char kMeshMagic[9] = "FBMSH001";
 constexpr char kRigMagic[9] = "FBRIG001";
 constexpr char kTakeMagic[9] = "FBTAK001";
-
-// One frame record of a .fbseq file: a fixed header followed by depth_mm, raw_disparity, color.
-struct FrameRecordHeader {
-  std::uint64_t index;
-  double depth_host_time_s;
-  double color_host_time_s;
-  std::uint32_t depth_device_timestamp;
-  std::uint32_t color_device_timestamp;
-  std::int32_t depth_w, depth_h, raw_w, raw_h, color_w, color_h;
-};
-static_assert(sizeof(FrameRecordHeader) == 56);
-
-template <class Pixel>
-std::span<const std::uint8_t> pixel_bytes(const Image<Pixel>& image) {
-  return {reinterpret_cast<const std::uint8_t*>(image.pixels.data()),
-          image.pixels.size() * sizeof(Pixel)};
-}
 
 template <class Pixel>
 bool read_image(ByteReader& reader, int w, int h, Image<Pixel>& out) {
@@ -934,7 +918,7 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
   // 1. The frame sequence, streamed frame by frame (a capture is tens of megabytes).
   std::vector<Impl::StoredFile> written;
   std::vector<std::uint64_t> offsets;
-  std::vector<FrameRecordHeader> headers;  // for the frames table rows
+  std::vector<frame_record::Header> headers;  // for the frames table rows
   {
     const std::string rel = *folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
     auto file = DurableFile::create(impl_->root / rel, impl_->file_hooks());
@@ -951,22 +935,9 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
       }
       const RgbdFrame& f = from_source ? scratch : input.frames[i];
       offsets.push_back(file->size());
-      const FrameRecordHeader h{f.index,
-                                f.depth_host_time_s,
-                                f.color_host_time_s,
-                                f.depth_device_timestamp,
-                                f.color_device_timestamp,
-                                f.depth_mm.width,
-                                f.depth_mm.height,
-                                f.raw_disparity.width,
-                                f.raw_disparity.height,
-                                f.color.width,
-                                f.color.height};
-      headers.push_back(h);
-      if (auto r = file->append(&h, sizeof h); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.depth_mm)); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.raw_disparity)); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.color)); !r) return r;
+      headers.push_back(frame_record::header_of(f, /*with_raw_disparity=*/true));
+      auto sink = [&](const void* data, std::size_t size) { return file->append(data, size); };
+      if (auto r = frame_record::write(f, /*with_raw_disparity=*/true, sink); !r) return r;
     }
     if (auto r = file->commit(); !r) return r;
     written.push_back({rel, file->size(), file->sha256()});
@@ -1005,7 +976,7 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
                      "depth_device_ts, color_device_ts, file_id, offset) VALUES(?,?,?,?,?,?,?,?)");
     if (!frame) return frame.failure();
     for (std::size_t i = 0; i < frame_count; ++i) {
-      const FrameRecordHeader& h = headers[i];
+      const frame_record::Header& h = headers[i];
       frame->reset();
       frame->bind_all(c->id, static_cast<std::int64_t>(i), h.depth_host_time_s, h.color_host_time_s,
                       static_cast<std::int64_t>(h.depth_device_timestamp),
@@ -1084,30 +1055,15 @@ Result<CaptureData> SessionStore::read_capture(SessionId session, int index,
     if (static_cast<int>(count) != c->frame_count) return fail(bad + " (frame count differs)");
     const std::size_t keep = std::min<std::size_t>(count, options.max_frames);
     out.frames.resize(keep);
-    auto image = [&](int w, int h, auto& img, bool decode_it) {
-      using Pixel = typename std::decay_t<decltype(img.pixels)>::value_type;
-      if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
-      const std::size_t n = static_cast<std::size_t>(w) * h * sizeof(Pixel);
-      if (in.position() > file->bytes || n > file->bytes - in.position()) return false;
-      if (!decode_it) return in.skip(n);
-      img.resize(w, h);
-      return in.read(img.pixels.data(), n);
-    };
-    RgbdFrame skipped;
+    auto source = [&](void* data, std::size_t size) { return in.read(data, size); };
     for (std::uint32_t i = 0; i < count; ++i) {
-      FrameRecordHeader h{};
-      if (!in.read(&h, sizeof h)) return fail(bad);
-      const bool kept = i < keep;
-      RgbdFrame& f = kept ? out.frames[i] : skipped;
-      f.index = h.index;
-      f.depth_host_time_s = h.depth_host_time_s;
-      f.color_host_time_s = h.color_host_time_s;
-      f.depth_device_timestamp = h.depth_device_timestamp;
-      f.color_device_timestamp = h.color_device_timestamp;
-      if (!image(h.depth_w, h.depth_h, f.depth_mm, kept) ||
-          !image(h.raw_w, h.raw_h, f.raw_disparity, kept) ||
-          !image(h.color_w, h.color_h, f.color, kept))
-        return fail(bad);
+      frame_record::Header h{};
+      if (!in.read(&h, sizeof h) || !frame_record::plausible(h)) return fail(bad);
+      const std::uint64_t n = frame_record::pixel_bytes(h);
+      if (in.position() > file->bytes || n > file->bytes - in.position()) return fail(bad);
+      const bool decoded = i < keep ? frame_record::read_pixels(h, out.frames[i], source)
+                                    : in.skip(static_cast<std::size_t>(n));
+      if (!decoded) return fail(bad);
     }
     if (in.position() != file->bytes) return fail(bad + " (trailing bytes)");
     return success();

@@ -1289,6 +1289,24 @@ Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
   return out;
 }
 
+Result<std::optional<RigInfo>> SessionStore::newest_rig(SubjectId subject) const {
+  auto all = rigs(subject);
+  if (!all) return all.failure();
+  if (all->empty()) return std::optional<RigInfo>{};
+  return std::optional<RigInfo>(std::move(all->front()));  // listed newest first
+}
+
+Result<std::optional<RigInfo>> SessionStore::rig_for(SessionId session) const {
+  auto info = this->session(session);
+  if (!info) return info.failure();
+  auto all = rigs(info->subject);
+  if (!all) return all.failure();
+  for (auto& r : *all)  // newest first
+    if (r.session == session) return std::optional<RigInfo>(std::move(r));
+  if (all->empty()) return std::optional<RigInfo>{};
+  return std::optional<RigInfo>(std::move(all->front()));
+}
+
 Result<RigData> SessionStore::read_rig(RigId id) const {
   auto stmt =
       sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");

@@ -232,6 +232,14 @@ class SessionStore {
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first
   Result<RigData> read_rig(RigId id) const;
+  // Which rig serves a session, the one rule for exports, model building, tracking and the
+  // device: the newest rig built from this session, else the subject's newest rig (built from
+  // another of their sessions, imported, or saved by `track --save-rig`). RigInfo::session says
+  // which session built it. nullopt: the subject has no rig.
+  Result<std::optional<RigInfo>> rig_for(SessionId session) const;
+  // The rig serving a subject when no session is named: their newest (rig_for's fallback).
+  Result<std::optional<RigInfo>> newest_rig(SubjectId subject) const;
+
 
   Result<ModelId> add_model(const std::string& kind, const std::string& params_json,
                             std::span<const std::uint8_t> bytes);

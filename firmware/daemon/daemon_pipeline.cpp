@@ -442,7 +442,7 @@ Result<void> Daemon::Impl::start_tracking() {
       if (auto all = records->sessions(); all && !all->empty()) take_session = all->back().id;
     }
     if (take_session != 0) {
-      auto found = records->subject_rig(take_session);
+      auto found = records->rig_for(take_session);
       if (found) {
         rig = std::move(*found);
       } else {

@@ -117,8 +117,8 @@ class SessionRecords {
   virtual Result<OffloadInfo> offload_info(std::int64_t session) = 0;
   // Stores a rig uploaded by the host for the session's subject; returns its id.
   virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig) = 0;
-  // The newest rig of the session's subject, from any of their sessions (nullopt: none).
-  virtual Result<std::optional<StoredRig>> subject_rig(std::int64_t session) = 0;
+  // The rig serving the session (SessionStore::rig_for; nullopt: the subject has none).
+  virtual Result<std::optional<StoredRig>> rig_for(std::int64_t session) = 0;
 };
 
 // The SQLite session store under `data_dir` (storage/session_store).

@@ -144,15 +144,13 @@ class StoreRecords : public SessionRecords {
     if (!s) return s.failure();
     return store_.add_rig(s->subject, session, rig);
   }
-  Result<std::optional<StoredRig>> subject_rig(std::int64_t session) override {
-    auto s = store_.session(session);
-    if (!s) return s.failure();
-    auto rigs = store_.rigs(s->subject);
-    if (!rigs) return rigs.failure();
-    if (rigs->empty()) return std::optional<StoredRig>{};
+  Result<std::optional<StoredRig>> rig_for(std::int64_t session) override {
+    auto serving = store_.rig_for(session);
+    if (!serving) return serving.failure();
+    if (!*serving) return std::optional<StoredRig>{};
     StoredRig out;
-    out.id = rigs->front().id;  // newest first
-    out.subject = s->subject;
+    out.id = (*serving)->id;
+    out.subject = (*serving)->subject;
     auto data = store_.read_rig(out.id);
     if (!data) return data.failure();
     out.data = std::move(*data);
@@ -305,9 +303,10 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
                       {"units", "mm; meshes in the face model frame"}};
   if (auto ok = folder->finish(manifest); !ok) return ok.failure();
 
-  // With a rig from the host: the FaceWarehouse layout next to the bundle.
-  auto rigs = store_.rigs(s->subject);
-  if (rigs && std::any_of(rigs->begin(), rigs->end(), [&](auto& r) { return r.session == id; })) {
+  // With a rig from the host built from this session: the FaceWarehouse layout next to the
+  // bundle.
+  auto serving = store_.rig_for(id);
+  if (serving && *serving && (*serving)->session == id) {
     if (auto ok = stop_requested(); !ok) return ok.failure();
     auto content = load_session_content(store_, id);
     if (!content) return content.failure();

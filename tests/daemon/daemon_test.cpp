@@ -628,6 +628,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   c.session.resume = false;  // the session below is not finished: start idle, not in its guide
   RigId rig_id = 0;
   SubjectId subject = 0;
+  SessionId session_id = 0;
   {
     auto store = SessionStore::open(c.storage.data_dir / "store");
     ASSERT_TRUE(store) << store.error().message;
@@ -636,6 +637,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
     subject = *added;
     auto session = store->create_session(subject, {"neutral"});
     ASSERT_TRUE(session);
+    session_id = *session;
     RigData rig;
     rig.neutral = model->neutral;
     rig.triangles = model->triangles;
@@ -671,8 +673,8 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   ASSERT_GT(n, 10);
   EXPECT_NEAR(sum / n, 0.3, 0.08) << "mean jawOpen over " << n << " frames";
 
-  // A newer rig with no shape the tracker knows is not used: tracking falls back to
-  // calibrating (this store has no neutral fit) and the status says so.
+  // A newer rig of the session with no shape the tracker knows is not used: tracking falls back
+  // to calibrating (this store has no neutral fit) and the status says so.
   d.reset();
   {
     auto store = SessionStore::open(c.storage.data_dir / "store");
@@ -682,7 +684,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
     unknown.triangles = model->triangles;
     unknown.shapes = {model->neutral};
     unknown.shape_names = {"notAShape"};
-    ASSERT_TRUE(store->add_rig(subject, std::nullopt, unknown));
+    ASSERT_TRUE(store->add_rig(subject, session_id, unknown));
   }
   d = make(c);
   ASSERT_TRUE(d);

@@ -291,6 +291,36 @@ TEST(SessionStore, MigratesAnOlderSchemaKeepingData) {
   EXPECT_TRUE(store->add_take(take, std::vector<float>(7, 0.0f)));
 }
 
+// Which rig serves a session: the newest built from it, else the subject's newest (from another
+// session or none); a subject without rigs has none.
+TEST(SessionStore, RigForPrefersTheSessionsOwnRig) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  const SubjectId subject = *store->add_subject("r");
+  const SessionId first = *store->create_session(subject, guide(1));
+  const SessionId second = *store->create_session(subject, guide(1));
+  const SessionId third = *store->create_session(subject, guide(1));
+  const SessionId other = *store->create_session(*store->add_subject("no rig"), guide(1));
+  RigData rig;
+  rig.neutral = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  rig.triangles = {0, 1, 2};
+  EXPECT_FALSE(*store->rig_for(first));  // no rig yet
+  const RigId from_first = *store->add_rig(subject, first, rig);
+  const RigId from_first_newer = *store->add_rig(subject, first, rig);
+  const RigId from_second = *store->add_rig(subject, second, rig);
+  const RigId imported = *store->add_rig(subject, std::nullopt, rig);
+  EXPECT_EQ((*store->rig_for(first))->id, from_first_newer);
+  EXPECT_EQ((*store->rig_for(first))->session, first);
+  EXPECT_EQ((*store->rig_for(second))->id, from_second);
+  EXPECT_EQ((*store->rig_for(third))->id, imported);  // the subject's newest
+  EXPECT_FALSE((*store->rig_for(third))->session);
+  EXPECT_EQ((*store->newest_rig(subject))->id, imported);
+  EXPECT_FALSE(*store->rig_for(other));
+  EXPECT_FALSE(store->rig_for(999));  // no such session: an error, not "no rig"
+  EXPECT_NE(from_first, from_first_newer);
+}
+
 TEST(SessionStore, OrphansAndTemporariesAreCleanedAtOpen) {
   test::ScratchDir dir;
   SessionId session = 0;

@@ -4,6 +4,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cstring>
@@ -29,6 +30,15 @@ namespace {
 constexpr std::int64_t kApplicationId = 0x46427468;  // "FBth", PRAGMA application_id
 constexpr const char* kLockFileName = ".writer.lock";
 constexpr const char* kNow = "strftime('%Y-%m-%dT%H:%M:%fZ','now')";
+
+// A take from before v3 whose last "shape" is the host's timestamp column (the v3 migration and
+// readers of v2 stores apply the same test).
+constexpr const char* kHostTimestampColumn =
+    "json_valid(shape_names_json) AND json_type(shape_names_json) = 'array' AND "
+    "json_extract(shape_names_json, '$[#-1]') = 'timestamp_s'";
+
+// Readers open stores of this schema or newer: v3 only added a column readers can do without.
+constexpr int kOldestReadableSchema = 2;
 
 // Each migration moves the schema from version (index) to version (index + 1). Never edit a
 // released migration: add a new one, so every store upgrades along the same path.
@@ -125,6 +135,17 @@ CREATE TABLE takes(
   file_id INTEGER NOT NULL REFERENCES files(id),
   created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
 )sql",
+      // v3: takes keep each frame's time (TakeWriter, FBTAK002 files). time_source says where
+      // an older take's times are: 'frame_rate' (frame / fps: the device's takes) or
+      // 'last_column' (the host appended a "timestamp_s" pseudo-shape; its name is dropped here,
+      // the column is read from the FBTAK001 file).
+      R"sql(
+ALTER TABLE takes ADD COLUMN time_source TEXT NOT NULL DEFAULT 'frame_rate'
+  CHECK(time_source IN ('frame_rate','last_column','file'));
+UPDATE takes SET time_source='last_column',
+  shape_names_json=json_remove(shape_names_json, '$[#-1]')
+  WHERE )sql" +
+          std::string(kHostTimestampColumn) + ";",
   };
   return list;
 }
@@ -219,7 +240,8 @@ constexpr char kSeqMagic[9] = "FBSEQ001";
 constexpr char kDepthMagic[9] = "FBDEP001";
 constexpr char kMeshMagic[9] = "FBMSH001";
 constexpr char kRigMagic[9] = "FBRIG001";
-constexpr char kTakeMagic[9] = "FBTAK001";
+constexpr char kTakeMagicV1[9] = "FBTAK001";  // pose + weights, no times (before v3)
+constexpr char kTakeMagic[9] = "FBTAK002";    // times (f64), then pose + weights (f32)
 
 template <class Pixel>
 bool read_image(ByteReader& reader, int w, int h, Image<Pixel>& out) {
@@ -606,7 +628,7 @@ struct SessionStore::Impl {
     }
     schema_version = static_cast<int>(*version);
     if (options.read_only) {
-      if (schema_version < latest) {
+      if (schema_version < kOldestReadableSchema) {
         return fail("the session store " + root.string() + " has schema v" +
                     std::to_string(schema_version) + " (current v" + std::to_string(latest) +
                     "): open it once as the writer to migrate it");
@@ -1381,21 +1403,26 @@ Result<std::vector<std::uint8_t>> SessionStore::read_model(ModelId id) const {
   return impl_->load_file(*file);
 }
 
-Result<TakeId> SessionStore::add_take(const TakeInfo& info, std::span<const float> values) {
+Result<TakeId> SessionStore::add_take(const TakeData& take) {
+  const TakeInfo& info = take.info;
   if (auto r = impl_->require_writer(); !r) return r.failure();
   if (info.fps <= 0) return fail("a take needs a positive frame rate");
-  if (values.size() != static_cast<std::size_t>(info.frame_count) * info.stride()) {
+  const auto frames = static_cast<std::size_t>(std::max(info.frame_count, 0));
+  if (take.values.size() != frames * static_cast<std::size_t>(info.stride()) ||
+      take.times_s.size() != frames) {
     return fail("a take of " + std::to_string(info.frame_count) + " frames and " +
                 std::to_string(info.shape_names.size()) + " shapes needs " +
-                std::to_string(static_cast<std::size_t>(info.frame_count) * info.stride()) +
-                " values, got " + std::to_string(values.size()));
+                std::to_string(frames * static_cast<std::size_t>(info.stride())) + " values and " +
+                std::to_string(frames) + " times, got " + std::to_string(take.values.size()) +
+                " and " + std::to_string(take.times_s.size()));
   }
   if (auto r = impl_->ensure_subject(info.subject); !r) return r.failure();
   ByteWriter w;
   w.put_magic(kTakeMagic);
   w.put(static_cast<std::uint32_t>(info.frame_count));
   w.put(static_cast<std::uint32_t>(info.stride()));
-  w.put_span(values);
+  w.put_span(std::span<const double>(take.times_s));
+  w.put_span(std::span<const float>(take.values));
   auto file =
       impl_->write_data_file("subjects/" + std::to_string(info.subject), "take.fbtak", w.bytes);
   if (!file) return file.failure();
@@ -1407,7 +1434,7 @@ Result<TakeId> SessionStore::add_take(const TakeInfo& info, std::span<const floa
     if (!id) return id.failure();
     auto stmt = sql::prepare(db,
                              "INSERT INTO takes(subject_id, session_id, fps, shape_names_json, "
-                             "frame_count, file_id) VALUES(?,?,?,?,?,?)");
+                             "frame_count, file_id, time_source) VALUES(?,?,?,?,?,?,'file')");
     if (!stmt) return stmt.failure();
     stmt->bind_all(info.subject, info.session, info.fps, names_to_json(info.shape_names),
                    info.frame_count, *id);
@@ -1421,10 +1448,68 @@ Result<TakeId> SessionStore::add_take(const TakeInfo& info, std::span<const floa
   return id;
 }
 
+namespace {
+
+// The takes' columns; a reader of a v2 store (not migrated: readers never migrate) derives
+// time_source and the shape names the way the v3 migration does.
+std::string take_columns(int schema_version) {
+  if (schema_version >= 3)
+    return "SELECT id, subject_id, session_id, fps, shape_names_json, frame_count, created_at, "
+           "file_id, time_source FROM takes ";
+  const std::string host = kHostTimestampColumn;
+  return "SELECT id, subject_id, session_id, fps, CASE WHEN " + host +
+         " THEN json_remove(shape_names_json, '$[#-1]') ELSE shape_names_json END, frame_count, "
+         "created_at, file_id, CASE WHEN " +
+         host + " THEN 'last_column' ELSE 'frame_rate' END FROM takes ";
+}
+
+TakeInfo take_from_row(sql::Statement& stmt) {
+  TakeInfo t;
+  t.id = stmt.int64(0);
+  t.subject = stmt.int64(1);
+  t.session = stmt.optional_int64(2);
+  t.fps = stmt.real(3);
+  t.shape_names = names_from_json(stmt.text(4));
+  t.frame_count = stmt.int32(5);
+  t.created_at = stmt.text(6);
+  return t;
+}
+
+// Decodes a take file into `take` (whose info is set). FBTAK002 holds the times; an FBTAK001
+// file from before schema v3 has none ('frame_rate': frame / fps) or has them as its last
+// column ('last_column', the host's "timestamp_s" pseudo-shape).
+bool decode_take(std::span<const std::uint8_t> bytes, const std::string& time_source,
+                 TakeData& take) {
+  ByteReader r(bytes);
+  std::uint32_t frames = 0, stride = 0;
+  const auto want = static_cast<std::uint32_t>(take.info.stride());
+  if (time_source == "file") {
+    return r.magic(kTakeMagic) && r.get(frames) && r.get(stride) && stride == want &&
+           static_cast<int>(frames) == take.info.frame_count && r.get_array(take.times_s, frames) &&
+           r.get_array(take.values, std::size_t{frames} * stride) && r.at_end();
+  }
+  const bool last_column = time_source == "last_column";
+  std::vector<float> stored;
+  if (!r.magic(kTakeMagicV1) || !r.get(frames) || !r.get(stride) ||
+      stride != want + (last_column ? 1 : 0) || static_cast<int>(frames) != take.info.frame_count ||
+      !r.get_array(stored, std::size_t{frames} * stride) || !r.at_end())
+    return false;
+  take.times_s.resize(frames);
+  take.values.clear();
+  take.values.reserve(std::size_t{frames} * want);
+  for (std::uint32_t f = 0; f < frames; ++f) {
+    const float* row = stored.data() + std::size_t{f} * stride;
+    take.values.insert(take.values.end(), row, row + want);
+    take.times_s[f] = last_column ? row[want] : f / take.info.fps;
+  }
+  return true;
+}
+
+}  // namespace
+
 Result<std::vector<TakeInfo>> SessionStore::takes(SubjectId subject) const {
   auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, subject_id, session_id, fps, shape_names_json, "
-                           "frame_count, created_at FROM takes WHERE subject_id=? ORDER BY id");
+                           take_columns(impl_->schema_version) + "WHERE subject_id=? ORDER BY id");
   if (!stmt) return stmt.failure();
   stmt->bind(1, subject);
   std::vector<TakeInfo> out;
@@ -1432,44 +1517,29 @@ Result<std::vector<TakeInfo>> SessionStore::takes(SubjectId subject) const {
     auto row = stmt->step();
     if (!row) return row.failure();
     if (!*row) break;
-    TakeInfo t;
-    t.id = stmt->int64(0);
-    t.subject = stmt->int64(1);
-    t.session = stmt->optional_int64(2);
-    t.fps = stmt->real(3);
-    t.shape_names = names_from_json(stmt->text(4));
-    t.frame_count = stmt->int32(5);
-    t.created_at = stmt->text(6);
-    out.push_back(std::move(t));
+    out.push_back(take_from_row(*stmt));
   }
   return out;
 }
 
-Result<std::vector<float>> SessionStore::read_take(TakeId id, TakeInfo* info) const {
-  auto stmt = sql::prepare(impl_->db.get(), "SELECT subject_id, file_id FROM takes WHERE id=?");
+Result<TakeData> SessionStore::read_take(TakeId id) const {
+  auto stmt = sql::prepare(impl_->db.get(), take_columns(impl_->schema_version) + "WHERE id=?");
   if (!stmt) return stmt.failure();
   stmt->bind(1, id);
   auto row = stmt->step();
   if (!row) return row.failure();
   if (!*row) return fail("there is no take " + std::to_string(id) + " in this store");
-  const SubjectId subject = stmt->int64(0);
-  auto bytes = impl_->load_file(stmt->int64(1));
+  TakeData take;
+  take.info = take_from_row(*stmt);
+  const std::int64_t file_id = stmt->int64(7);
+  const std::string time_source = stmt->text(8);
+  auto bytes = impl_->load_file(file_id);
   if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t frames = 0, stride = 0;
-  std::vector<float> values;
-  if (!r.magic(kTakeMagic) || !r.get(frames) || !r.get(stride) ||
-      !r.get_array(values, std::size_t{frames} * stride) || !r.at_end()) {
-    return fail("the file of take " + std::to_string(id) + " is malformed");
-  }
-  if (info != nullptr) {
-    auto all = takes(subject);
-    if (!all) return all.failure();
-    for (auto& t : *all) {
-      if (t.id == id) *info = t;
-    }
-  }
-  return values;
+  if (!decode_take(*bytes, time_source, take))
+    return fail("the file of take " + std::to_string(id) +
+                " is malformed (its size or layout does not match the database): restore it "
+                "from a backup");
+  return take;
 }
 
 Result<VerifyReport> SessionStore::verify() const {

@@ -19,6 +19,7 @@
 #include "algo/core/result.hpp"
 #include "firmware/daemon/frame_spool.hpp"
 #include "storage/stored_data.hpp"
+#include "storage/take_writer.hpp"
 
 namespace fb {
 
@@ -61,13 +62,10 @@ struct FitRecord {
   MeshData mesh;         // model frame, mm
 };
 
-// A tracking take: per frame tx ty tz (mm) qx qy qz qw (camera_from_model), then the weights.
+// Whose tracking take it is; the frames are in a TakeWriter (storage/take_writer.hpp).
 struct TakeRecord {
-  std::int64_t session = 0;  // the session whose subject was tracked (0 = none)
+  std::int64_t session = 0;  // the session whose subject (and rig) was tracked (0 = none)
   std::string subject_name;  // used when there is no session
-  double fps = 30.0;
-  std::vector<std::string> shape_names;
-  int frame_count = 0;
 };
 
 // What the host tool needs to know before fetching a session (offload).
@@ -113,7 +111,7 @@ class SessionRecords {
   virtual Result<std::optional<MeshData>> neutral_mesh(std::int64_t session) = 0;
   virtual Result<void> set_operator_landmarks(std::int64_t session, int index,
                                               const std::vector<Landmark>& landmarks) = 0;
-  virtual Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values) = 0;
+  virtual Result<std::int64_t> add_take(const TakeRecord& take, TakeWriter& frames) = 0;
   virtual Result<OffloadInfo> offload_info(std::int64_t session) = 0;
   // Stores a rig uploaded by the host for the session's subject; returns its id.
   virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig) = 0;

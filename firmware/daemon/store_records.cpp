@@ -107,22 +107,15 @@ class StoreRecords : public SessionRecords {
                                       const std::vector<Landmark>& landmarks) override {
     return store_.set_operator_landmarks(session, index, landmarks);
   }
-  Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values) override {
-    TakeInfo info;
+  Result<std::int64_t> add_take(const TakeRecord& take, TakeWriter& frames) override {
     if (take.session > 0) {
       auto s = store_.session(take.session);
       if (!s) return s.failure();
-      info.subject = s->subject;
-      info.session = take.session;
-    } else {
-      auto subject = store_.add_subject(take.subject_name.empty() ? "tracking" : take.subject_name);
-      if (!subject) return subject.failure();
-      info.subject = *subject;
+      return frames.store(store_, s->subject, take.session);
     }
-    info.fps = take.fps;
-    info.shape_names = take.shape_names;
-    info.frame_count = take.frame_count;
-    return store_.add_take(info, values);
+    auto subject = store_.add_subject(take.subject_name.empty() ? "tracking" : take.subject_name);
+    if (!subject) return subject.failure();
+    return frames.store(store_, *subject, std::nullopt);
   }
   Result<OffloadInfo> offload_info(std::int64_t session) override {
     OffloadInfo info;

@@ -73,9 +73,9 @@ Result<SessionStore> open_reader(const ParsedOptions& options) {
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
                                   bool overwrite) {
   const auto start = Clock::now();
-  TakeInfo info;
-  auto values = store.read_take(id, &info);
-  if (!values) return values.failure();
+  auto take = store.read_take(id);
+  if (!take) return take.failure();
+  const TakeInfo& info = take->info;
   std::array<int, kArkitShapeCount> column;
   column.fill(-1);
   int matched = 0;
@@ -94,12 +94,11 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                 "CSV; export it from the tracker's output instead");
   }
   std::string text = livelink_csv_header() + "\n";
-  const int stride = info.stride();
   for (int f = 0; f < info.frame_count; ++f) {
-    const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+    const float* v = take->frame(f).data();
     ArkitFrame frame;
     frame.index = static_cast<std::uint64_t>(f);
-    frame.time_s = f / info.fps;
+    frame.time_s = take->times_s[static_cast<std::size_t>(f)];  // measured, not f / fps
     frame.face_found = true;
     for (int k = 0; k < kArkitShapeCount; ++k) {
       if (column[k] >= 0) frame.weights[k] = v[7 + column[k]];

@@ -33,38 +33,10 @@
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
 #include "storage/session_store.hpp"
+#include "storage/take_writer.hpp"
 
 namespace fb::cli {
 namespace {
-
-// The take layout in the session store (TakeInfo): per frame tx ty tz (mm) qx qy qz qw of the
-// streamed camera_from_model pose, the 52 ARKit curves under their camelCase names, then one
-// extra column "timestamp_s": the frame's camera time relative to the take's first frame (the
-// store's TakeInfo has only a frame rate; the Live Link exporter ignores columns that are not
-// ARKit curves, so it still reads the take).
-constexpr const char* kTakeTimestampColumn = "timestamp_s";
-
-std::vector<std::string> take_columns() {
-  std::vector<std::string> names;
-  for (auto name : kArkitNames) names.emplace_back(name);
-  names.emplace_back(kTakeTimestampColumn);
-  return names;
-}
-
-void append_take_frame(const ArkitFrame& frame, double take_start_s, std::vector<float>& values) {
-  const RigidPose& p = frame.camera_from_model;
-  const Eigen::Quaterniond q = p.rotation.normalized();
-  const float pose[7] = {static_cast<float>(p.translation.x()),
-                         static_cast<float>(p.translation.y()),
-                         static_cast<float>(p.translation.z()),
-                         static_cast<float>(q.x()),
-                         static_cast<float>(q.y()),
-                         static_cast<float>(q.z()),
-                         static_cast<float>(q.w())};
-  values.insert(values.end(), pose, pose + 7);
-  values.insert(values.end(), frame.weights.begin(), frame.weights.end());
-  values.push_back(static_cast<float>(frame.time_s - take_start_s));
-}
 
 // The subject's newest stored rig as a TrackerRig over the model's fitting shapes (matched by
 // the model's expression names or the ARKit names of one-to-one curves). nullopt: no rig.
@@ -245,9 +217,10 @@ int run_track(const ParsedOptions& options) {
   } else if (rig_from_store) {
     subject_model = "subject " + std::to_string(*subject) + " has no stored rig: " + subject_model;
   }
-  std::vector<float> take_values;
-  int take_frames = 0;
-  double take_start_s = 0.0;
+  // The take as the store keeps it (storage/take_writer.hpp): the streamed pose, the 52 ARKit
+  // curves under their camelCase names, each frame's camera time.
+  TakeWriter take(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()),
+                  info.fps > 0 ? info.fps : 30.0);
   // dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
   // for (--reacquire dlib: detection gives the tracker a starting pose after loss, not the
   // nearest surface, which a hand, a desk or the chest can be) and while the identity
@@ -371,9 +344,8 @@ int run_track(const ParsedOptions& options) {
       if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());
     }
     if (store) {
-      if (take_frames == 0) take_start_s = out.time_s;
-      append_take_frame(out, take_start_s, take_values);
-      ++take_frames;
+      if (auto r = take.add_frame(out.time_s, out.camera_from_model, out.weights); !r)
+        return report_failure(r.error());
     }
     if (print_sse) {
       format_sse_event(out, sse);
@@ -418,22 +390,18 @@ int run_track(const ParsedOptions& options) {
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json result;
-  if (store && take_frames > 0) {
+  if (store && take.frame_count() > 0) {
     if (!subject) {
       auto added = store->add_subject("tracking take");
       if (!added) return report_failure(added.error());
       subject = *added;
     }
-    TakeInfo take;
-    take.subject = *subject;
-    take.fps = info.fps > 0 ? info.fps : 30.0;
-    take.shape_names = take_columns();
-    take.frame_count = take_frames;
-    auto id = store->add_take(take, take_values);
+    auto id = take.store(*store, *subject, std::nullopt);
     if (!id) return report_failure(id.error());
     result["take"] = *id;
     result["subject"] = *subject;
-    std::cerr << "track: stored take " << *id << " (" << take_frames << " frames; the face was "
+    std::cerr << "track: stored take " << *id << " (" << take.frame_count()
+              << " frames; the face was "
               << "occluded on " << occlusion.occluded_frames() << ")\n";
     result["store"] = store_path;
   } else if (store) {

@@ -57,27 +57,27 @@ TEST_F(TrackStoreCli, TrackStoreExportMatchesTheTrackedValues) {
   EXPECT_EQ(j["frames"], kFrames);
   EXPECT_GE(j["frames_with_face"].get<int>(), kFrames - 2) << r.out;
 
-  // The stored take: pose, the 52 ARKit curves by name, and the frame times.
-  TakeInfo info;
+  // The stored take: pose, the 52 ARKit curves by name, and the frame times in their own
+  // column (TakeData::times_s), not disguised as a shape.
   {
     StoreOptions ro;
     ro.read_only = true;
     auto store = SessionStore::open(store_dir, ro);
     ASSERT_TRUE(store.ok()) << store.error().message;
-    auto values = store->read_take(take, &info);
-    ASSERT_TRUE(values.ok()) << values.error().message;
+    auto stored = store->read_take(take);
+    ASSERT_TRUE(stored.ok()) << stored.error().message;
+    const TakeInfo& info = stored->info;
     EXPECT_EQ(info.subject, j["subject"].get<SubjectId>());
+    EXPECT_FALSE(info.session);  // no session named, no stored rig
     ASSERT_EQ(info.frame_count, kFrames);
-    ASSERT_EQ(info.shape_names.size(), static_cast<std::size_t>(kArkitShapeCount + 1));
+    ASSERT_EQ(info.shape_names.size(), static_cast<std::size_t>(kArkitShapeCount));
     EXPECT_EQ(info.shape_names[0], "eyeBlinkLeft");
-    EXPECT_EQ(info.shape_names[static_cast<std::size_t>(kArkitShapeCount)], "timestamp_s");
     EXPECT_NEAR(info.fps, 30.0, 1e-9);
-    const int stride = info.stride();
+    ASSERT_EQ(stored->times_s.size(), static_cast<std::size_t>(kFrames));
     for (int f = 0; f < kFrames; ++f) {
-      const float t = (*values)[static_cast<std::size_t>(f * stride + stride - 1)];
-      EXPECT_NEAR(t, f / 30.0, 1e-3) << "frame " << f;
+      EXPECT_NEAR(stored->times_s[static_cast<std::size_t>(f)], f / 30.0, 1e-3) << "frame " << f;
       // A unit quaternion and a face ~0.7 m in front of the camera.
-      const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+      const float* v = stored->frame(f).data();
       EXPECT_NEAR(std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]), 1.0, 1e-4);
       EXPECT_GT(v[2], 500.0f);
       EXPECT_LT(v[2], 900.0f);

@@ -38,22 +38,26 @@
 namespace fb::cli {
 namespace {
 
-// The subject's newest stored rig as a TrackerRig over the model's fitting shapes (matched by
-// the model's expression names or the ARKit names of one-to-one curves). nullopt: no rig.
+// The stored rig serving the take (SessionStore::rig_for with --session, else the subject's
+// newest) as a TrackerRig over the model's fitting shapes (matched by the model's expression
+// names or the ARKit names of one-to-one curves). nullopt: no rig.
 struct LoadedRig {
   RigId id = 0;
+  std::optional<SessionId> session;  // the session that built the rig, if any
   RigData data;
   int matched = 0;
   TrackerRig view;
 };
-Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, SubjectId subject,
-                                                  const FaceModel& model,
-                                                  const ArkitMapping& mapping) {
-  auto rigs = store.rigs(subject);
-  if (!rigs) return rigs.failure();
-  if (rigs->empty()) return std::optional<LoadedRig>{};
+Result<std::optional<LoadedRig>> load_stored_rig(const SessionStore& store, SubjectId subject,
+                                                 std::optional<SessionId> session,
+                                                 const FaceModel& model,
+                                                 const ArkitMapping& mapping) {
+  auto serving = session ? store.rig_for(*session) : store.newest_rig(subject);
+  if (!serving) return serving.failure();
+  if (!*serving) return std::optional<LoadedRig>{};
   LoadedRig out;
-  out.id = rigs->front().id;  // newest first
+  out.id = (*serving)->id;
+  out.session = (*serving)->session;
   auto data = store.read_rig(out.id);
   if (!data) return data.failure();
   out.data = std::move(*data);
@@ -149,17 +153,28 @@ int run_track(const ParsedOptions& options) {
   const bool rig_from_store = options.flag("rig-from-store");
   std::optional<SessionStore> store;
   std::optional<SubjectId> subject;
+  std::optional<SessionId> session;
+  if (!options.get("session").empty()) {
+    auto id = options.get_int("session");
+    if (!id || *id <= 0)
+      return report_failure({"--session must be a session id (see `facebooth store info`)"});
+    if (!options.get("subject").empty())
+      return report_failure(
+          {"give --session or --subject, not both (a session names its subject)"});
+    session = *id;
+  }
   if (!options.get("subject").empty()) {
     auto id = options.get_int("subject");
     if (!id || *id <= 0)
       return report_failure({"--subject must be a subject id (see `facebooth store info`)"});
     subject = *id;
   }
-  if ((subject || rig_from_store) && store_path.empty()) {
-    return report_failure({"--subject and --rig-from-store need --store DIR"});
+  if ((subject || session || rig_from_store) && store_path.empty()) {
+    return report_failure({"--subject, --session and --rig-from-store need --store DIR"});
   }
-  if (rig_from_store && !subject) {
-    return report_failure({"--rig-from-store needs --subject ID (whose rig to load)"});
+  if (rig_from_store && !subject && !session) {
+    return report_failure(
+        {"--rig-from-store needs --session ID or --subject ID (whose rig to load)"});
   }
   const bool save_rig = options.flag("save-rig");
   if (save_rig && store_path.empty()) {
@@ -174,7 +189,15 @@ int run_track(const ParsedOptions& options) {
     auto opened = SessionStore::open(store_path);
     if (!opened) return report_failure(opened.error());
     store.emplace(std::move(*opened));
-    if (subject) {
+    if (session) {
+      auto known = store->session(*session);
+      if (!known) {
+        return report_failure({"there is no session " + std::to_string(*session) + " in " +
+                               store_path + " (see `facebooth store info --store " + store_path +
+                               "`)"});
+      }
+      subject = known->subject;
+    } else if (subject) {
       if (auto known = store->subject(*subject); !known) {
         return report_failure({"there is no subject " + std::to_string(*subject) + " in " +
                                store_path + " (see `facebooth store info --store " + store_path +
@@ -184,9 +207,11 @@ int run_track(const ParsedOptions& options) {
   }
   std::optional<LoadedRig> rig;
   if (rig_from_store) {
-    auto loaded = load_subject_rig(*store, *subject, model, *mapping);
+    auto loaded = load_stored_rig(*store, *subject, session, model, *mapping);
     if (!loaded) return report_failure(loaded.error());
     rig = std::move(*loaded);
+    // A take tracked with a session's rig belongs to that session (issue 37).
+    if (rig && !session) session = rig->session;
   }
 
   auto camera = open_started_camera(uri);
@@ -396,10 +421,11 @@ int run_track(const ParsedOptions& options) {
       if (!added) return report_failure(added.error());
       subject = *added;
     }
-    auto id = take.store(*store, *subject, std::nullopt);
+    auto id = take.store(*store, *subject, session);
     if (!id) return report_failure(id.error());
     result["take"] = *id;
     result["subject"] = *subject;
+    result["session"] = session ? nlohmann::json(*session) : nlohmann::json(nullptr);
     std::cerr << "track: stored take " << *id << " (" << take.frame_count()
               << " frames; the face was "
               << "occluded on " << occlusion.occluded_frames() << ")\n";
@@ -487,9 +513,14 @@ std::vector<Command> tracking_commands() {
           "export --take ID --store DIR --out OUT`)",
           ""},
          {"subject", "ID", "store the take under this subject (default: a new subject)", ""},
+         {"session", "ID",
+          "store the take under this session (and its subject); with --rig-from-store, track "
+          "with the rig serving the session (the newest built from it, else the subject's)",
+          ""},
          {"rig-from-store", "",
-          "track with --subject's newest stored rig (face model topology) instead of "
-          "calibrating; falls back to calibration when the subject has no rig",
+          "track with the stored rig serving --session (or --subject's newest rig; face model "
+          "topology) instead of calibrating, and record the rig's session with the take; falls "
+          "back to calibration when the subject has no rig",
           ""},
          {"save-rig", "",
           "after the take, store the calibrated subject in --store as their rig (fitted neutral "

@@ -175,6 +175,56 @@ TEST_F(TrackStoreCli, StoredRigSkipsCalibrationAndMissingRigFallsBack) {
   EXPECT_EQ(store->takes(without_rig)->size(), 1u);
 }
 
+// Issue 37: a take tracked with a session's stored rig records that session, whether the
+// command names the subject (the rig says which session built it) or the session itself (the
+// rig serving it, SessionStore::rig_for). A take without a session stays without one.
+TEST_F(TrackStoreCli, TakeTrackedWithASessionsRigRecordsTheSession) {
+  auto model = load_face_model(fs::path(FB_DATA_DIR) / "facemodel.fbfm");
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  const fs::path store_dir = dir_ / "store";
+  SubjectId subject = 0;
+  SessionId session = 0;
+  {
+    auto store = SessionStore::open(store_dir);
+    ASSERT_TRUE(store.ok()) << store.error().message;
+    SyntheticSubjectOptions o;
+    o.identity_sigma = 0.0f;
+    o.pose_count = 2;
+    auto synthetic = make_synthetic_subject(*model, o);
+    ASSERT_TRUE(synthetic.ok()) << synthetic.error().message;
+    subject = *store->add_subject("rigged in a session");
+    session = *store->create_session(subject, {"neutral"});
+    ASSERT_TRUE(store->add_rig(subject, session, synthetic->rig).ok());
+  }
+  const std::string camera =
+      "--camera synthetic:frames=12,identity=neutral,seed=4 --store " + store_dir.string() + " ";
+  std::vector<TakeId> takes;
+  for (const std::string who :
+       {"--subject " + std::to_string(subject), "--session " + std::to_string(session)}) {
+    auto r = facebooth("track " + camera + who + " --rig-from-store");
+    ASSERT_EQ(r.exit_code, 0) << who << "\n" << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_NE(j["subject_model"].get<std::string>().find("stored rig"), std::string::npos) << r.out;
+    EXPECT_EQ(j["subject"].get<SubjectId>(), subject) << r.out;
+    EXPECT_EQ(j["session"].get<SessionId>(), session) << r.out;
+    takes.push_back(j["take"].get<TakeId>());
+  }
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(store_dir, ro);
+  ASSERT_TRUE(store.ok());
+  for (TakeId id : takes) {
+    auto take = store->read_take(id);
+    ASSERT_TRUE(take.ok()) << take.error().message;
+    EXPECT_EQ(take->info.session, session) << "take " << id;
+    EXPECT_EQ(take->info.subject, subject) << "take " << id;
+  }
+  // Giving both is refused with a clear message (a session names its subject).
+  auto r = facebooth("track " + camera + "--session " + std::to_string(session) + " --subject " +
+                     std::to_string(subject));
+  EXPECT_NE(r.exit_code, 0);
+}
+
 // --save-rig: the subject the tracker calibrated is stored as their rig (the fitted neutral and
 // the 53 blendshapes), which --rig-from-store then tracks with, without calibrating. With a
 // bilinear model the blendshapes are the subject's own from it instead of the generic ones.

@@ -921,6 +921,47 @@ Result<void> SessionStore::reject_capture(SessionId session, int index,
   return stmt->run();
 }
 
+namespace {
+
+// A capture's .fbseq file, streamed frame by frame (a capture is tens of megabytes), with what
+// the frames table needs: each frame's header and byte offset.
+struct FrameSequence {
+  SessionStore::Impl::StoredFile file;
+  std::vector<std::uint64_t> offsets;
+  std::vector<frame_record::Header> headers;
+};
+
+Result<FrameSequence> write_frame_sequence(const SessionStore::Impl& impl,
+                                           const std::string& folder, const std::string& stem,
+                                           const CaptureInput& input, std::size_t frame_count) {
+  const bool from_source = input.frames.empty();
+  FrameSequence out;
+  const std::string rel = folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
+  auto file = DurableFile::create(impl.root / rel, impl.file_hooks());
+  if (!file) return impl.folder_missing_or(folder, file.error());
+  ByteWriter header;
+  header.put_magic(kSeqMagic);
+  header.put(static_cast<std::uint32_t>(frame_count));
+  header.put(std::uint32_t{0});
+  if (auto r = file->append(header.bytes); !r) return r.failure();
+  RgbdFrame scratch;
+  for (std::size_t i = 0; i < frame_count; ++i) {
+    if (from_source) {
+      if (auto r = input.read_frame(i, scratch); !r) return r.failure();
+    }
+    const RgbdFrame& f = from_source ? scratch : input.frames[i];
+    out.offsets.push_back(file->size());
+    out.headers.push_back(frame_record::header_of(f, /*with_raw_disparity=*/true));
+    auto sink = [&](const void* data, std::size_t size) { return file->append(data, size); };
+    if (auto r = frame_record::write(f, /*with_raw_disparity=*/true, sink); !r) return r.failure();
+  }
+  if (auto r = file->commit(); !r) return r.failure();
+  out.file = {rel, file->size(), file->sha256()};
+  return out;
+}
+
+}  // namespace
+
 Result<void> SessionStore::commit_capture(SessionId session, int index, const CaptureInput& input) {
   if (auto r = impl_->require_writer(); !r) return r;
   auto c = impl_->one_capture(session, index);
@@ -937,33 +978,12 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
   if (!folder) return folder.failure();
   const std::string stem = "c" + std::to_string(index) + "-a" + std::to_string(c->attempts);
 
-  // 1. The frame sequence, streamed frame by frame (a capture is tens of megabytes).
-  std::vector<Impl::StoredFile> written;
-  std::vector<std::uint64_t> offsets;
-  std::vector<frame_record::Header> headers;  // for the frames table rows
-  {
-    const std::string rel = *folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
-    auto file = DurableFile::create(impl_->root / rel, impl_->file_hooks());
-    if (!file) return impl_->folder_missing_or(*folder, file.error());
-    ByteWriter header;
-    header.put_magic(kSeqMagic);
-    header.put(static_cast<std::uint32_t>(frame_count));
-    header.put(std::uint32_t{0});
-    if (auto r = file->append(header.bytes); !r) return r;
-    RgbdFrame scratch;
-    for (std::size_t i = 0; i < frame_count; ++i) {
-      if (from_source) {
-        if (auto r = input.read_frame(i, scratch); !r) return r;
-      }
-      const RgbdFrame& f = from_source ? scratch : input.frames[i];
-      offsets.push_back(file->size());
-      headers.push_back(frame_record::header_of(f, /*with_raw_disparity=*/true));
-      auto sink = [&](const void* data, std::size_t size) { return file->append(data, size); };
-      if (auto r = frame_record::write(f, /*with_raw_disparity=*/true, sink); !r) return r;
-    }
-    if (auto r = file->commit(); !r) return r;
-    written.push_back({rel, file->size(), file->sha256()});
-  }
+  // 1. The frame sequence.
+  auto sequence = write_frame_sequence(*impl_, *folder, stem, input, frame_count);
+  if (!sequence) return sequence.failure();
+  std::vector<Impl::StoredFile> written = {sequence->file};
+  const std::vector<std::uint64_t>& offsets = sequence->offsets;
+  const std::vector<frame_record::Header>& headers = sequence->headers;
   // 2. The fused depth map.
   if (!input.fused_depth.empty()) {
     ByteWriter w;

@@ -15,6 +15,8 @@
 #include <random>
 #include <thread>
 
+#include "algo/core/clock.hpp"
+
 namespace fb {
 
 namespace fs = std::filesystem;
@@ -136,16 +138,14 @@ Result<double> calibrate(const CrashTrialOptions& options) {
     if (!subject) return subject.failure();
     auto session = store->create_session(*subject, guide_names(3));
     if (!session) return session.failure();
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     for (int i = 0; i < 3; ++i) {
       if (auto r = store->begin_capture(*session, i); !r) return r.failure();
       auto input =
           make_test_capture(*session, i, options.frames_per_capture, options.width, options.height);
       if (auto r = store->commit_capture(*session, i, input); !r) return r.failure();
     }
-    mean_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                  .count() /
-              3.0;
+    mean_ms = ms_since(start) / 3.0;
   }
   fs::remove_all(scratch, ec);
   return mean_ms;

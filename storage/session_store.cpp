@@ -1,251 +1,13 @@
 #include "storage/session_store.hpp"
 
-#include <fcntl.h>
-#include <sys/file.h>
-#include <unistd.h>
-
-#include <bit>
-#include <cerrno>
-#include <cstring>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <set>
-#include <system_error>
 
-#include "storage/durable_file.hpp"
-#include "storage/sha256.hpp"
-#include "storage/sqlite_util.hpp"
+#include "storage/frame_record.hpp"
+#include "storage/session_store_impl.hpp"
 
 namespace fb {
 
-static_assert(std::endian::native == std::endian::little,
-              "data files are written little-endian by memcpy; add byte swapping for big-endian");
-
-namespace fs = std::filesystem;
-
-namespace {
-
-constexpr std::int64_t kApplicationId = 0x46427468;  // "FBth", PRAGMA application_id
-constexpr const char* kLockFileName = ".writer.lock";
-constexpr const char* kNow = "strftime('%Y-%m-%dT%H:%M:%fZ','now')";
-
-// Each migration moves the schema from version (index) to version (index + 1). Never edit a
-// released migration: add a new one, so every store upgrades along the same path.
-const std::vector<std::string>& migrations() {
-  static const std::vector<std::string> list = {
-      // v1: capture sessions and their products.
-      R"sql(
-CREATE TABLE files(
-  id INTEGER PRIMARY KEY,
-  relpath TEXT NOT NULL UNIQUE,        -- relative to the store root
-  bytes INTEGER NOT NULL,
-  sha256 TEXT NOT NULL,
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE TABLE subjects(
-  id INTEGER PRIMARY KEY,
-  name TEXT NOT NULL,
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE TABLE sessions(
-  id INTEGER PRIMARY KEY,
-  subject_id INTEGER NOT NULL REFERENCES subjects(id),
-  state TEXT NOT NULL DEFAULT 'open' CHECK(state IN ('open','complete')),
-  folder TEXT NOT NULL,                -- relative to the store root
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE TABLE captures(
-  id INTEGER PRIMARY KEY,
-  session_id INTEGER NOT NULL REFERENCES sessions(id),
-  idx INTEGER NOT NULL,
-  expression TEXT NOT NULL,
-  state TEXT NOT NULL DEFAULT 'pending'
-    CHECK(state IN ('pending','capturing','rejected','done')),
-  attempts INTEGER NOT NULL DEFAULT 0,
-  qa_json TEXT NOT NULL DEFAULT '{}',
-  frame_count INTEGER NOT NULL DEFAULT 0,
-  frames_file_id INTEGER REFERENCES files(id),
-  fused_file_id INTEGER REFERENCES files(id),
-  completed_at TEXT,
-  UNIQUE(session_id, idx),
-  CHECK(state <> 'done' OR frames_file_id IS NOT NULL));
-CREATE TABLE frames(
-  id INTEGER PRIMARY KEY,
-  capture_id INTEGER NOT NULL REFERENCES captures(id),
-  seq INTEGER NOT NULL,
-  depth_host_time_s REAL NOT NULL,
-  color_host_time_s REAL NOT NULL,
-  depth_device_ts INTEGER NOT NULL,
-  color_device_ts INTEGER NOT NULL,
-  file_id INTEGER NOT NULL REFERENCES files(id),
-  offset INTEGER NOT NULL,             -- byte offset of the frame record in the file
-  UNIQUE(capture_id, seq));
-CREATE TABLE landmarks(
-  id INTEGER PRIMARY KEY,
-  capture_id INTEGER NOT NULL REFERENCES captures(id),
-  source TEXT NOT NULL CHECK(source IN ('automatic','operator')),
-  points_json TEXT NOT NULL,
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
-  UNIQUE(capture_id, source));
-CREATE TABLE meshes(
-  id INTEGER PRIMARY KEY,
-  session_id INTEGER NOT NULL REFERENCES sessions(id),
-  capture_idx INTEGER,
-  role TEXT NOT NULL CHECK(role IN ('fitted','neutral','scan')),
-  name TEXT NOT NULL,
-  vertex_count INTEGER NOT NULL,
-  triangle_count INTEGER NOT NULL,
-  file_id INTEGER NOT NULL REFERENCES files(id),
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE TABLE rigs(
-  id INTEGER PRIMARY KEY,
-  subject_id INTEGER NOT NULL REFERENCES subjects(id),
-  session_id INTEGER REFERENCES sessions(id),
-  shape_names_json TEXT NOT NULL,
-  vertex_count INTEGER NOT NULL,
-  triangle_count INTEGER NOT NULL,
-  file_id INTEGER NOT NULL REFERENCES files(id),
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE TABLE models(
-  id INTEGER PRIMARY KEY,
-  kind TEXT NOT NULL,
-  params_json TEXT NOT NULL DEFAULT '{}',
-  file_id INTEGER NOT NULL REFERENCES files(id),
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-CREATE INDEX captures_by_session ON captures(session_id, idx);
-CREATE INDEX meshes_by_session ON meshes(session_id);
-)sql",
-      // v2: tracking takes (the standalone tracking box records them per subject).
-      R"sql(
-CREATE TABLE takes(
-  id INTEGER PRIMARY KEY,
-  subject_id INTEGER NOT NULL REFERENCES subjects(id),
-  session_id INTEGER REFERENCES sessions(id),
-  fps REAL NOT NULL CHECK(fps > 0),
-  shape_names_json TEXT NOT NULL,
-  frame_count INTEGER NOT NULL,
-  file_id INTEGER NOT NULL REFERENCES files(id),
-  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
-)sql",
-  };
-  return list;
-}
-
-// --- little binary helpers for the data files (all little-endian, see the static_assert)
-
-class ByteWriter {
- public:
-  template <class T>
-  void put(T v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
-    bytes.insert(bytes.end(), p, p + sizeof(T));
-  }
-  template <class T>
-  void put_span(std::span<const T> v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(v.data());
-    bytes.insert(bytes.end(), p, p + v.size_bytes());
-  }
-  void put_magic(const char (&magic)[9]) { bytes.insert(bytes.end(), magic, magic + 8); }
-  std::vector<std::uint8_t> bytes;
-};
-
-class ByteReader {
- public:
-  ByteReader(std::span<const std::uint8_t> bytes, std::size_t pos = 0) : bytes_(bytes), pos_(pos) {}
-  template <class T>
-  bool get(T& v) {
-    if (bytes_.size() - pos_ < sizeof(T) || pos_ > bytes_.size()) return false;
-    std::memcpy(&v, bytes_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return true;
-  }
-  template <class T>
-  bool get_array(std::vector<T>& out, std::size_t count) {
-    if (count > (bytes_.size() - pos_) / sizeof(T)) return false;
-    out.resize(count);
-    std::memcpy(out.data(), bytes_.data() + pos_, count * sizeof(T));
-    pos_ += count * sizeof(T);
-    return true;
-  }
-  bool magic(const char (&m)[9]) {
-    if (bytes_.size() - pos_ < 8 || std::memcmp(bytes_.data() + pos_, m, 8) != 0) return false;
-    pos_ += 8;
-    return true;
-  }
-  bool at_end() const { return pos_ == bytes_.size(); }
-
- private:
-  std::span<const std::uint8_t> bytes_;
-  std::size_t pos_;
-};
-
-// Reads a data file front to back in one pass, hashing everything it reads, so that a caller
-// can decode part of a large file into place and still check the whole file's SHA-256.
-class VerifiedReader {
- public:
-  explicit VerifiedReader(const fs::path& path) : in_(path, std::ios::binary) {}
-  bool is_open() const { return in_.is_open(); }
-  bool read(void* out, std::size_t n) {
-    if (n == 0) return true;
-    in_.read(static_cast<char*>(out), static_cast<std::streamsize>(n));
-    const auto got = static_cast<std::size_t>(in_.gcount());
-    sha_.update(out, got);
-    position_ += got;
-    return got == n;
-  }
-  bool skip(std::size_t n) {
-    char buffer[64 * 1024];
-    while (n > 0) {
-      const std::size_t step = std::min(n, sizeof buffer);
-      if (!read(buffer, step)) return false;
-      n -= step;
-    }
-    return true;
-  }
-  std::uint64_t position() const { return position_; }
-  // Reads what is left; true when the file had exactly `bytes` bytes with digest `sha256`.
-  bool matches(std::uint64_t bytes, const std::string& sha256) {
-    char buffer[64 * 1024];
-    while (read(buffer, sizeof buffer)) {
-    }
-    return position_ == bytes && sha_.hex_digest() == sha256;
-  }
-
- private:
-  std::ifstream in_;
-  Sha256 sha_;
-  std::uint64_t position_ = 0;
-};
-
-constexpr char kSeqMagic[9] = "FBSEQ001";
-constexpr char kDepthMagic[9] = "FBDEP001";
-constexpr char kMeshMagic[9] = "FBMSH001";
-constexpr char kRigMagic[9] = "FBRIG001";
-constexpr char kTakeMagic[9] = "FBTAK001";
-
-// One frame record of a .fbseq file: a fixed header followed by depth_mm, raw_disparity, color.
-struct FrameRecordHeader {
-  std::uint64_t index;
-  double depth_host_time_s;
-  double color_host_time_s;
-  std::uint32_t depth_device_timestamp;
-  std::uint32_t color_device_timestamp;
-  std::int32_t depth_w, depth_h, raw_w, raw_h, color_w, color_h;
-};
-static_assert(sizeof(FrameRecordHeader) == 56);
-
-template <class Pixel>
-std::span<const std::uint8_t> pixel_bytes(const Image<Pixel>& image) {
-  return {reinterpret_cast<const std::uint8_t*>(image.pixels.data()),
-          image.pixels.size() * sizeof(Pixel)};
-}
-
-template <class Pixel>
-bool read_image(ByteReader& reader, int w, int h, Image<Pixel>& out) {
-  if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
-  std::vector<std::uint8_t> raw;
-  if (!reader.get_array(raw, static_cast<std::size_t>(w) * h * sizeof(Pixel))) return false;
-  out.resize(w, h);
-  if (!raw.empty()) std::memcpy(out.pixels.data(), raw.data(), raw.size());
-  return true;
-}
+namespace store_detail {
 
 std::string landmarks_to_json(const std::vector<Landmark>& points) {
   nlohmann::json j = nlohmann::json::array();
@@ -336,7 +98,7 @@ std::string sqlite_header_problem(const fs::path& db_path) {
   return {};
 }
 
-}  // namespace
+}  // namespace store_detail
 
 const char* to_string(CaptureState state) {
   switch (state) {
@@ -363,346 +125,6 @@ const char* to_string(MeshRole role) {
   }
   return "fitted";
 }
-
-// ---------------------------------------------------------------------------------------------
-
-struct SessionStore::Impl {
-  fs::path root;
-  StoreOptions options;
-  sql::Connection db;
-  UniqueFd lock;  // flock'ed by the writer for its lifetime
-  int schema_version = 0;
-  int orphans_removed = 0;
-
-  struct StoredFile {
-    std::string relpath;
-    std::uint64_t bytes = 0;
-    std::string sha256;
-  };
-
-  void phase(StorePhase p) const {
-    if (options.on_phase) options.on_phase(p);
-  }
-
-  DurableFileHooks file_hooks() const {
-    DurableFileHooks hooks;
-    hooks.inject_write_error = options.inject_write_error;
-    if (options.on_phase) {
-      hooks.on_step = [this](int step) {
-        phase(step == 1   ? StorePhase::kWritingFile
-              : step == 2 ? StorePhase::kSyncingFile
-                          : StorePhase::kRenaming);
-      };
-    }
-    return hooks;
-  }
-
-  Result<void> require_writer() const {
-    if (options.read_only) {
-      return fail("this session store was opened read-only; writes go through the one writer");
-    }
-    return success();
-  }
-
-  // Writes a data file under `folder` (relative to root) durably, without a database row yet.
-  Result<StoredFile> write_data_file(const std::string& folder, const std::string& stem,
-                                     std::span<const std::uint8_t> bytes) const {
-    const std::string rel = folder + "/" + stem + "-" + random_token(8);
-    auto file = DurableFile::create(root / rel, file_hooks());
-    if (!file) return folder_missing_or(folder, file.error());
-    if (auto r = file->append(bytes); !r) return r.failure();
-    if (auto r = file->commit(); !r) return r.failure();
-    return StoredFile{rel, file->size(), file->sha256()};
-  }
-
-  Failure folder_missing_or(const std::string& folder, const Error& error) const {
-    std::error_code ec;
-    if (!fs::is_directory(root / folder, ec)) {
-      return fail("the data folder " + (root / folder).string() +
-                  " is missing (moved or deleted?): restore it from a backup; the database "
-                  "still lists everything stored in it, and nothing was changed");
-    }
-    return fail(error);
-  }
-
-  Result<std::int64_t> insert_file_row(const StoredFile& f) const {
-    auto stmt = sql::prepare(db.get(), "INSERT INTO files(relpath, bytes, sha256) VALUES(?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(f.relpath, static_cast<std::int64_t>(f.bytes), f.sha256);
-    if (auto r = stmt->run(); !r) return r.failure();
-    return sqlite3_last_insert_rowid(db.get());
-  }
-
-  // Best effort: removes data files whose commit failed (the orphan cleanup would get them
-  // at the next open anyway).
-  void discard(const std::vector<StoredFile>& files) const {
-    for (const auto& f : files) {
-      std::error_code ec;
-      fs::remove(root / f.relpath, ec);
-    }
-  }
-
-  struct DataFile {
-    fs::path path;
-    std::uint64_t bytes = 0;
-    std::string sha256;
-  };
-  // Where a committed data file is, with the size and SHA-256 committed for it; a missing file
-  // or folder is an error that says what to restore.
-  Result<DataFile> data_file(std::int64_t file_id) const {
-    auto stmt = sql::prepare(db.get(), "SELECT relpath, bytes, sha256 FROM files WHERE id=?");
-    if (!stmt) return stmt.failure();
-    stmt->bind(1, file_id);
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) return fail("data file #" + std::to_string(file_id) + " is not in the database");
-    const std::string rel = stmt->text(0);
-    DataFile f{root / rel, static_cast<std::uint64_t>(stmt->int64(1)), stmt->text(2)};
-    std::error_code ec;
-    if (!fs::exists(f.path, ec)) {
-      const fs::path folder = f.path.parent_path();
-      if (!fs::is_directory(folder, ec)) {
-        return fail("the data folder " + folder.string() +
-                    " is missing (moved or deleted?): restore it from a backup to read " + rel +
-                    "; the database entries are kept");
-      }
-      return fail("data file " + f.path.string() +
-                  " is missing: restore it from a backup (the database entry is kept)");
-    }
-    return f;
-  }
-  static Error damaged(const DataFile& f) {
-    return Error{"data file " + f.path.string() + " is damaged (size or SHA-256 differs from " +
-                 "what was committed): restore it from a backup"};
-  }
-
-  // Reads a committed data file and checks its size and SHA-256 against the database.
-  Result<std::vector<std::uint8_t>> load_file(std::int64_t file_id) const {
-    auto f = data_file(file_id);
-    if (!f) return f.failure();
-    auto data = read_file_bytes(f->path);
-    if (!data) return data.failure();
-    if (data->size() != f->bytes || sha256_hex(*data) != f->sha256) return fail(damaged(*f));
-    return data;
-  }
-
-  Result<std::string> session_folder(SessionId session) const {
-    auto stmt = sql::prepare(db.get(), "SELECT folder FROM sessions WHERE id=?");
-    if (!stmt) return stmt.failure();
-    stmt->bind(1, session);
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) return fail("there is no session " + std::to_string(session) + " in this store");
-    return stmt->text(0);
-  }
-
-  Result<void> ensure_subject(SubjectId subject) const {
-    auto n = sql::query_int(db.get(),
-                            "SELECT count(*) FROM subjects WHERE id=" + std::to_string(subject));
-    if (!n) return n.failure();
-    if (*n == 0) return fail("there is no subject " + std::to_string(subject) + " in this store");
-    return success();
-  }
-
-  Result<void> migrate() {
-    const auto& list = migrations();
-    const int target = options.migrate_to > 0
-                           ? std::min<int>(options.migrate_to, static_cast<int>(list.size()))
-                           : static_cast<int>(list.size());
-    while (schema_version < target) {
-      auto tx = sql::Transaction::begin(db.get());
-      if (!tx) return tx.failure();
-      if (auto r = sql::exec(db.get(), list[static_cast<std::size_t>(schema_version)]); !r) {
-        return fail("migrating the store to schema v" + std::to_string(schema_version + 1) +
-                    " failed: " + r.error().message);
-      }
-      const int next = schema_version + 1;
-      if (auto r = sql::exec(db.get(), "PRAGMA user_version=" + std::to_string(next)); !r) {
-        return r.failure();
-      }
-      if (auto r = sql::exec(db.get(), "PRAGMA application_id=" + std::to_string(kApplicationId));
-          !r) {
-        return r.failure();
-      }
-      if (auto r = tx->commit(); !r) return r.failure();
-      schema_version = next;
-    }
-    return success();
-  }
-
-  // Deletes temporaries and data files no committed row references: what a crash between
-  // "file written" and "row committed" leaves behind. Runs under the writer lock, so no file
-  // in flight can be mistaken for an orphan.
-  Result<void> clean_orphans() {
-    std::set<std::string> referenced;
-    {
-      auto stmt = sql::prepare(db.get(), "SELECT relpath FROM files");
-      if (!stmt) return stmt.failure();
-      for (;;) {
-        auto row = stmt->step();
-        if (!row) return row.failure();
-        if (!*row) break;
-        referenced.insert(stmt->text(0));
-      }
-    }
-    for (const char* top : {"sessions", "subjects", "models"}) {
-      std::error_code ec;
-      const fs::path dir = root / top;
-      if (!fs::is_directory(dir, ec)) continue;
-      for (auto it = fs::recursive_directory_iterator(dir, ec);
-           !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-        if (!it->is_regular_file(ec)) continue;
-        const std::string rel = fs::relative(it->path(), root, ec).generic_string();
-        const std::string name = it->path().filename().string();
-        if (name.rfind(kDurableTempPrefix, 0) == 0 || referenced.count(rel) == 0) {
-          std::error_code rm;
-          if (fs::remove(it->path(), rm)) ++orphans_removed;
-        }
-      }
-    }
-    return success();
-  }
-
-  Result<void> open_database() {
-    const fs::path db_path = root / kSessionStoreDatabaseName;
-    std::error_code ec;
-    const bool exists = fs::exists(db_path, ec);
-    if (!exists && (options.read_only || !options.create)) {
-      return fail("no session store at " + root.string() + " (" + db_path.filename().string() +
-                  " is missing): check the path, or open it as the writer to create it");
-    }
-    if (exists) {
-      if (const std::string problem = sqlite_header_problem(db_path); !problem.empty()) {
-        return fail("the session store database " + db_path.string() + " " + problem +
-                    ": move it aside and restore it from a backup; facebooth did not modify it");
-      }
-    }
-    sqlite3* raw = nullptr;
-    const int flags =
-        (options.read_only ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) |
-        SQLITE_OPEN_NOMUTEX;
-    const int rc = sqlite3_open_v2(db_path.c_str(), &raw, flags, nullptr);
-    db.reset(raw);  // owns the handle even when the open failed
-    if (rc != SQLITE_OK) return fail(sql::describe(db.get(), rc, "opening " + db_path.string()));
-    sqlite3_busy_timeout(db.get(), 5000);
-    sqlite3_extended_result_codes(db.get(), 1);
-
-    // Identify the file before changing anything in it.
-    auto version = sql::query_int(db.get(), "PRAGMA user_version");
-    if (!version) return fail("cannot read " + db_path.string() + ": " + version.error().message);
-    auto app_id = sql::query_int(db.get(), "PRAGMA application_id");
-    if (!app_id) return app_id.failure();
-    const int latest = static_cast<int>(migrations().size());
-    if (*version > latest) {
-      return fail("the session store " + db_path.string() + " has schema v" +
-                  std::to_string(*version) + ", newer than this facebooth understands (v" +
-                  std::to_string(latest) +
-                  "): update facebooth to open it; the file was not modified");
-    }
-    if (*version == 0) {
-      auto tables = sql::query_int(db.get(), "SELECT count(*) FROM sqlite_master");
-      if (!tables) return tables.failure();
-      if (*tables > 0) {
-        return fail(db_path.string() +
-                    " is an SQLite database but not a facebooth session store: use another "
-                    "folder; the file was not modified");
-      }
-    } else if (*app_id != kApplicationId) {
-      return fail(db_path.string() +
-                  " is an SQLite database of another application: use another folder; the "
-                  "file was not modified");
-    }
-    auto check = sql::query_text(db.get(), "PRAGMA quick_check");
-    if (!check)
-      return fail("the session store " + db_path.string() +
-                  " is damaged: " + check.error().message);
-    if (*check != "ok") {
-      return fail("the session store " + db_path.string() + " is damaged (" + *check +
-                  "): move it aside and restore it from a backup; facebooth did not modify it");
-    }
-    schema_version = static_cast<int>(*version);
-    if (options.read_only) {
-      if (schema_version < latest) {
-        return fail("the session store " + root.string() + " has schema v" +
-                    std::to_string(schema_version) + " (current v" + std::to_string(latest) +
-                    "): open it once as the writer to migrate it");
-      }
-      return sql::exec(db.get(), "PRAGMA query_only=ON");
-    }
-    // WAL: readers on other connections never block the writer, and a crash never leaves a
-    // half-applied transaction. NORMAL is durable enough for bookkeeping; capture commits
-    // switch to FULL (see commit_capture).
-    auto mode = sql::query_text(db.get(), "PRAGMA journal_mode=WAL");
-    if (!mode) return mode.failure();
-    if (*mode != "wal") return fail("cannot switch " + db_path.string() + " to WAL mode");
-    if (auto r = sql::exec(db.get(), "PRAGMA foreign_keys=ON; PRAGMA synchronous=NORMAL"); !r) {
-      return r;
-    }
-    return migrate();
-  }
-
-  Result<void> take_writer_lock() {
-    const fs::path path = root / kLockFileName;
-    UniqueFd fd(::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644));
-    if (!fd.valid()) {
-      return fail("cannot create the lock file " + path.string() + ": " + std::strerror(errno) +
-                  " (is the store folder writable?)");
-    }
-    if (::flock(fd.get(), LOCK_EX | LOCK_NB) != 0) {
-      return fail("another facebooth process is writing the session store " + root.string() +
-                  ": stop it (the daemon?) or open the store read-only");
-    }
-    lock = std::move(fd);
-    return success();
-  }
-
-  Result<CaptureInfo> capture_from_row(sql::Statement& s) const {
-    CaptureInfo c;
-    c.id = s.int64(0);
-    c.session = s.int64(1);
-    c.index = s.int32(2);
-    c.expression = s.text(3);
-    c.state = capture_state_from(s.text(4));
-    c.attempts = s.int32(5);
-    c.qa_scores = scores_from_json(s.text(6));
-    c.frame_count = s.int32(7);
-    c.completed_at = s.text(8);
-    return c;
-  }
-  static constexpr const char* kCaptureColumns =
-      "SELECT id, session_id, idx, expression, state, attempts, qa_json, frame_count, "
-      "coalesce(completed_at,''), frames_file_id, fused_file_id FROM captures ";
-
-  Result<std::vector<CaptureInfo>> query_captures(const std::string& where, std::int64_t a,
-                                                  std::int64_t b = 0) const {
-    auto stmt = sql::prepare(db.get(), std::string(kCaptureColumns) + where);
-    if (!stmt) return stmt.failure();
-    stmt->bind(1, a);
-    if (where.find("?2") != std::string::npos) stmt->bind(2, b);
-    std::vector<CaptureInfo> out;
-    for (;;) {
-      auto row = stmt->step();
-      if (!row) return row.failure();
-      if (!*row) break;
-      auto c = capture_from_row(*stmt);
-      if (!c) return c.failure();
-      out.push_back(std::move(*c));
-    }
-    return out;
-  }
-
-  Result<CaptureInfo> one_capture(SessionId session, int index) const {
-    auto list = query_captures("WHERE session_id=?1 AND idx=?2", session, index);
-    if (!list) return list.failure();
-    if (list->empty()) {
-      auto folder = session_folder(session);
-      if (!folder) return folder.failure();
-      return fail("session " + std::to_string(session) + " has no capture " +
-                  std::to_string(index));
-    }
-    return list->front();
-  }
-};
 
 SessionStore::SessionStore(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 SessionStore::SessionStore(SessionStore&&) noexcept = default;
@@ -915,6 +337,47 @@ Result<void> SessionStore::reject_capture(SessionId session, int index,
   return stmt->run();
 }
 
+namespace {
+
+// A capture's .fbseq file, streamed frame by frame (a capture is tens of megabytes), with what
+// the frames table needs: each frame's header and byte offset.
+struct FrameSequence {
+  SessionStore::Impl::StoredFile file;
+  std::vector<std::uint64_t> offsets;
+  std::vector<frame_record::Header> headers;
+};
+
+Result<FrameSequence> write_frame_sequence(const SessionStore::Impl& impl,
+                                           const std::string& folder, const std::string& stem,
+                                           const CaptureInput& input, std::size_t frame_count) {
+  const bool from_source = input.frames.empty();
+  FrameSequence out;
+  const std::string rel = folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
+  auto file = DurableFile::create(impl.root / rel, impl.file_hooks());
+  if (!file) return impl.folder_missing_or(folder, file.error());
+  ByteWriter header;
+  header.put_magic(kSeqMagic);
+  header.put(static_cast<std::uint32_t>(frame_count));
+  header.put(std::uint32_t{0});
+  if (auto r = file->append(header.bytes); !r) return r.failure();
+  RgbdFrame scratch;
+  for (std::size_t i = 0; i < frame_count; ++i) {
+    if (from_source) {
+      if (auto r = input.read_frame(i, scratch); !r) return r.failure();
+    }
+    const RgbdFrame& f = from_source ? scratch : input.frames[i];
+    out.offsets.push_back(file->size());
+    out.headers.push_back(frame_record::header_of(f, /*with_raw_disparity=*/true));
+    auto sink = [&](const void* data, std::size_t size) { return file->append(data, size); };
+    if (auto r = frame_record::write(f, /*with_raw_disparity=*/true, sink); !r) return r.failure();
+  }
+  if (auto r = file->commit(); !r) return r.failure();
+  out.file = {rel, file->size(), file->sha256()};
+  return out;
+}
+
+}  // namespace
+
 Result<void> SessionStore::commit_capture(SessionId session, int index, const CaptureInput& input) {
   if (auto r = impl_->require_writer(); !r) return r;
   auto c = impl_->one_capture(session, index);
@@ -931,46 +394,12 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
   if (!folder) return folder.failure();
   const std::string stem = "c" + std::to_string(index) + "-a" + std::to_string(c->attempts);
 
-  // 1. The frame sequence, streamed frame by frame (a capture is tens of megabytes).
-  std::vector<Impl::StoredFile> written;
-  std::vector<std::uint64_t> offsets;
-  std::vector<FrameRecordHeader> headers;  // for the frames table rows
-  {
-    const std::string rel = *folder + "/" + stem + "-frames-" + random_token(8) + ".fbseq";
-    auto file = DurableFile::create(impl_->root / rel, impl_->file_hooks());
-    if (!file) return impl_->folder_missing_or(*folder, file.error());
-    ByteWriter header;
-    header.put_magic(kSeqMagic);
-    header.put(static_cast<std::uint32_t>(frame_count));
-    header.put(std::uint32_t{0});
-    if (auto r = file->append(header.bytes); !r) return r;
-    RgbdFrame scratch;
-    for (std::size_t i = 0; i < frame_count; ++i) {
-      if (from_source) {
-        if (auto r = input.read_frame(i, scratch); !r) return r;
-      }
-      const RgbdFrame& f = from_source ? scratch : input.frames[i];
-      offsets.push_back(file->size());
-      const FrameRecordHeader h{f.index,
-                                f.depth_host_time_s,
-                                f.color_host_time_s,
-                                f.depth_device_timestamp,
-                                f.color_device_timestamp,
-                                f.depth_mm.width,
-                                f.depth_mm.height,
-                                f.raw_disparity.width,
-                                f.raw_disparity.height,
-                                f.color.width,
-                                f.color.height};
-      headers.push_back(h);
-      if (auto r = file->append(&h, sizeof h); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.depth_mm)); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.raw_disparity)); !r) return r;
-      if (auto r = file->append(pixel_bytes(f.color)); !r) return r;
-    }
-    if (auto r = file->commit(); !r) return r;
-    written.push_back({rel, file->size(), file->sha256()});
-  }
+  // 1. The frame sequence.
+  auto sequence = write_frame_sequence(*impl_, *folder, stem, input, frame_count);
+  if (!sequence) return sequence.failure();
+  std::vector<Impl::StoredFile> written = {sequence->file};
+  const std::vector<std::uint64_t>& offsets = sequence->offsets;
+  const std::vector<frame_record::Header>& headers = sequence->headers;
   // 2. The fused depth map.
   if (!input.fused_depth.empty()) {
     ByteWriter w;
@@ -1005,7 +434,7 @@ Result<void> SessionStore::commit_capture(SessionId session, int index, const Ca
                      "depth_device_ts, color_device_ts, file_id, offset) VALUES(?,?,?,?,?,?,?,?)");
     if (!frame) return frame.failure();
     for (std::size_t i = 0; i < frame_count; ++i) {
-      const FrameRecordHeader& h = headers[i];
+      const frame_record::Header& h = headers[i];
       frame->reset();
       frame->bind_all(c->id, static_cast<std::int64_t>(i), h.depth_host_time_s, h.color_host_time_s,
                       static_cast<std::int64_t>(h.depth_device_timestamp),
@@ -1084,30 +513,15 @@ Result<CaptureData> SessionStore::read_capture(SessionId session, int index,
     if (static_cast<int>(count) != c->frame_count) return fail(bad + " (frame count differs)");
     const std::size_t keep = std::min<std::size_t>(count, options.max_frames);
     out.frames.resize(keep);
-    auto image = [&](int w, int h, auto& img, bool decode_it) {
-      using Pixel = typename std::decay_t<decltype(img.pixels)>::value_type;
-      if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
-      const std::size_t n = static_cast<std::size_t>(w) * h * sizeof(Pixel);
-      if (in.position() > file->bytes || n > file->bytes - in.position()) return false;
-      if (!decode_it) return in.skip(n);
-      img.resize(w, h);
-      return in.read(img.pixels.data(), n);
-    };
-    RgbdFrame skipped;
+    auto source = [&](void* data, std::size_t size) { return in.read(data, size); };
     for (std::uint32_t i = 0; i < count; ++i) {
-      FrameRecordHeader h{};
-      if (!in.read(&h, sizeof h)) return fail(bad);
-      const bool kept = i < keep;
-      RgbdFrame& f = kept ? out.frames[i] : skipped;
-      f.index = h.index;
-      f.depth_host_time_s = h.depth_host_time_s;
-      f.color_host_time_s = h.color_host_time_s;
-      f.depth_device_timestamp = h.depth_device_timestamp;
-      f.color_device_timestamp = h.color_device_timestamp;
-      if (!image(h.depth_w, h.depth_h, f.depth_mm, kept) ||
-          !image(h.raw_w, h.raw_h, f.raw_disparity, kept) ||
-          !image(h.color_w, h.color_h, f.color, kept))
-        return fail(bad);
+      frame_record::Header h{};
+      if (!in.read(&h, sizeof h) || !frame_record::plausible(h)) return fail(bad);
+      const std::uint64_t n = frame_record::pixel_bytes(h);
+      if (in.position() > file->bytes || n > file->bytes - in.position()) return fail(bad);
+      const bool decoded = i < keep ? frame_record::read_pixels(h, out.frames[i], source)
+                                    : in.skip(static_cast<std::size_t>(n));
+      if (!decoded) return fail(bad);
     }
     if (in.position() != file->bytes) return fail(bad + " (trailing bytes)");
     return success();
@@ -1164,339 +578,6 @@ Result<void> SessionStore::set_operator_landmarks(SessionId session, int index,
 }
 
 // --- meshes, rigs, models, takes
-
-namespace {
-
-Result<void> check_mesh(const MeshData& mesh, const std::string& what) {
-  if (mesh.positions.empty() || mesh.positions.size() % 3 != 0) {
-    return fail(what + " has no vertices or a position count that is not a multiple of 3");
-  }
-  if (mesh.triangles.size() % 3 != 0) return fail(what + " has a partial triangle");
-  const auto n = static_cast<std::uint32_t>(mesh.vertex_count());
-  for (auto t : mesh.triangles) {
-    if (t >= n) return fail(what + " has a triangle index past its vertex count");
-  }
-  return success();
-}
-
-}  // namespace
-
-Result<MeshId> SessionStore::add_mesh(SessionId session, std::optional<int> capture_index,
-                                      MeshRole role, const std::string& name,
-                                      const MeshData& mesh) {
-  if (auto r = impl_->require_writer(); !r) return r.failure();
-  if (auto r = check_mesh(mesh, "mesh '" + name + "'"); !r) return r.failure();
-  auto folder = impl_->session_folder(session);
-  if (!folder) return folder.failure();
-  ByteWriter w;
-  w.put_magic(kMeshMagic);
-  w.put(static_cast<std::uint32_t>(mesh.vertex_count()));
-  w.put(static_cast<std::uint32_t>(mesh.triangle_count()));
-  w.put_span(std::span<const float>(mesh.positions));
-  w.put_span(std::span<const std::uint32_t>(mesh.triangles));
-  auto file = impl_->write_data_file(*folder, "mesh.fbmsh", w.bytes);
-  if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<MeshId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO meshes(session_id, capture_idx, role, name, "
-                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(session,
-                   capture_index ? std::optional<std::int64_t>(*capture_index) : std::nullopt,
-                   to_string(role), name, mesh.vertex_count(), mesh.triangle_count(), *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const MeshId mesh_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return mesh_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
-}
-
-Result<std::vector<MeshInfo>> SessionStore::meshes(SessionId session) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, session_id, capture_idx, role, name, vertex_count, "
-                           "triangle_count FROM meshes WHERE session_id=? ORDER BY id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, session);
-  std::vector<MeshInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    MeshInfo m;
-    m.id = stmt->int64(0);
-    m.session = stmt->int64(1);
-    if (!stmt->is_null(2)) m.capture_index = stmt->int32(2);
-    m.role = mesh_role_from(stmt->text(3));
-    m.name = stmt->text(4);
-    m.vertex_count = stmt->int32(5);
-    m.triangle_count = stmt->int32(6);
-    out.push_back(std::move(m));
-  }
-  return out;
-}
-
-Result<MeshData> SessionStore::read_mesh(MeshId id) const {
-  auto stmt = sql::prepare(impl_->db.get(), "SELECT file_id FROM meshes WHERE id=?");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, id);
-  auto row = stmt->step();
-  if (!row) return row.failure();
-  if (!*row) return fail("there is no mesh " + std::to_string(id) + " in this store");
-  auto bytes = impl_->load_file(stmt->int64(0));
-  if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t nv = 0, nt = 0;
-  MeshData mesh;
-  if (!r.magic(kMeshMagic) || !r.get(nv) || !r.get(nt) ||
-      !r.get_array(mesh.positions, std::size_t{3} * nv) ||
-      !r.get_array(mesh.triangles, std::size_t{3} * nt) || !r.at_end()) {
-    return fail("the file of mesh " + std::to_string(id) + " is malformed");
-  }
-  return mesh;
-}
-
-Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> session,
-                                    const RigData& rig) {
-  if (auto r = impl_->require_writer(); !r) return r.failure();
-  if (auto r = check_mesh(rig.neutral_mesh(), "the rig's neutral"); !r) return r.failure();
-  if (rig.shape_names.size() != rig.shapes.size()) {
-    return fail("the rig has " + std::to_string(rig.shapes.size()) + " shapes but " +
-                std::to_string(rig.shape_names.size()) + " names");
-  }
-  for (const auto& s : rig.shapes) {
-    if (s.size() != rig.neutral.size()) return fail("a rig shape differs in vertex count");
-  }
-  if (auto r = impl_->ensure_subject(subject); !r) return r.failure();
-  ByteWriter w;
-  w.put_magic(kRigMagic);
-  w.put(static_cast<std::uint32_t>(rig.vertex_count()));
-  w.put(static_cast<std::uint32_t>(rig.triangles.size() / 3));
-  w.put(static_cast<std::uint32_t>(rig.shapes.size()));
-  w.put_span(std::span<const float>(rig.neutral));
-  for (const auto& s : rig.shapes) w.put_span(std::span<const float>(s));
-  w.put_span(std::span<const std::uint32_t>(rig.triangles));
-  const std::string folder = "subjects/" + std::to_string(subject);
-  auto file = impl_->write_data_file(folder, "rig.fbrig", w.bytes);
-  if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<RigId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
-                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
-                   static_cast<int>(rig.triangles.size() / 3), *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const RigId rig_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return rig_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
-}
-
-Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, subject_id, session_id, shape_names_json, vertex_count, "
-                           "triangle_count, created_at FROM rigs WHERE subject_id=? "
-                           "ORDER BY id DESC");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, subject);
-  std::vector<RigInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    RigInfo info;
-    info.id = stmt->int64(0);
-    info.subject = stmt->int64(1);
-    info.session = stmt->optional_int64(2);
-    info.shape_names = names_from_json(stmt->text(3));
-    info.vertex_count = stmt->int32(4);
-    info.triangle_count = stmt->int32(5);
-    info.created_at = stmt->text(6);
-    out.push_back(std::move(info));
-  }
-  return out;
-}
-
-Result<RigData> SessionStore::read_rig(RigId id) const {
-  auto stmt =
-      sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, id);
-  auto row = stmt->step();
-  if (!row) return row.failure();
-  if (!*row) return fail("there is no rig " + std::to_string(id) + " in this store");
-  RigData rig;
-  rig.shape_names = names_from_json(stmt->text(1));
-  auto bytes = impl_->load_file(stmt->int64(0));
-  if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t nv = 0, nt = 0, ns = 0;
-  const Failure bad = fail("the file of rig " + std::to_string(id) + " is malformed");
-  if (!r.magic(kRigMagic) || !r.get(nv) || !r.get(nt) || !r.get(ns) ||
-      ns != rig.shape_names.size() || !r.get_array(rig.neutral, std::size_t{3} * nv)) {
-    return bad;
-  }
-  rig.shapes.resize(ns);
-  for (auto& s : rig.shapes) {
-    if (!r.get_array(s, std::size_t{3} * nv)) return bad;
-  }
-  if (!r.get_array(rig.triangles, std::size_t{3} * nt) || !r.at_end()) return bad;
-  return rig;
-}
-
-Result<ModelId> SessionStore::add_model(const std::string& kind, const std::string& params_json,
-                                        std::span<const std::uint8_t> bytes) {
-  if (auto r = impl_->require_writer(); !r) return r.failure();
-  auto file = impl_->write_data_file("models", kind + ".bin", bytes);
-  if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<ModelId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db, "INSERT INTO models(kind, params_json, file_id) VALUES(?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(kind, params_json, *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const ModelId model_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return model_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
-}
-
-Result<std::vector<ModelInfo>> SessionStore::models() const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT m.id, m.kind, m.params_json, f.bytes, m.created_at FROM models "
-                           "m JOIN files f ON f.id=m.file_id ORDER BY m.id");
-  if (!stmt) return stmt.failure();
-  std::vector<ModelInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    out.push_back({stmt->int64(0), stmt->text(1), stmt->text(2), stmt->int64(3), stmt->text(4)});
-  }
-  return out;
-}
-
-Result<std::vector<std::uint8_t>> SessionStore::read_model(ModelId id) const {
-  auto file =
-      sql::query_int(impl_->db.get(), "SELECT file_id FROM models WHERE id=" + std::to_string(id));
-  if (!file) return file.failure();
-  if (*file == 0) return fail("there is no model " + std::to_string(id) + " in this store");
-  return impl_->load_file(*file);
-}
-
-Result<TakeId> SessionStore::add_take(const TakeInfo& info, std::span<const float> values) {
-  if (auto r = impl_->require_writer(); !r) return r.failure();
-  if (info.fps <= 0) return fail("a take needs a positive frame rate");
-  if (values.size() != static_cast<std::size_t>(info.frame_count) * info.stride()) {
-    return fail("a take of " + std::to_string(info.frame_count) + " frames and " +
-                std::to_string(info.shape_names.size()) + " shapes needs " +
-                std::to_string(static_cast<std::size_t>(info.frame_count) * info.stride()) +
-                " values, got " + std::to_string(values.size()));
-  }
-  if (auto r = impl_->ensure_subject(info.subject); !r) return r.failure();
-  ByteWriter w;
-  w.put_magic(kTakeMagic);
-  w.put(static_cast<std::uint32_t>(info.frame_count));
-  w.put(static_cast<std::uint32_t>(info.stride()));
-  w.put_span(values);
-  auto file =
-      impl_->write_data_file("subjects/" + std::to_string(info.subject), "take.fbtak", w.bytes);
-  if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<TakeId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO takes(subject_id, session_id, fps, shape_names_json, "
-                             "frame_count, file_id) VALUES(?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(info.subject, info.session, info.fps, names_to_json(info.shape_names),
-                   info.frame_count, *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const TakeId take_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return take_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
-}
-
-Result<std::vector<TakeInfo>> SessionStore::takes(SubjectId subject) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, subject_id, session_id, fps, shape_names_json, "
-                           "frame_count, created_at FROM takes WHERE subject_id=? ORDER BY id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, subject);
-  std::vector<TakeInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    TakeInfo t;
-    t.id = stmt->int64(0);
-    t.subject = stmt->int64(1);
-    t.session = stmt->optional_int64(2);
-    t.fps = stmt->real(3);
-    t.shape_names = names_from_json(stmt->text(4));
-    t.frame_count = stmt->int32(5);
-    t.created_at = stmt->text(6);
-    out.push_back(std::move(t));
-  }
-  return out;
-}
-
-Result<std::vector<float>> SessionStore::read_take(TakeId id, TakeInfo* info) const {
-  auto stmt = sql::prepare(impl_->db.get(), "SELECT subject_id, file_id FROM takes WHERE id=?");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, id);
-  auto row = stmt->step();
-  if (!row) return row.failure();
-  if (!*row) return fail("there is no take " + std::to_string(id) + " in this store");
-  const SubjectId subject = stmt->int64(0);
-  auto bytes = impl_->load_file(stmt->int64(1));
-  if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t frames = 0, stride = 0;
-  std::vector<float> values;
-  if (!r.magic(kTakeMagic) || !r.get(frames) || !r.get(stride) ||
-      !r.get_array(values, std::size_t{frames} * stride) || !r.at_end()) {
-    return fail("the file of take " + std::to_string(id) + " is malformed");
-  }
-  if (info != nullptr) {
-    auto all = takes(subject);
-    if (!all) return all.failure();
-    for (auto& t : *all) {
-      if (t.id == id) *info = t;
-    }
-  }
-  return values;
-}
 
 Result<VerifyReport> SessionStore::verify() const {
   VerifyReport report;

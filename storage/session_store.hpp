@@ -28,7 +28,7 @@
 
 namespace fb {
 
-inline constexpr int kSessionStoreSchemaVersion = 2;
+inline constexpr int kSessionStoreSchemaVersion = 3;
 inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
 
 using SubjectId = std::int64_t;
@@ -152,16 +152,29 @@ struct ModelInfo {
   std::string created_at;
 };
 
-// A tracking take: per frame, head pose (tx ty tz mm, qx qy qz qw) then one weight per shape.
+// A tracking take: per frame its time, the head pose (tx ty tz mm, then qx qy qz qw, a unit
+// quaternion; camera_from_model) and one weight per shape. Written by TakeWriter
+// (storage/take_writer.hpp), the one writer of takes for the host and the device.
+inline constexpr int kTakePoseValues = 7;
 struct TakeInfo {
   TakeId id = 0;
   SubjectId subject = 0;
-  std::optional<SessionId> session;
-  double fps = 30.0;
+  std::optional<SessionId> session;  // the session whose subject or rig was tracked
+  double fps = 30.0;                 // the camera's nominal rate (the times are measured)
   std::vector<std::string> shape_names;
   int frame_count = 0;
   std::string created_at;
-  int stride() const { return 7 + static_cast<int>(shape_names.size()); }
+  int stride() const { return kTakePoseValues + static_cast<int>(shape_names.size()); }
+};
+
+struct TakeData {
+  TakeInfo info;
+  std::vector<double> times_s;  // per frame: seconds from the take's first frame
+  std::vector<float> values;    // per frame: stride() values, the pose then the weights
+  std::span<const float> frame(int f) const {
+    const auto stride = static_cast<std::size_t>(info.stride());
+    return std::span<const float>(values).subspan(static_cast<std::size_t>(f) * stride, stride);
+  }
 };
 
 // Result of SessionStore::verify().
@@ -232,16 +245,27 @@ class SessionStore {
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first
   Result<RigData> read_rig(RigId id) const;
+  // Which rig serves a session, the one rule for exports, model building, tracking and the
+  // device: the newest rig built from this session, else the subject's newest rig (built from
+  // another of their sessions, imported, or saved by `track --save-rig`). RigInfo::session says
+  // which session built it. nullopt: the subject has no rig.
+  Result<std::optional<RigInfo>> rig_for(SessionId session) const;
+  // The rig serving a subject when no session is named: their newest (rig_for's fallback).
+  Result<std::optional<RigInfo>> newest_rig(SubjectId subject) const;
 
   Result<ModelId> add_model(const std::string& kind, const std::string& params_json,
                             std::span<const std::uint8_t> bytes);
   Result<std::vector<ModelInfo>> models() const;
   Result<std::vector<std::uint8_t>> read_model(ModelId id) const;
 
-  // `values` holds frame_count * stride() floats (see TakeInfo).
-  Result<TakeId> add_take(const TakeInfo& info, std::span<const float> values);
+  // Stores a take (TakeWriter::store is the way to call this): `take.values` holds
+  // frame_count * stride() floats and `take.times_s` one time per frame.
+  Result<TakeId> add_take(const TakeData& take);
   Result<std::vector<TakeInfo>> takes(SubjectId subject) const;
-  Result<std::vector<float>> read_take(TakeId id, TakeInfo* info = nullptr) const;
+  // Reads a take back in the current layout, whichever layout it was stored in (takes from
+  // before schema v3 get their times from the frame rate or from the "timestamp_s" column the
+  // host used to append).
+  Result<TakeData> read_take(TakeId id) const;
 
   // PRAGMA integrity_check plus existence, size and SHA-256 of every referenced data file.
   Result<VerifyReport> verify() const;

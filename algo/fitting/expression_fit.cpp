@@ -1,5 +1,6 @@
 #include <chrono>
 
+#include "algo/core/clock.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 
 namespace fb {
@@ -8,13 +9,12 @@ Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfe
                                  std::span<const float> guide_expression, const FitTarget& target,
                                  const ExpressionFitOptions& options,
                                  const std::optional<RigidPose>& initial_pose) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   auto start = transfer.transfer(guide_expression);
   if (!start) return start.failure();
   auto pose = align_rigid(model, target, *start, options.rigid_iterations, initial_pose);
   if (!pose) return pose.failure();
-  const double initial_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const double initial_ms = ms_since(t0);
   RefineOptions refine = options.refine_options;
   if (!options.refine) refine.iterations = 0;
   auto result = refine_fit(model, target, *start, *pose, refine, &transfer.refine_system());

@@ -1,4 +1,5 @@
 #include "algo/fitting/expression_transfer.hpp"
+#include "algo/core/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -57,7 +58,7 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
   const std::size_t n3 = static_cast<std::size_t>(model.vertex_count) * 3;
   if (neutral_fit.size() != n3 || guide_neutral.size() != n3)
     return fail("deformation transfer: meshes must have the model's vertex count");
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   auto s = std::make_unique<State>();
   s->vertex_count = model.vertex_count;
   s->triangles = model.triangles;
@@ -110,8 +111,7 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
                                      refine_system_options(refine));
   if (!system) return system.failure();
   s->refine_system.emplace(std::move(*system));
-  s->factor_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  s->factor_ms = ms_since(t0);
   return ExpressionTransfer(std::move(s));
 }
 

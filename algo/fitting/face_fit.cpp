@@ -1,4 +1,5 @@
 #include "algo/fitting/face_fit.hpp"
+#include "algo/core/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -18,11 +19,7 @@ using namespace fitting_detail;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Gate for the reported residuals (initial and final alike, so they compare).

@@ -1,4 +1,5 @@
 #include "algo/fitting/refine_system.hpp"
+#include "algo/core/clock.hpp"
 
 #include <chrono>
 
@@ -53,7 +54,7 @@ std::size_t RefineSystem::factor_nonzeros() const {
 
 Result<RefineSystem> RefineSystem::create(const FaceModel& model, const Points& reference,
                                           const RefineSystemOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   const int n = model.vertex_count;
   if (reference.rows() != n) return fail("refine: the reference mesh has the wrong vertex count");
   if (model.fitting_vertices.empty()) return fail("refine: the face model has no fitting vertices");
@@ -114,8 +115,7 @@ Result<RefineSystem> RefineSystem::create(const FaceModel& model, const Points& 
   const auto& p = s->solver.permutationP().indices();
   s->perm.assign(p.data(), p.data() + p.size());
   s->inv_diag = s->solver.vectorD().cwiseInverse();
-  s->factor_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  s->factor_ms = ms_since(t0);
   return RefineSystem(std::move(s));
 }
 

@@ -1,4 +1,5 @@
 #include "firmware/daemon/daemon.hpp"
+#include "algo/core/clock.hpp"
 
 #include <malloc.h>
 #include <poll.h>
@@ -17,12 +18,6 @@
 
 namespace fb {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 // The synthetic take URI: the configured source with the guide's expression and the take length
 // (keys the daemon sets are dropped from the configured URI, the rest is kept).

@@ -9,12 +9,11 @@
 #include <cstdio>
 #include <cstring>
 
+#include "algo/core/clock.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
 namespace fb {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 std::string fixed(double v, int digits = 1) {
   char buf[32];
@@ -187,10 +186,10 @@ Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
       counted = got;
     }
   }
-  const double read_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const double read_ms = ms_since(t0);
   const auto t1 = Clock::now();
   auto estimate = calibrator.estimate();
-  const double estimate_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+  const double estimate_ms = ms_since(t1);
   watchdog_ping();
   if (!estimate) return fail("self-calibration: " + estimate.error().message);
   const SelfCalibrationResult& e = *estimate;

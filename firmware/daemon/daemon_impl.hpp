@@ -189,7 +189,7 @@ struct Daemon::Impl {
   std::unique_ptr<FaceTracker> tracker;
   std::unique_ptr<VmcSender> vmc;
   std::optional<ArkitMapping> arkit;
-  std::vector<float> take_values;
+  std::optional<TakeWriter> take;  // the tracked take, stored when tracking stops
   // Re-acquisition by detection: dlib on the colour image while the tracker has no face or
   // calibrates the identity (the fitter's shape predictor, shared); its pose seeds the ICP,
   // its points guide the calibration. Set only in tracking mode.
@@ -200,7 +200,6 @@ struct Daemon::Impl {
   static constexpr int kLatencyWindow = 300;
   std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};
   long long latency_count = 0;
-  int take_frames = 0;
   std::int64_t take_session = 0;
   TrackReport track_report;
   ArkitFrame track_frame;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
 #include "algo/tracking/rig_view.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
@@ -20,12 +21,6 @@
 
 namespace fb {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 std::string fixed(double v, int digits = 2) {
   return figure_text(v, digits);
@@ -426,12 +421,12 @@ Result<void> Daemon::Impl::start_tracking() {
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return mapping.failure();
   arkit = *mapping;
-  take_values.clear();
+  std::vector<std::string> shape_names(kArkitNames.begin(), kArkitNames.end());
+  const double fps = preview_camera->info().fps;
+  take.emplace(std::move(shape_names), fps);
   // The whole take's room up front, so the frame loop does not grow it (the pages count only
   // once written).
-  take_values.reserve(static_cast<std::size_t>(config.streaming.max_take_frames) *
-                      (7 + kArkitNames.size()));
-  take_frames = 0;
+  take->reserve(config.streaming.max_take_frames);
   latency_count = 0;
   face_before = false;
   occlusion_log = OcclusionLog();
@@ -447,7 +442,7 @@ Result<void> Daemon::Impl::start_tracking() {
       if (auto all = records->sessions(); all && !all->empty()) take_session = all->back().id;
     }
     if (take_session != 0) {
-      auto found = records->subject_rig(take_session);
+      auto found = records->rig_for(take_session);
       if (found) {
         rig = std::move(*found);
       } else {
@@ -514,18 +509,15 @@ void Daemon::Impl::stop_tracking() {
   if (!tracker) return;
   std::string note;
   std::int64_t take_id = 0;
-  if (config.streaming.save_takes && take_frames > 0) {
-    TakeRecord take;
-    take.session = take_session;
-    take.subject_name = "tracking";
-    take.fps = preview_camera->info().fps > 0 ? preview_camera->info().fps : 30.0;
-    for (auto name : kArkitNames) take.shape_names.emplace_back(name);
-    take.frame_count = take_frames;
+  if (config.streaming.save_takes && take && take->frame_count() > 0) {
+    TakeRecord whose;
+    whose.session = take_session;
+    whose.subject_name = "tracking";
     std::lock_guard lock(records_mutex);
-    auto id = records->add_take(take, take_values);
+    auto id = records->add_take(whose, *take);
     if (id) {
       take_id = *id;
-      note = "take " + std::to_string(*id) + " stored (" + std::to_string(take_frames) +
+      note = "take " + std::to_string(*id) + " stored (" + std::to_string(take->frame_count()) +
              " frames; the face was occluded on " +
              std::to_string(occlusion_log.occluded_frames()) + ")";
     } else {
@@ -535,8 +527,7 @@ void Daemon::Impl::stop_tracking() {
   tracker.reset();
   reacquire_source.reset();
   vmc.reset();
-  take_values.clear();
-  take_values.shrink_to_fit();
+  take.reset();
   update_status([&](StatusData& s) {
     s.tracking_note = note;
     if (take_id > 0) s.last_take = take_id;
@@ -607,19 +598,11 @@ void Daemon::Impl::tracking_tick() {
         update_status([&](StatusData& s) { s.tracking_note = sent.error().message; });
     }
     const auto slot = static_cast<std::size_t>(latency_count++ % kLatencyWindow);
-    latency_ring[slot] = static_cast<float>(
-        std::chrono::duration<double, std::milli>(Clock::now() - arrival).count());
+    latency_ring[slot] = static_cast<float>(ms_since(arrival));
     track_ms_ring[slot] = static_cast<float>(track_report.times.total_ms());
-    if (take_frames < config.streaming.max_take_frames) {
-      const auto& p = track_frame.camera_from_model;
-      const float pose[7] = {
-          static_cast<float>(p.translation.x()), static_cast<float>(p.translation.y()),
-          static_cast<float>(p.translation.z()), static_cast<float>(p.rotation.x()),
-          static_cast<float>(p.rotation.y()),    static_cast<float>(p.rotation.z()),
-          static_cast<float>(p.rotation.w())};
-      take_values.insert(take_values.end(), pose, pose + 7);
-      take_values.insert(take_values.end(), track_frame.weights.begin(), track_frame.weights.end());
-      ++take_frames;
+    if (take && take->frame_count() < config.streaming.max_take_frames) {
+      // 52 weights for 52 names: cannot fail.
+      (void)take->add_frame(track_frame.time_s, track_frame.camera_from_model, track_frame.weights);
     }
     {
       std::lock_guard lock(live_mutex);

@@ -5,6 +5,8 @@
 #include <random>
 #include <system_error>
 
+#include "storage/frame_record.hpp"
+
 namespace fb {
 namespace fs = std::filesystem;
 
@@ -47,51 +49,31 @@ void FrameSpool::remove_stale(const fs::path& folder) {
 }
 
 Result<void> FrameSpool::append(const RgbdFrame& f) {
-  Record r{end_,
-           f.index,
-           f.depth_host_time_s,
-           f.color_host_time_s,
-           f.depth_device_timestamp,
-           f.color_device_timestamp,
-           f.depth_mm.width,
-           f.depth_mm.height,
-           f.color.width,
-           f.color.height};
-  const auto depth_bytes = f.depth_mm.pixels.size() * sizeof(f.depth_mm.pixels[0]);
-  const auto color_bytes = f.color.pixels.size() * sizeof(f.color.pixels[0]);
   file_.seekp(static_cast<std::streamoff>(end_));
-  file_.write(reinterpret_cast<const char*>(f.depth_mm.pixels.data()),
-              static_cast<std::streamsize>(depth_bytes));
-  file_.write(reinterpret_cast<const char*>(f.color.pixels.data()),
-              static_cast<std::streamsize>(color_bytes));
-  if (!file_) {
+  auto sink = [&](const void* data, std::size_t size) -> Result<void> {
+    file_.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
+    if (file_) return success();
     file_.clear();
     return fail("cannot write the take's frames to " + path_.string() + " (disk full?)");
-  }
-  end_ += depth_bytes + color_bytes;
-  records_.push_back(r);
+  };
+  if (auto r = frame_record::write(f, /*with_raw_disparity=*/false, sink); !r) return r;
+  offsets_.push_back(end_);
+  end_ += sizeof(frame_record::Header) +
+          frame_record::pixel_bytes(frame_record::header_of(f, /*with_raw_disparity=*/false));
   return success();
 }
 
 Result<void> FrameSpool::read(std::size_t i, RgbdFrame& out) {
-  if (i >= records_.size()) return fail("frame " + std::to_string(i) + " is not in the spool");
-  const Record& r = records_[i];
-  out.index = r.index;
-  out.depth_host_time_s = r.depth_host_time_s;
-  out.color_host_time_s = r.color_host_time_s;
-  out.depth_device_timestamp = r.depth_device_timestamp;
-  out.color_device_timestamp = r.color_device_timestamp;
-  out.raw_disparity = {};
-  out.depth_mm.resize(r.depth_w, r.depth_h);
-  out.color.resize(r.color_w, r.color_h);
+  if (i >= offsets_.size()) return fail("frame " + std::to_string(i) + " is not in the spool");
   file_.flush();
-  file_.seekg(static_cast<std::streamoff>(r.offset));
-  file_.read(
-      reinterpret_cast<char*>(out.depth_mm.pixels.data()),
-      static_cast<std::streamsize>(out.depth_mm.pixels.size() * sizeof(out.depth_mm.pixels[0])));
-  file_.read(reinterpret_cast<char*>(out.color.pixels.data()),
-             static_cast<std::streamsize>(out.color.pixels.size() * sizeof(out.color.pixels[0])));
-  if (!file_) {
+  file_.seekg(static_cast<std::streamoff>(offsets_[i]));
+  auto source = [&](void* data, std::size_t size) {
+    return static_cast<bool>(
+        file_.read(static_cast<char*>(data), static_cast<std::streamsize>(size)));
+  };
+  frame_record::Header h{};
+  if (!source(&h, sizeof h) || !frame_record::plausible(h) ||
+      !frame_record::read_pixels(h, out, source)) {
     file_.clear();
     return fail("cannot read frame " + std::to_string(i) + " back from " + path_.string());
   }

@@ -26,27 +26,21 @@ class FrameSpool {
   FrameSpool(const FrameSpool&) = delete;
   FrameSpool& operator=(const FrameSpool&) = delete;
 
-  // Appends depth, colour and times; the raw disparity is not kept (derivable from depth).
+  // Appends depth, colour and times as one frame record (storage/frame_record.hpp, the session
+  // store's encoding); the raw disparity is not kept (derivable from depth).
   Result<void> append(const RgbdFrame& frame);
   // Reads frame `i` back into `out` (its images are resized; no allocation once sized).
   Result<void> read(std::size_t i, RgbdFrame& out);
-  std::size_t size() const { return records_.size(); }
+  std::size_t size() const { return offsets_.size(); }
   const std::filesystem::path& path() const { return path_; }
 
  private:
-  struct Record {
-    std::uint64_t offset;
-    std::uint64_t index;
-    double depth_host_time_s, color_host_time_s;
-    std::uint32_t depth_device_timestamp, color_device_timestamp;
-    int depth_w, depth_h, color_w, color_h;
-  };
   FrameSpool(std::filesystem::path path, std::fstream file);
 
   std::filesystem::path path_;
   std::fstream file_;
   std::uint64_t end_ = 0;
-  std::vector<Record> records_;
+  std::vector<std::uint64_t> offsets_;  // where each frame's record starts
 };
 
 }  // namespace fb

@@ -1,4 +1,5 @@
 #include "firmware/daemon/quick_fit.hpp"
+#include "algo/core/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -43,10 +44,6 @@ struct QuickFitter::State {
 };
 
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // The target of one capture: its fused depth and the 68 colour points lifted into it.
 Result<FitTarget> make_target(const CaptureView& view,

@@ -1,8 +1,8 @@
-// What the kiosk session needs from storage, as one narrow interface. The production
-// implementation is the SQLite SessionStore (storage/session_store.hpp, crash-safe commits);
-// a plain-file fallback keeps the daemon usable in builds without it. Either way a capture is
-// committed in one durable step, which is what makes resume after power loss possible.
-// Not thread-safe: the daemon serialises calls.
+// What the kiosk session needs from storage, as one narrow interface over the one store, the
+// SQLite SessionStore (storage/session_store.hpp, crash-safe commits; store_records.cpp). A
+// capture is committed in one durable step, which is what makes resume after power loss
+// possible. The interface stays so daemon tests and the state machine see storage through one
+// seam. Not thread-safe: the daemon serialises calls.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +19,7 @@
 #include "algo/core/result.hpp"
 #include "firmware/daemon/frame_spool.hpp"
 #include "storage/stored_data.hpp"
+#include "storage/take_writer.hpp"
 
 namespace fb {
 
@@ -61,13 +62,10 @@ struct FitRecord {
   MeshData mesh;         // model frame, mm
 };
 
-// A tracking take: per frame tx ty tz (mm) qx qy qz qw (camera_from_model), then the weights.
+// Whose tracking take it is; the frames are in a TakeWriter (storage/take_writer.hpp).
 struct TakeRecord {
-  std::int64_t session = 0;  // the session whose subject was tracked (0 = none)
+  std::int64_t session = 0;  // the session whose subject (and rig) was tracked (0 = none)
   std::string subject_name;  // used when there is no session
-  double fps = 30.0;
-  std::vector<std::string> shape_names;
-  int frame_count = 0;
 };
 
 // What the host tool needs to know before fetching a session (offload).
@@ -86,7 +84,7 @@ struct StoredRig {
 class SessionRecords {
  public:
   virtual ~SessionRecords() = default;
-  virtual std::string backend() const = 0;  // "sqlite" or "files"
+  virtual std::string backend() const = 0;  // "sqlite" (reported in the status JSON)
   virtual std::filesystem::path root() const = 0;
 
   virtual Result<std::int64_t> add_subject(const std::string& name) = 0;
@@ -106,21 +104,19 @@ class SessionRecords {
       std::int64_t id, const std::filesystem::path& exports_dir,
       const std::function<bool()>& cancelled = {}) = 0;
 
-  // Fits, landmarks, takes and rigs. The defaults answer "not kept" (the daemon then reports the
-  // stage as unsupported); the SQLite store overrides them all. The interface could now shrink
-  // to the one store (issue 36).
-  virtual bool keeps_fits() const { return false; }
-  virtual Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit);
+  // Fits, landmarks, takes and rigs.
+  virtual bool keeps_fits() const = 0;  // reported as store_keeps_fits in the status JSON
+  virtual Result<void> add_fit(std::int64_t session, int index, const FitRecord& fit) = 0;
   // The newest fitted neutral of a session (nullopt when there is none).
-  virtual Result<std::optional<MeshData>> neutral_mesh(std::int64_t session);
+  virtual Result<std::optional<MeshData>> neutral_mesh(std::int64_t session) = 0;
   virtual Result<void> set_operator_landmarks(std::int64_t session, int index,
-                                              const std::vector<Landmark>& landmarks);
-  virtual Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values);
-  virtual Result<OffloadInfo> offload_info(std::int64_t session);
+                                              const std::vector<Landmark>& landmarks) = 0;
+  virtual Result<std::int64_t> add_take(const TakeRecord& take, TakeWriter& frames) = 0;
+  virtual Result<OffloadInfo> offload_info(std::int64_t session) = 0;
   // Stores a rig uploaded by the host for the session's subject; returns its id.
-  virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig);
-  // The newest rig of the session's subject, from any of their sessions (nullopt: none).
-  virtual Result<std::optional<StoredRig>> subject_rig(std::int64_t session);
+  virtual Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig) = 0;
+  // The rig serving the session (SessionStore::rig_for; nullopt: the subject has none).
+  virtual Result<std::optional<StoredRig>> rig_for(std::int64_t session) = 0;
 };
 
 // The SQLite session store under `data_dir` (storage/session_store).

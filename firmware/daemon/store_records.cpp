@@ -4,7 +4,6 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "firmware/daemon/record_files.hpp"
 #include "firmware/daemon/session_records.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/export_session.hpp"
@@ -108,22 +107,15 @@ class StoreRecords : public SessionRecords {
                                       const std::vector<Landmark>& landmarks) override {
     return store_.set_operator_landmarks(session, index, landmarks);
   }
-  Result<std::int64_t> add_take(const TakeRecord& take, std::span<const float> values) override {
-    TakeInfo info;
+  Result<std::int64_t> add_take(const TakeRecord& take, TakeWriter& frames) override {
     if (take.session > 0) {
       auto s = store_.session(take.session);
       if (!s) return s.failure();
-      info.subject = s->subject;
-      info.session = take.session;
-    } else {
-      auto subject = store_.add_subject(take.subject_name.empty() ? "tracking" : take.subject_name);
-      if (!subject) return subject.failure();
-      info.subject = *subject;
+      return frames.store(store_, s->subject, take.session);
     }
-    info.fps = take.fps;
-    info.shape_names = take.shape_names;
-    info.frame_count = take.frame_count;
-    return store_.add_take(info, values);
+    auto subject = store_.add_subject(take.subject_name.empty() ? "tracking" : take.subject_name);
+    if (!subject) return subject.failure();
+    return frames.store(store_, *subject, std::nullopt);
   }
   Result<OffloadInfo> offload_info(std::int64_t session) override {
     OffloadInfo info;
@@ -145,15 +137,13 @@ class StoreRecords : public SessionRecords {
     if (!s) return s.failure();
     return store_.add_rig(s->subject, session, rig);
   }
-  Result<std::optional<StoredRig>> subject_rig(std::int64_t session) override {
-    auto s = store_.session(session);
-    if (!s) return s.failure();
-    auto rigs = store_.rigs(s->subject);
-    if (!rigs) return rigs.failure();
-    if (rigs->empty()) return std::optional<StoredRig>{};
+  Result<std::optional<StoredRig>> rig_for(std::int64_t session) override {
+    auto serving = store_.rig_for(session);
+    if (!serving) return serving.failure();
+    if (!*serving) return std::optional<StoredRig>{};
     StoredRig out;
-    out.id = rigs->front().id;  // newest first
-    out.subject = s->subject;
+    out.id = (*serving)->id;
+    out.subject = (*serving)->subject;
     auto data = store_.read_rig(out.id);
     if (!data) return data.failure();
     out.data = std::move(*data);
@@ -236,8 +226,7 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
       auto data = store_.read_capture(id, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->fused_depth.empty()) {
-        if (auto ok =
-                write(dir + std::string("fused_depth.pgm"), records::pgm16(data->fused_depth));
+        if (auto ok = write(dir + std::string("fused_depth.pgm"), encode_pgm16(data->fused_depth));
             !ok)
           return ok.failure();
         j["fused_depth"] = dir + std::string("fused_depth.pgm");
@@ -307,9 +296,10 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
                       {"units", "mm; meshes in the face model frame"}};
   if (auto ok = folder->finish(manifest); !ok) return ok.failure();
 
-  // With a rig from the host: the FaceWarehouse layout next to the bundle.
-  auto rigs = store_.rigs(s->subject);
-  if (rigs && std::any_of(rigs->begin(), rigs->end(), [&](auto& r) { return r.session == id; })) {
+  // With a rig from the host built from this session: the FaceWarehouse layout next to the
+  // bundle.
+  auto serving = store_.rig_for(id);
+  if (serving && *serving && (*serving)->session == id) {
     if (auto ok = stop_requested(); !ok) return ok.failure();
     auto content = load_session_content(store_, id);
     if (!content) return content.failure();

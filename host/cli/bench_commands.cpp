@@ -6,6 +6,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "algo/core/clock.hpp"
 #include "drivers/camera/recorder/recorder.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
@@ -13,8 +14,6 @@
 
 namespace fb::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 // Reads every frame of a camera (up to `max_frames`) and returns frames per second.
 Result<double> measure_fps(const std::string& uri, long long max_frames, long long& frames_read) {
@@ -29,7 +28,7 @@ Result<double> measure_fps(const std::string& uri, long long max_frames, long lo
     if (*status == FrameStatus::kEndOfStream) break;
     if (*status == FrameStatus::kFrame) ++frames_read;
   }
-  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  const double seconds = seconds_since(start);
   if (frames_read == 0) return fail("camera '" + uri + "' delivered no frames");
   return static_cast<double>(frames_read) / seconds;
 }

@@ -20,6 +20,7 @@
 #include <string>
 #include <thread>
 
+#include "algo/core/clock.hpp"
 #include "algo/core/result.hpp"
 #include "host/cli/commands.hpp"
 
@@ -30,12 +31,7 @@ namespace fb::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using nlohmann::json;
-
-double ms_since(Clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 fs::path find_daemon(const std::string& given) {
   if (!given.empty()) return given;

@@ -21,6 +21,7 @@
 #include <random>
 #include <sstream>
 
+#include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
@@ -41,11 +42,6 @@
 
 namespace fb::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 constexpr const char* kShapePredictorDefault =
     "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";

@@ -20,6 +20,7 @@
 
 #include "algo/bilinear/bootstrap.hpp"
 #include "algo/bilinear/image_fit.hpp"
+#include "algo/core/clock.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/rigging/example_rigging.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
@@ -35,11 +36,6 @@
 
 namespace fb::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // Mean distance over `subset` between mesh a (mapped by `a_to_b`) and mesh b.
 double mean_distance(std::span<const float> a, std::span<const float> b,
@@ -329,22 +325,15 @@ Result<BuiltModel> build_from_sessions(const FaceModel& face_model, const std::s
   for (SessionId sid : wanted) {
     auto info = store->session(sid);
     if (!info) return info.failure();
-    auto list = store->rigs(info->subject);
-    if (!list) return list.failure();
-    // The newest rig made from this session, else the subject's newest rig (imports store
-    // rigs without a session).
-    std::optional<RigId> pick;
-    for (const auto& r : *list)
-      if (r.session && *r.session == sid) {
-        pick = r.id;
-        break;
-      }
-    if (!pick && !list->empty() && !list->front().session) pick = list->front().id;
-    if (!pick) {
+    auto serving = store->rig_for(sid);
+    if (!serving) return serving.failure();
+    // The rig serving the session, unless another session of the subject built it (that
+    // session counts it; a subject is one identity of the tensor, not one per session).
+    if (!*serving || ((*serving)->session && *(*serving)->session != sid)) {
       skipped.push_back(sid);
       continue;
     }
-    auto rig = store->read_rig(*pick);
+    auto rig = store->read_rig((*serving)->id);
     if (!rig) return rig.failure();
     if (!rigs.empty() && (rig->vertex_count() != rigs.front().vertex_count() ||
                           rig->shape_names != rigs.front().shape_names))

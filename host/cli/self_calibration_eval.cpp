@@ -1,4 +1,5 @@
 #include "host/cli/self_calibration_eval.hpp"
+#include "algo/core/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -14,8 +15,6 @@
 
 namespace fb::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 struct UnitTake {
   std::vector<RgbdFrame> frames;
@@ -196,12 +195,12 @@ Result<nlohmann::ordered_json> bench_self_calibration(int frames, std::uint64_t 
   for (const auto& frame : take->frames) calibrator.add_frame(frame.depth_mm, frame.color);
   auto r = calibrator.estimate();
   if (!r) return r.failure();
-  const double ours_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const double ours_ms = ms_since(t0);
 
   const KinectRegistration registration(take->reported);
   const auto t1 = Clock::now();
   const cv::Point2d shift = opencv_chamfer_shift(take->frames, registration, 28);
-  const double peer_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+  const double peer_ms = ms_since(t1);
   RegistrationCorrection peer;
   peer.dx_px = shift.x;  // the shift of the depth edges is the correction itself
   peer.dy_px = shift.y;

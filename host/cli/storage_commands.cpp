@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "algo/core/clock.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/scratch_directory.hpp"
@@ -27,7 +28,6 @@ namespace fb::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 std::string default_store() {
   const char* env = std::getenv("FACEBOOTH_STORE");
@@ -42,10 +42,6 @@ OptionSpec store_option() {
 int usage_error(const std::string& message) {
   std::cerr << "facebooth: " << message << "\n";
   return kExitUsage;
-}
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 Result<std::uintmax_t> folder_bytes(const fs::path& dir) {
@@ -77,9 +73,9 @@ Result<SessionStore> open_reader(const ParsedOptions& options) {
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
                                   bool overwrite) {
   const auto start = Clock::now();
-  TakeInfo info;
-  auto values = store.read_take(id, &info);
-  if (!values) return values.failure();
+  auto take = store.read_take(id);
+  if (!take) return take.failure();
+  const TakeInfo& info = take->info;
   std::array<int, kArkitShapeCount> column;
   column.fill(-1);
   int matched = 0;
@@ -98,12 +94,11 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                 "CSV; export it from the tracker's output instead");
   }
   std::string text = livelink_csv_header() + "\n";
-  const int stride = info.stride();
   for (int f = 0; f < info.frame_count; ++f) {
-    const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+    const float* v = take->frame(f).data();
     ArkitFrame frame;
     frame.index = static_cast<std::uint64_t>(f);
-    frame.time_s = f / info.fps;
+    frame.time_s = take->times_s[static_cast<std::size_t>(f)];  // measured, not f / fps
     frame.face_found = true;
     for (int k = 0; k < kArkitShapeCount; ++k) {
       if (column[k] >= 0) frame.weights[k] = v[7 + column[k]];

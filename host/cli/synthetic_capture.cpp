@@ -1,4 +1,5 @@
 #include "host/cli/synthetic_capture.hpp"
+#include "algo/core/clock.hpp"
 
 #include <chrono>
 #include <fstream>
@@ -61,7 +62,7 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
   RgbdFrame frame;
   RigidPose first;
   bool started = false;
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   for (int i = 0; i < frames; ++i) {
     auto st = (*camera)->next_frame(frame, std::chrono::milliseconds(1000));
     if (!st) return st.failure();
@@ -116,8 +117,7 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
     if (keep_colors) c.colors.push_back(frame.color);
   }
   if (!started) return fail("no frames");
-  c.fusion_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  c.fusion_ms = ms_since(t0);
   c.fused = fusion.render(first);
   consistency.confidence(c.confidence);
   return c;

@@ -1,4 +1,5 @@
 #include "host/cli/take_runner.hpp"
+#include "algo/core/clock.hpp"
 
 #include <time.h>
 
@@ -18,10 +19,6 @@
 #include "storage/durable_file.hpp"
 
 namespace fb::cli {
-
-double ms_between(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
 
 double thread_cpu_ms() {
   timespec ts{};
@@ -254,7 +251,7 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
       mapping.to_arkit(std::span<const float>(report.weights.data(), static_cast<std::size_t>(k)),
                        out.weights);
       if (auto sent = run.sender->send(out); !sent) return sent.failure();
-      r.latency_ms = ms_between(arrival, Clock::now());
+      r.latency_ms = ms_since(arrival);
     }
     r.state = report.state;
     r.calibrated = (*tracker)->calibrated();

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "algo/bilinear/bilinear_model.hpp"
+#include "algo/core/clock.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
 #include "algo/tracking/arkit.hpp"
@@ -23,8 +24,6 @@
 
 namespace fb::cli {
 
-using Clock = std::chrono::steady_clock;
-double ms_between(Clock::time_point a, Clock::time_point b);
 double thread_cpu_ms();  // CPU time of the calling thread
 
 inline constexpr const char* kShapePredictor =

@@ -33,55 +33,31 @@
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
 #include "storage/session_store.hpp"
+#include "storage/take_writer.hpp"
 
 namespace fb::cli {
 namespace {
 
-// The take layout in the session store (TakeInfo): per frame tx ty tz (mm) qx qy qz qw of the
-// streamed camera_from_model pose, the 52 ARKit curves under their camelCase names, then one
-// extra column "timestamp_s": the frame's camera time relative to the take's first frame (the
-// store's TakeInfo has only a frame rate; the Live Link exporter ignores columns that are not
-// ARKit curves, so it still reads the take).
-constexpr const char* kTakeTimestampColumn = "timestamp_s";
-
-std::vector<std::string> take_columns() {
-  std::vector<std::string> names;
-  for (auto name : kArkitNames) names.emplace_back(name);
-  names.emplace_back(kTakeTimestampColumn);
-  return names;
-}
-
-void append_take_frame(const ArkitFrame& frame, double take_start_s, std::vector<float>& values) {
-  const RigidPose& p = frame.camera_from_model;
-  const Eigen::Quaterniond q = p.rotation.normalized();
-  const float pose[7] = {static_cast<float>(p.translation.x()),
-                         static_cast<float>(p.translation.y()),
-                         static_cast<float>(p.translation.z()),
-                         static_cast<float>(q.x()),
-                         static_cast<float>(q.y()),
-                         static_cast<float>(q.z()),
-                         static_cast<float>(q.w())};
-  values.insert(values.end(), pose, pose + 7);
-  values.insert(values.end(), frame.weights.begin(), frame.weights.end());
-  values.push_back(static_cast<float>(frame.time_s - take_start_s));
-}
-
-// The subject's newest stored rig as a TrackerRig over the model's fitting shapes (matched by
-// the model's expression names or the ARKit names of one-to-one curves). nullopt: no rig.
+// The stored rig serving the take (SessionStore::rig_for with --session, else the subject's
+// newest) as a TrackerRig over the model's fitting shapes (matched by the model's expression
+// names or the ARKit names of one-to-one curves). nullopt: no rig.
 struct LoadedRig {
   RigId id = 0;
+  std::optional<SessionId> session;  // the session that built the rig, if any
   RigData data;
   int matched = 0;
   TrackerRig view;
 };
-Result<std::optional<LoadedRig>> load_subject_rig(const SessionStore& store, SubjectId subject,
-                                                  const FaceModel& model,
-                                                  const ArkitMapping& mapping) {
-  auto rigs = store.rigs(subject);
-  if (!rigs) return rigs.failure();
-  if (rigs->empty()) return std::optional<LoadedRig>{};
+Result<std::optional<LoadedRig>> load_stored_rig(const SessionStore& store, SubjectId subject,
+                                                 std::optional<SessionId> session,
+                                                 const FaceModel& model,
+                                                 const ArkitMapping& mapping) {
+  auto serving = session ? store.rig_for(*session) : store.newest_rig(subject);
+  if (!serving) return serving.failure();
+  if (!*serving) return std::optional<LoadedRig>{};
   LoadedRig out;
-  out.id = rigs->front().id;  // newest first
+  out.id = (*serving)->id;
+  out.session = (*serving)->session;
   auto data = store.read_rig(out.id);
   if (!data) return data.failure();
   out.data = std::move(*data);
@@ -177,17 +153,28 @@ int run_track(const ParsedOptions& options) {
   const bool rig_from_store = options.flag("rig-from-store");
   std::optional<SessionStore> store;
   std::optional<SubjectId> subject;
+  std::optional<SessionId> session;
+  if (!options.get("session").empty()) {
+    auto id = options.get_int("session");
+    if (!id || *id <= 0)
+      return report_failure({"--session must be a session id (see `facebooth store info`)"});
+    if (!options.get("subject").empty())
+      return report_failure(
+          {"give --session or --subject, not both (a session names its subject)"});
+    session = *id;
+  }
   if (!options.get("subject").empty()) {
     auto id = options.get_int("subject");
     if (!id || *id <= 0)
       return report_failure({"--subject must be a subject id (see `facebooth store info`)"});
     subject = *id;
   }
-  if ((subject || rig_from_store) && store_path.empty()) {
-    return report_failure({"--subject and --rig-from-store need --store DIR"});
+  if ((subject || session || rig_from_store) && store_path.empty()) {
+    return report_failure({"--subject, --session and --rig-from-store need --store DIR"});
   }
-  if (rig_from_store && !subject) {
-    return report_failure({"--rig-from-store needs --subject ID (whose rig to load)"});
+  if (rig_from_store && !subject && !session) {
+    return report_failure(
+        {"--rig-from-store needs --session ID or --subject ID (whose rig to load)"});
   }
   const bool save_rig = options.flag("save-rig");
   if (save_rig && store_path.empty()) {
@@ -202,7 +189,15 @@ int run_track(const ParsedOptions& options) {
     auto opened = SessionStore::open(store_path);
     if (!opened) return report_failure(opened.error());
     store.emplace(std::move(*opened));
-    if (subject) {
+    if (session) {
+      auto known = store->session(*session);
+      if (!known) {
+        return report_failure({"there is no session " + std::to_string(*session) + " in " +
+                               store_path + " (see `facebooth store info --store " + store_path +
+                               "`)"});
+      }
+      subject = known->subject;
+    } else if (subject) {
       if (auto known = store->subject(*subject); !known) {
         return report_failure({"there is no subject " + std::to_string(*subject) + " in " +
                                store_path + " (see `facebooth store info --store " + store_path +
@@ -212,9 +207,11 @@ int run_track(const ParsedOptions& options) {
   }
   std::optional<LoadedRig> rig;
   if (rig_from_store) {
-    auto loaded = load_subject_rig(*store, *subject, model, *mapping);
+    auto loaded = load_stored_rig(*store, *subject, session, model, *mapping);
     if (!loaded) return report_failure(loaded.error());
     rig = std::move(*loaded);
+    // A take tracked with a session's rig belongs to that session (issue 37).
+    if (rig && !session) session = rig->session;
   }
 
   auto camera = open_started_camera(uri);
@@ -245,9 +242,10 @@ int run_track(const ParsedOptions& options) {
   } else if (rig_from_store) {
     subject_model = "subject " + std::to_string(*subject) + " has no stored rig: " + subject_model;
   }
-  std::vector<float> take_values;
-  int take_frames = 0;
-  double take_start_s = 0.0;
+  // The take as the store keeps it (storage/take_writer.hpp): the streamed pose, the 52 ARKit
+  // curves under their camelCase names, each frame's camera time.
+  TakeWriter take(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()),
+                  info.fps > 0 ? info.fps : 30.0);
   // dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
   // for (--reacquire dlib: detection gives the tracker a starting pose after loss, not the
   // nearest surface, which a hand, a desk or the chest can be) and while the identity
@@ -365,15 +363,14 @@ int run_track(const ParsedOptions& options) {
         std::cerr << "facebooth: " << sent.error().message << "\n";
       }
     }
-    latency.push_back(ms_between(arrival, Clock::now()));
+    latency.push_back(ms_since(arrival));
     cost.push_back(report.times.total_ms());
     if (csv) {
       if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());
     }
     if (store) {
-      if (take_frames == 0) take_start_s = out.time_s;
-      append_take_frame(out, take_start_s, take_values);
-      ++take_frames;
+      if (auto r = take.add_frame(out.time_s, out.camera_from_model, out.weights); !r)
+        return report_failure(r.error());
     }
     if (print_sse) {
       format_sse_event(out, sse);
@@ -418,22 +415,19 @@ int run_track(const ParsedOptions& options) {
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json result;
-  if (store && take_frames > 0) {
+  if (store && take.frame_count() > 0) {
     if (!subject) {
       auto added = store->add_subject("tracking take");
       if (!added) return report_failure(added.error());
       subject = *added;
     }
-    TakeInfo take;
-    take.subject = *subject;
-    take.fps = info.fps > 0 ? info.fps : 30.0;
-    take.shape_names = take_columns();
-    take.frame_count = take_frames;
-    auto id = store->add_take(take, take_values);
+    auto id = take.store(*store, *subject, session);
     if (!id) return report_failure(id.error());
     result["take"] = *id;
     result["subject"] = *subject;
-    std::cerr << "track: stored take " << *id << " (" << take_frames << " frames; the face was "
+    result["session"] = session ? nlohmann::json(*session) : nlohmann::json(nullptr);
+    std::cerr << "track: stored take " << *id << " (" << take.frame_count()
+              << " frames; the face was "
               << "occluded on " << occlusion.occluded_frames() << ")\n";
     result["store"] = store_path;
   } else if (store) {
@@ -519,9 +513,14 @@ std::vector<Command> tracking_commands() {
           "export --take ID --store DIR --out OUT`)",
           ""},
          {"subject", "ID", "store the take under this subject (default: a new subject)", ""},
+         {"session", "ID",
+          "store the take under this session (and its subject); with --rig-from-store, track "
+          "with the rig serving the session (the newest built from it, else the subject's)",
+          ""},
          {"rig-from-store", "",
-          "track with --subject's newest stored rig (face model topology) instead of "
-          "calibrating; falls back to calibration when the subject has no rig",
+          "track with the stored rig serving --session (or --subject's newest rig; face model "
+          "topology) instead of calibrating, and record the rig's session with the take; falls "
+          "back to calibration when the subject has no rig",
           ""},
          {"save-rig", "",
           "after the take, store the calibrated subject in --store as their rig (fitted neutral "

@@ -45,9 +45,9 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
                     {"subject", std::to_string(info->subject)}};
   auto meshes = store.meshes(session);
   if (!meshes) return meshes.failure();
-  auto rigs = store.rigs(info->subject);
-  if (!rigs) return rigs.failure();
-  if (rigs->empty()) {
+  auto serving = store.rig_for(session);
+  if (!serving) return serving.failure();
+  if (!*serving) {
     // A session with only its neutral fitted cannot be rigged (rigging needs an expression),
     // but its neutral is a result of its own: exported as a rig without blendshapes.
     const MeshInfo* neutral = nullptr;
@@ -66,13 +66,7 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     content.source["rig"] =
         "none: the fitted neutral alone (mesh " + std::to_string(neutral->id) + "), no blendshapes";
   } else {
-    RigId chosen = rigs->front().id;
-    for (const auto& r : *rigs) {
-      if (r.session == session) {
-        chosen = r.id;
-        break;
-      }
-    }
+    const RigId chosen = (*serving)->id;
     content.source["rig"] = std::to_string(chosen);
     auto rig = store.read_rig(chosen);
     if (!rig) return rig.failure();

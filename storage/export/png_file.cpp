@@ -52,4 +52,15 @@ Result<ColorImage> decode_png(const std::vector<std::uint8_t>& bytes) {
   return image;
 }
 
+std::string encode_pgm16(const DepthImage& image) {
+  std::string out =
+      "P5\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n65535\n";
+  out.reserve(out.size() + image.pixels.size() * 2);
+  for (std::uint16_t v : image.pixels) {
+    out.push_back(static_cast<char>(v >> 8));
+    out.push_back(static_cast<char>(v & 0xff));
+  }
+  return out;
+}
+
 }  // namespace fb

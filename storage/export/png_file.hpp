@@ -1,8 +1,9 @@
-// PNG encoding of colour frames for exports (libpng's simplified API: no setjmp/longjmp
-// crossing C++ frames).
+// Image files for exports: PNG colour frames (libpng's simplified API: no setjmp/longjmp
+// crossing C++ frames) and 16-bit PGM depth maps (millimetres).
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "algo/core/image.hpp"
@@ -12,5 +13,8 @@ namespace fb {
 
 Result<std::vector<std::uint8_t>> encode_png(const ColorImage& image);
 Result<ColorImage> decode_png(const std::vector<std::uint8_t>& bytes);
+
+// Binary PGM (P5), maxval 65535, big-endian samples as the format requires: a depth map in mm.
+std::string encode_pgm16(const DepthImage& image);
 
 }  // namespace fb

@@ -9,6 +9,7 @@
 
 #include <sys/socket.h>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -302,8 +303,7 @@ class DaemonTest : public ::testing::Test {
     });
   }
   // Back to capture mode, then the take tracking stored, read from the store at `data_dir`.
-  Result<std::vector<float>> stop_and_read_take(Daemon& d, httplib::Client& http,
-                                                const fs::path& data_dir, TakeInfo& info) {
+  Result<TakeData> stop_and_read_take(Daemon& d, httplib::Client& http, const fs::path& data_dir) {
     EXPECT_EQ(http.Post("/api/mode", R"({"mode": "capture"})", "application/json")->status, 202);
     auto s =
         wait_for(d, [](auto& s) { return s["state"] == "idle" && s["tracking"]["last_take"] > 0; });
@@ -311,7 +311,7 @@ class DaemonTest : public ::testing::Test {
     ro.read_only = true;
     auto store = SessionStore::open(data_dir / "store", ro);
     if (!store) return store.failure();
-    return store->read_take(s["tracking"]["last_take"].get<std::int64_t>(), &info);
+    return store->read_take(s["tracking"]["last_take"].get<std::int64_t>());
   }
 
   fs::path dir_;
@@ -556,15 +556,22 @@ TEST_F(DaemonTest, TrackingStreamsVmcAndStoresTheTake) {
   auto frame = nlohmann::json::parse(live->body);
   EXPECT_TRUE(frame["face"].get<bool>()) << live->body;
   EXPECT_EQ(frame["weights"].size(), 52u);
-  TakeInfo info;
-  auto values = stop_and_read_take(*d, http, c.storage.data_dir, info);
-  ASSERT_TRUE(values) << values.error().message;
+  auto take = stop_and_read_take(*d, http, c.storage.data_dir);
+  ASSERT_TRUE(take) << take.error().message;
+  const TakeInfo& info = take->info;
   EXPECT_GE(info.frame_count, 45);
   EXPECT_EQ(info.shape_names.size(), 52u);
-  EXPECT_EQ(values->size(), static_cast<std::size_t>(info.frame_count * info.stride()));
+  EXPECT_EQ(take->values.size(), static_cast<std::size_t>(info.frame_count * info.stride()));
   // The head is about 700 mm in front of the camera in the synthetic scene.
-  const float tz = (*values)[static_cast<std::size_t>((info.frame_count - 1) * info.stride() + 2)];
+  const float tz = take->frame(info.frame_count - 1)[2];
   EXPECT_NEAR(tz, 700.0f, 150.0f);
+  // The take writer's layout: unit quaternions and frame times from the first frame, rising.
+  for (int f = 0; f < info.frame_count; ++f) {
+    const auto v = take->frame(f);
+    EXPECT_NEAR(std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]), 1.0, 1e-5);
+  }
+  EXPECT_DOUBLE_EQ(take->times_s.front(), 0.0);
+  EXPECT_GT(take->times_s.back(), take->times_s.front());
 }
 
 // A hand passes in front of the face (the synthetic world's hand pass, frames 30-59 of the
@@ -614,10 +621,9 @@ TEST_F(DaemonTest, TrackingModeLoopsAnEndingTake) {
   const auto s = track_frames(*d, http, 50);
   EXPECT_GE(s["tracking"]["frames"].get<int>(), 50) << s.dump();
   EXPECT_FALSE(s.contains("error")) << s.dump();
-  TakeInfo info;
-  auto values = stop_and_read_take(*d, http, c.storage.data_dir, info);
-  ASSERT_TRUE(values) << values.error().message;
-  EXPECT_GE(info.frame_count, 50);
+  auto take = stop_and_read_take(*d, http, c.storage.data_dir);
+  ASSERT_TRUE(take) << take.error().message;
+  EXPECT_GE(take->info.frame_count, 50);
 }
 
 TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
@@ -628,6 +634,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   c.session.resume = false;  // the session below is not finished: start idle, not in its guide
   RigId rig_id = 0;
   SubjectId subject = 0;
+  SessionId session_id = 0;
   {
     auto store = SessionStore::open(c.storage.data_dir / "store");
     ASSERT_TRUE(store) << store.error().message;
@@ -636,6 +643,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
     subject = *added;
     auto session = store->create_session(subject, {"neutral"});
     ASSERT_TRUE(session);
+    session_id = *session;
     RigData rig;
     rig.neutral = model->neutral;
     rig.triangles = model->triangles;
@@ -658,21 +666,22 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
   EXPECT_EQ(s["tracking"]["identity"].get<std::string>(),
             "stored rig " + std::to_string(rig_id) + " of subject " + std::to_string(subject) +
                 " (1 of its 2 shapes tracked)");
-  TakeInfo info;
-  auto values = stop_and_read_take(*d, http, c.storage.data_dir, info);
-  ASSERT_TRUE(values) << values.error().message;
+  auto take = stop_and_read_take(*d, http, c.storage.data_dir);
+  ASSERT_TRUE(take) << take.error().message;
+  const TakeInfo& info = take->info;
+  // Tracked with the session's rig: the take records the session (issue 37).
+  EXPECT_EQ(info.session, session_id);
   const auto name = std::find(info.shape_names.begin(), info.shape_names.end(), "jawOpen");
   ASSERT_NE(name, info.shape_names.end());
   const std::size_t column = 7 + static_cast<std::size_t>(name - info.shape_names.begin());
   double sum = 0;
   int n = 0;
-  for (int f = 10; f < info.frame_count; ++f, ++n)
-    sum += (*values)[static_cast<std::size_t>(f * info.stride()) + column];
+  for (int f = 10; f < info.frame_count; ++f, ++n) sum += take->frame(f)[column];
   ASSERT_GT(n, 10);
   EXPECT_NEAR(sum / n, 0.3, 0.08) << "mean jawOpen over " << n << " frames";
 
-  // A newer rig with no shape the tracker knows is not used: tracking falls back to
-  // calibrating (this store has no neutral fit) and the status says so.
+  // A newer rig of the session with no shape the tracker knows is not used: tracking falls back
+  // to calibrating (this store has no neutral fit) and the status says so.
   d.reset();
   {
     auto store = SessionStore::open(c.storage.data_dir / "store");
@@ -682,7 +691,7 @@ TEST_F(DaemonTest, TrackingUsesTheSubjectsStoredRig) {
     unknown.triangles = model->triangles;
     unknown.shapes = {model->neutral};
     unknown.shape_names = {"notAShape"};
-    ASSERT_TRUE(store->add_rig(subject, std::nullopt, unknown));
+    ASSERT_TRUE(store->add_rig(subject, session_id, unknown));
   }
   d = make(c);
   ASSERT_TRUE(d);

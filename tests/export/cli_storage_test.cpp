@@ -11,6 +11,7 @@
 #include "storage/export/export_folder.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "storage/session_store.hpp"
+#include "storage/take_writer.hpp"
 #include "tests/common/run_command.hpp"
 
 namespace fb {
@@ -105,17 +106,14 @@ TEST_F(StorageCli, ExportTakeAsLiveLinkCsvAndModelFile) {
   {
     auto store = SessionStore::open(root);
     ASSERT_TRUE(store);
-    TakeInfo info;
-    info.subject = *store->add_subject("t");
-    info.fps = 30.0;
-    info.shape_names = {"jawOpen", "eyeBlinkLeft", "notArkit"};
-    info.frame_count = 3;
-    std::vector<float> values;
+    TakeWriter writer({"jawOpen", "eyeBlinkLeft", "notArkit"}, 30.0);
+    RigidPose pose;
+    pose.translation = Eigen::Vector3d(0, 0, 600);
     for (int f = 0; f < 3; ++f) {
-      for (float v : {0.f, 0.f, 600.f, 1.f, 0.f, 0.f, 0.f}) values.push_back(v);  // pose
-      for (float v : {0.25f * f, 0.5f, 0.9f}) values.push_back(v);
+      const std::vector<float> weights = {0.25f * f, 0.5f, 0.9f};
+      ASSERT_TRUE(writer.add_frame(f / 30.0, pose, weights));
     }
-    take = *store->add_take(info, values);
+    take = *writer.store(*store, *store->add_subject("t"), std::nullopt);
     const std::vector<std::uint8_t> bytes(1000, 7);
     model = *store->add_model("bilinear", R"({"identities":2})", bytes);
   }

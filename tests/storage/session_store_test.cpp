@@ -10,6 +10,8 @@
 
 #include "storage/crash_trials.hpp"
 #include "storage/session_store.hpp"
+#include "storage/sha256.hpp"
+#include "storage/take_writer.hpp"
 #include "tests/storage/test_dir.hpp"
 
 namespace fb {
@@ -190,21 +192,29 @@ TEST(SessionStore, MeshesRigsModelsAndTakesRoundTrip) {
   EXPECT_EQ(*store->read_model(*model), model_bytes);
   EXPECT_EQ(store->models()->front().bytes, 5);
 
-  TakeInfo take;
-  take.subject = *subject;
-  take.fps = 30.0;
-  take.shape_names = {"jawOpen"};
-  take.frame_count = 2;
-  std::vector<float> values(16, 0.5f);
-  auto take_id = store->add_take(take, values);
+  // Takes go through the one writer: times from the first frame, unit quaternions.
+  TakeWriter writer({"jawOpen"}, 30.0);
+  RigidPose pose;
+  pose.translation = Eigen::Vector3d(1, 2, 700);
+  pose.rotation = Eigen::Quaterniond(2, 0, 0, 0);  // not normalised by the caller
+  ASSERT_TRUE(writer.add_frame(100.0, pose, std::vector<float>{0.5f}));
+  ASSERT_TRUE(writer.add_frame(100.04, pose, std::vector<float>{0.75f}));
+  EXPECT_FALSE(writer.add_frame(100.08, pose, std::vector<float>{0.5f, 0.5f}));  // 2 for 1 shape
+  auto take_id = writer.store(*store, *subject, *session);
   ASSERT_TRUE(take_id) << take_id.error().message;
-  TakeInfo take_back;
-  auto values_back = store->read_take(*take_id, &take_back);
-  ASSERT_TRUE(values_back);
-  EXPECT_EQ(*values_back, values);
-  EXPECT_EQ(take_back.frame_count, 2);
-  EXPECT_EQ(take_back.shape_names, take.shape_names);
-  EXPECT_FALSE(store->add_take(take, std::span<const float>(values).first(15)));
+  auto take_back = store->read_take(*take_id);
+  ASSERT_TRUE(take_back) << take_back.error().message;
+  EXPECT_EQ(take_back->info.frame_count, 2);
+  EXPECT_EQ(take_back->info.session, *session);
+  EXPECT_EQ(take_back->info.shape_names, std::vector<std::string>{"jawOpen"});
+  ASSERT_EQ(take_back->times_s.size(), 2u);
+  EXPECT_DOUBLE_EQ(take_back->times_s[0], 0.0);
+  EXPECT_NEAR(take_back->times_s[1], 0.04, 1e-9);
+  EXPECT_EQ(take_back->values,
+            (std::vector<float>{1, 2, 700, 0, 0, 0, 1, 0.5f, 1, 2, 700, 0, 0, 0, 1, 0.75f}));
+  TakeData bad = *take_back;
+  bad.times_s.pop_back();  // one time short
+  EXPECT_FALSE(store->add_take(bad));
   EXPECT_TRUE(store->verify()->ok());
 }
 
@@ -283,12 +293,155 @@ TEST(SessionStore, MigratesAnOlderSchemaKeepingData) {
   }
   auto store = SessionStore::open(dir.path());
   ASSERT_TRUE(store) << store.error().message;
-  EXPECT_EQ(store->schema_version(), 2);
+  EXPECT_EQ(store->schema_version(), kSessionStoreSchemaVersion);
   EXPECT_TRUE(store->read_capture(session, 0));
-  TakeInfo take;
-  take.subject = store->session(session)->subject;
-  take.frame_count = 1;
-  EXPECT_TRUE(store->add_take(take, std::vector<float>(7, 0.0f)));
+  TakeWriter take({}, 30.0);
+  ASSERT_TRUE(take.add_frame(0.0, RigidPose{}, {}));
+  EXPECT_TRUE(take.store(*store, store->session(session)->subject, session));
+}
+
+// Takes written before schema v3 by the old code paths, rebuilt here byte for byte and row for
+// row: the device's (pose + weights, no times) and the host's (a "timestamp_s" pseudo-shape as
+// the last column). A reader of the v2 store and, after the writer migrates it, the writer both
+// read them in the current layout: the device's times from the frame rate, the host's from its
+// column, whose name is gone from the shape list.
+TEST(SessionStore, TakesFromBeforeSchemaV3ReadAfterMigration) {
+  test::ScratchDir dir;
+  SubjectId subject = 0;
+  {
+    StoreOptions v2;
+    v2.migrate_to = 2;
+    auto store = SessionStore::open(dir.path(), v2);
+    ASSERT_TRUE(store) << store.error().message;
+    subject = *store->add_subject("old takes");
+  }
+  // FBTAK001: magic, frames (u32), stride (u32), frames * stride floats.
+  auto old_take = [&](const std::string& name, int frames, int stride, auto value_of) {
+    std::vector<std::uint8_t> bytes(8 + 4 + 4);
+    std::memcpy(bytes.data(), "FBTAK001", 8);
+    const std::uint32_t header[2] = {static_cast<std::uint32_t>(frames),
+                                     static_cast<std::uint32_t>(stride)};
+    std::memcpy(bytes.data() + 8, header, 8);
+    for (int f = 0; f < frames; ++f)
+      for (int c = 0; c < stride; ++c) {
+        const float v = value_of(f, c);
+        const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
+        bytes.insert(bytes.end(), p, p + 4);
+      }
+    const fs::path rel = fs::path("subjects") / std::to_string(subject) / name;
+    fs::create_directories(dir.path() / rel.parent_path());
+    std::ofstream(dir.path() / rel, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+    return std::make_pair(rel.generic_string(), bytes);
+  };
+  // The device: 3 frames of pose (q not normalised: the old daemon did not) + jawOpen, 30 fps.
+  const auto device = old_take("take.fbtak-dev", 3, 8, [](int f, int c) {
+    return c == 2 ? 700.0f : c == 6 ? 1.0f : c == 7 ? 0.1f * f : 0.0f;
+  });
+  // The host: pose + jawOpen + timestamp_s (frames 0.000, 0.050, 0.090 s apart, not 1/30).
+  const float host_times[3] = {0.0f, 0.05f, 0.09f};
+  const auto host = old_take("take.fbtak-host", 3, 9, [&](int f, int c) {
+    return c == 8 ? host_times[f] : c == 6 ? 1.0f : c == 7 ? 0.2f : 0.0f;
+  });
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path() / kSessionStoreDatabaseName).c_str(), &db), SQLITE_OK);
+    const std::string sql =
+        "INSERT INTO files(id, relpath, bytes, sha256) VALUES(100, '" + device.first + "', " +
+        std::to_string(device.second.size()) + ", '" + sha256_hex(device.second) + "'), (101, '" +
+        host.first + "', " + std::to_string(host.second.size()) + ", '" + sha256_hex(host.second) +
+        "');"
+        "INSERT INTO takes(id, subject_id, session_id, fps, shape_names_json, frame_count, "
+        "file_id) VALUES(7, " +
+        std::to_string(subject) + ", NULL, 30, '[\"jawOpen\"]', 3, 100), (8, " +
+        std::to_string(subject) + ", NULL, 30, '[\"jawOpen\",\"timestamp_s\"]', 3, 101);";
+    char* error = nullptr;
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &error), SQLITE_OK)
+        << (error ? error : "");
+    sqlite3_free(error);
+    sqlite3_close(db);
+  }
+  {
+    // A reader of the v2 store (readers never migrate) reads both takes the same way.
+    StoreOptions ro;
+    ro.read_only = true;
+    auto reader = SessionStore::open(dir.path(), ro);
+    ASSERT_TRUE(reader) << reader.error().message;
+    EXPECT_EQ(reader->schema_version(), 2);
+    auto listed = reader->takes(subject);
+    ASSERT_TRUE(listed) << listed.error().message;
+    ASSERT_EQ(listed->size(), 2u);
+    EXPECT_EQ(listed->at(1).shape_names, std::vector<std::string>{"jawOpen"});
+    auto hst = reader->read_take(8);
+    ASSERT_TRUE(hst) << hst.error().message;
+    EXPECT_NEAR(hst->times_s[2], 0.09, 1e-7);
+    auto dev = reader->read_take(7);
+    ASSERT_TRUE(dev) << dev.error().message;
+    EXPECT_NEAR(dev->times_s[2], 2.0 / 30.0, 1e-12);
+  }
+  auto store = SessionStore::open(dir.path());  // the writer migrates v2 -> v3
+  ASSERT_TRUE(store) << store.error().message;
+  EXPECT_EQ(store->schema_version(), 3);
+  EXPECT_EQ(store->orphans_removed(), 0);  // the old files are referenced, so kept
+  auto listed = store->takes(subject);
+  ASSERT_TRUE(listed);
+  ASSERT_EQ(listed->size(), 2u);
+  EXPECT_EQ(listed->at(1).shape_names, std::vector<std::string>{"jawOpen"});  // no timestamp_s
+
+  auto dev = store->read_take(7);
+  ASSERT_TRUE(dev) << dev.error().message;
+  ASSERT_EQ(dev->values.size(), 3u * 8u);
+  EXPECT_EQ(dev->info.stride(), 8);
+  EXPECT_FLOAT_EQ(dev->frame(2)[7], 0.2f);
+  EXPECT_FLOAT_EQ(dev->frame(2)[2], 700.0f);
+  EXPECT_NEAR(dev->times_s[2], 2.0 / 30.0, 1e-12);
+
+  auto hst = store->read_take(8);
+  ASSERT_TRUE(hst) << hst.error().message;
+  ASSERT_EQ(hst->info.shape_names, std::vector<std::string>{"jawOpen"});
+  ASSERT_EQ(hst->values.size(), 3u * 8u);  // the time column moved out of the values
+  EXPECT_FLOAT_EQ(hst->frame(1)[7], 0.2f);
+  EXPECT_NEAR(hst->times_s[1], 0.05, 1e-7);
+  EXPECT_NEAR(hst->times_s[2], 0.09, 1e-7);
+  EXPECT_TRUE(store->verify()->ok());
+
+  // New takes in the migrated store use the new layout beside the old ones.
+  TakeWriter fresh({"jawOpen"}, 30.0);
+  ASSERT_TRUE(fresh.add_frame(5.0, RigidPose{}, std::vector<float>{0.3f}));
+  auto id = fresh.store(*store, subject, std::nullopt);
+  ASSERT_TRUE(id) << id.error().message;
+  EXPECT_FLOAT_EQ(store->read_take(*id)->frame(0)[7], 0.3f);
+}
+
+// Which rig serves a session: the newest built from it, else the subject's newest (from another
+// session or none); a subject without rigs has none.
+TEST(SessionStore, RigForPrefersTheSessionsOwnRig) {
+  test::ScratchDir dir;
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  const SubjectId subject = *store->add_subject("r");
+  const SessionId first = *store->create_session(subject, guide(1));
+  const SessionId second = *store->create_session(subject, guide(1));
+  const SessionId third = *store->create_session(subject, guide(1));
+  const SessionId other = *store->create_session(*store->add_subject("no rig"), guide(1));
+  RigData rig;
+  rig.neutral = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  rig.triangles = {0, 1, 2};
+  EXPECT_FALSE(*store->rig_for(first));  // no rig yet
+  const RigId from_first = *store->add_rig(subject, first, rig);
+  const RigId from_first_newer = *store->add_rig(subject, first, rig);
+  const RigId from_second = *store->add_rig(subject, second, rig);
+  const RigId imported = *store->add_rig(subject, std::nullopt, rig);
+  EXPECT_EQ((*store->rig_for(first))->id, from_first_newer);
+  EXPECT_EQ((*store->rig_for(first))->session, first);
+  EXPECT_EQ((*store->rig_for(second))->id, from_second);
+  EXPECT_EQ((*store->rig_for(third))->id, imported);  // the subject's newest
+  EXPECT_FALSE((*store->rig_for(third))->session);
+  EXPECT_EQ((*store->newest_rig(subject))->id, imported);
+  EXPECT_FALSE(*store->rig_for(other));
+  EXPECT_FALSE(store->rig_for(999));  // no such session: an error, not "no rig"
+  EXPECT_NE(from_first, from_first_newer);
 }
 
 TEST(SessionStore, OrphansAndTemporariesAreCleanedAtOpen) {

@@ -57,27 +57,27 @@ TEST_F(TrackStoreCli, TrackStoreExportMatchesTheTrackedValues) {
   EXPECT_EQ(j["frames"], kFrames);
   EXPECT_GE(j["frames_with_face"].get<int>(), kFrames - 2) << r.out;
 
-  // The stored take: pose, the 52 ARKit curves by name, and the frame times.
-  TakeInfo info;
+  // The stored take: pose, the 52 ARKit curves by name, and the frame times in their own
+  // column (TakeData::times_s), not disguised as a shape.
   {
     StoreOptions ro;
     ro.read_only = true;
     auto store = SessionStore::open(store_dir, ro);
     ASSERT_TRUE(store.ok()) << store.error().message;
-    auto values = store->read_take(take, &info);
-    ASSERT_TRUE(values.ok()) << values.error().message;
+    auto stored = store->read_take(take);
+    ASSERT_TRUE(stored.ok()) << stored.error().message;
+    const TakeInfo& info = stored->info;
     EXPECT_EQ(info.subject, j["subject"].get<SubjectId>());
+    EXPECT_FALSE(info.session);  // no session named, no stored rig
     ASSERT_EQ(info.frame_count, kFrames);
-    ASSERT_EQ(info.shape_names.size(), static_cast<std::size_t>(kArkitShapeCount + 1));
+    ASSERT_EQ(info.shape_names.size(), static_cast<std::size_t>(kArkitShapeCount));
     EXPECT_EQ(info.shape_names[0], "eyeBlinkLeft");
-    EXPECT_EQ(info.shape_names[static_cast<std::size_t>(kArkitShapeCount)], "timestamp_s");
     EXPECT_NEAR(info.fps, 30.0, 1e-9);
-    const int stride = info.stride();
+    ASSERT_EQ(stored->times_s.size(), static_cast<std::size_t>(kFrames));
     for (int f = 0; f < kFrames; ++f) {
-      const float t = (*values)[static_cast<std::size_t>(f * stride + stride - 1)];
-      EXPECT_NEAR(t, f / 30.0, 1e-3) << "frame " << f;
+      EXPECT_NEAR(stored->times_s[static_cast<std::size_t>(f)], f / 30.0, 1e-3) << "frame " << f;
       // A unit quaternion and a face ~0.7 m in front of the camera.
-      const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+      const float* v = stored->frame(f).data();
       EXPECT_NEAR(std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]), 1.0, 1e-4);
       EXPECT_GT(v[2], 500.0f);
       EXPECT_LT(v[2], 900.0f);
@@ -173,6 +173,56 @@ TEST_F(TrackStoreCli, StoredRigSkipsCalibrationAndMissingRigFallsBack) {
   ASSERT_TRUE(store.ok());
   EXPECT_EQ(store->takes(with_rig)->size(), 1u);
   EXPECT_EQ(store->takes(without_rig)->size(), 1u);
+}
+
+// Issue 37: a take tracked with a session's stored rig records that session, whether the
+// command names the subject (the rig says which session built it) or the session itself (the
+// rig serving it, SessionStore::rig_for). A take without a session stays without one.
+TEST_F(TrackStoreCli, TakeTrackedWithASessionsRigRecordsTheSession) {
+  auto model = load_face_model(fs::path(FB_DATA_DIR) / "facemodel.fbfm");
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  const fs::path store_dir = dir_ / "store";
+  SubjectId subject = 0;
+  SessionId session = 0;
+  {
+    auto store = SessionStore::open(store_dir);
+    ASSERT_TRUE(store.ok()) << store.error().message;
+    SyntheticSubjectOptions o;
+    o.identity_sigma = 0.0f;
+    o.pose_count = 2;
+    auto synthetic = make_synthetic_subject(*model, o);
+    ASSERT_TRUE(synthetic.ok()) << synthetic.error().message;
+    subject = *store->add_subject("rigged in a session");
+    session = *store->create_session(subject, {"neutral"});
+    ASSERT_TRUE(store->add_rig(subject, session, synthetic->rig).ok());
+  }
+  const std::string camera =
+      "--camera synthetic:frames=12,identity=neutral,seed=4 --store " + store_dir.string() + " ";
+  std::vector<TakeId> takes;
+  for (const std::string who :
+       {"--subject " + std::to_string(subject), "--session " + std::to_string(session)}) {
+    auto r = facebooth("track " + camera + who + " --rig-from-store");
+    ASSERT_EQ(r.exit_code, 0) << who << "\n" << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_NE(j["subject_model"].get<std::string>().find("stored rig"), std::string::npos) << r.out;
+    EXPECT_EQ(j["subject"].get<SubjectId>(), subject) << r.out;
+    EXPECT_EQ(j["session"].get<SessionId>(), session) << r.out;
+    takes.push_back(j["take"].get<TakeId>());
+  }
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(store_dir, ro);
+  ASSERT_TRUE(store.ok());
+  for (TakeId id : takes) {
+    auto take = store->read_take(id);
+    ASSERT_TRUE(take.ok()) << take.error().message;
+    EXPECT_EQ(take->info.session, session) << "take " << id;
+    EXPECT_EQ(take->info.subject, subject) << "take " << id;
+  }
+  // Giving both is refused with a clear message (a session names its subject).
+  auto r = facebooth("track " + camera + "--session " + std::to_string(session) + " --subject " +
+                     std::to_string(subject));
+  EXPECT_NE(r.exit_code, 0);
 }
 
 // --save-rig: the subject the tracker calibrated is stored as their rig (the fitted neutral and

@@ -1,0 +1,407 @@
+// The session store's products: fitted meshes, rigs (and which one serves a session), models and
+// tracking takes.
+#include "storage/session_store_impl.hpp"
+
+namespace fb {
+
+namespace {
+
+Result<void> check_mesh(const MeshData& mesh, const std::string& what) {
+  if (mesh.positions.empty() || mesh.positions.size() % 3 != 0) {
+    return fail(what + " has no vertices or a position count that is not a multiple of 3");
+  }
+  if (mesh.triangles.size() % 3 != 0) return fail(what + " has a partial triangle");
+  const auto n = static_cast<std::uint32_t>(mesh.vertex_count());
+  for (auto t : mesh.triangles) {
+    if (t >= n) return fail(what + " has a triangle index past its vertex count");
+  }
+  return success();
+}
+
+}  // namespace
+
+Result<MeshId> SessionStore::add_mesh(SessionId session, std::optional<int> capture_index,
+                                      MeshRole role, const std::string& name,
+                                      const MeshData& mesh) {
+  if (auto r = impl_->require_writer(); !r) return r.failure();
+  if (auto r = check_mesh(mesh, "mesh '" + name + "'"); !r) return r.failure();
+  auto folder = impl_->session_folder(session);
+  if (!folder) return folder.failure();
+  ByteWriter w;
+  w.put_magic(kMeshMagic);
+  w.put(static_cast<std::uint32_t>(mesh.vertex_count()));
+  w.put(static_cast<std::uint32_t>(mesh.triangle_count()));
+  w.put_span(std::span<const float>(mesh.positions));
+  w.put_span(std::span<const std::uint32_t>(mesh.triangles));
+  auto file = impl_->write_data_file(*folder, "mesh.fbmsh", w.bytes);
+  if (!file) return file.failure();
+  sqlite3* db = impl_->db.get();
+  auto insert = [&]() -> Result<MeshId> {
+    auto tx = sql::Transaction::begin(db);
+    if (!tx) return tx.failure();
+    auto id = impl_->insert_file_row(*file);
+    if (!id) return id.failure();
+    auto stmt = sql::prepare(db,
+                             "INSERT INTO meshes(session_id, capture_idx, role, name, "
+                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?,?)");
+    if (!stmt) return stmt.failure();
+    stmt->bind_all(session,
+                   capture_index ? std::optional<std::int64_t>(*capture_index) : std::nullopt,
+                   to_string(role), name, mesh.vertex_count(), mesh.triangle_count(), *id);
+    if (auto r = stmt->run(); !r) return r.failure();
+    const MeshId mesh_id = sqlite3_last_insert_rowid(db);
+    if (auto r = tx->commit(); !r) return r.failure();
+    return mesh_id;
+  };
+  auto id = insert();
+  if (!id) impl_->discard({*file});
+  return id;
+}
+
+Result<std::vector<MeshInfo>> SessionStore::meshes(SessionId session) const {
+  auto stmt = sql::prepare(impl_->db.get(),
+                           "SELECT id, session_id, capture_idx, role, name, vertex_count, "
+                           "triangle_count FROM meshes WHERE session_id=? ORDER BY id");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, session);
+  std::vector<MeshInfo> out;
+  for (;;) {
+    auto row = stmt->step();
+    if (!row) return row.failure();
+    if (!*row) break;
+    MeshInfo m;
+    m.id = stmt->int64(0);
+    m.session = stmt->int64(1);
+    if (!stmt->is_null(2)) m.capture_index = stmt->int32(2);
+    m.role = mesh_role_from(stmt->text(3));
+    m.name = stmt->text(4);
+    m.vertex_count = stmt->int32(5);
+    m.triangle_count = stmt->int32(6);
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+Result<MeshData> SessionStore::read_mesh(MeshId id) const {
+  auto stmt = sql::prepare(impl_->db.get(), "SELECT file_id FROM meshes WHERE id=?");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, id);
+  auto row = stmt->step();
+  if (!row) return row.failure();
+  if (!*row) return fail("there is no mesh " + std::to_string(id) + " in this store");
+  auto bytes = impl_->load_file(stmt->int64(0));
+  if (!bytes) return bytes.failure();
+  ByteReader r(*bytes);
+  std::uint32_t nv = 0, nt = 0;
+  MeshData mesh;
+  if (!r.magic(kMeshMagic) || !r.get(nv) || !r.get(nt) ||
+      !r.get_array(mesh.positions, std::size_t{3} * nv) ||
+      !r.get_array(mesh.triangles, std::size_t{3} * nt) || !r.at_end()) {
+    return fail("the file of mesh " + std::to_string(id) + " is malformed");
+  }
+  return mesh;
+}
+
+Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> session,
+                                    const RigData& rig) {
+  if (auto r = impl_->require_writer(); !r) return r.failure();
+  if (auto r = check_mesh(rig.neutral_mesh(), "the rig's neutral"); !r) return r.failure();
+  if (rig.shape_names.size() != rig.shapes.size()) {
+    return fail("the rig has " + std::to_string(rig.shapes.size()) + " shapes but " +
+                std::to_string(rig.shape_names.size()) + " names");
+  }
+  for (const auto& s : rig.shapes) {
+    if (s.size() != rig.neutral.size()) return fail("a rig shape differs in vertex count");
+  }
+  if (auto r = impl_->ensure_subject(subject); !r) return r.failure();
+  ByteWriter w;
+  w.put_magic(kRigMagic);
+  w.put(static_cast<std::uint32_t>(rig.vertex_count()));
+  w.put(static_cast<std::uint32_t>(rig.triangles.size() / 3));
+  w.put(static_cast<std::uint32_t>(rig.shapes.size()));
+  w.put_span(std::span<const float>(rig.neutral));
+  for (const auto& s : rig.shapes) w.put_span(std::span<const float>(s));
+  w.put_span(std::span<const std::uint32_t>(rig.triangles));
+  const std::string folder = "subjects/" + std::to_string(subject);
+  auto file = impl_->write_data_file(folder, "rig.fbrig", w.bytes);
+  if (!file) return file.failure();
+  sqlite3* db = impl_->db.get();
+  auto insert = [&]() -> Result<RigId> {
+    auto tx = sql::Transaction::begin(db);
+    if (!tx) return tx.failure();
+    auto id = impl_->insert_file_row(*file);
+    if (!id) return id.failure();
+    auto stmt = sql::prepare(db,
+                             "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
+                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)");
+    if (!stmt) return stmt.failure();
+    stmt->bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
+                   static_cast<int>(rig.triangles.size() / 3), *id);
+    if (auto r = stmt->run(); !r) return r.failure();
+    const RigId rig_id = sqlite3_last_insert_rowid(db);
+    if (auto r = tx->commit(); !r) return r.failure();
+    return rig_id;
+  };
+  auto id = insert();
+  if (!id) impl_->discard({*file});
+  return id;
+}
+
+Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
+  auto stmt = sql::prepare(impl_->db.get(),
+                           "SELECT id, subject_id, session_id, shape_names_json, vertex_count, "
+                           "triangle_count, created_at FROM rigs WHERE subject_id=? "
+                           "ORDER BY id DESC");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, subject);
+  std::vector<RigInfo> out;
+  for (;;) {
+    auto row = stmt->step();
+    if (!row) return row.failure();
+    if (!*row) break;
+    RigInfo info;
+    info.id = stmt->int64(0);
+    info.subject = stmt->int64(1);
+    info.session = stmt->optional_int64(2);
+    info.shape_names = names_from_json(stmt->text(3));
+    info.vertex_count = stmt->int32(4);
+    info.triangle_count = stmt->int32(5);
+    info.created_at = stmt->text(6);
+    out.push_back(std::move(info));
+  }
+  return out;
+}
+
+Result<std::optional<RigInfo>> SessionStore::newest_rig(SubjectId subject) const {
+  auto all = rigs(subject);
+  if (!all) return all.failure();
+  if (all->empty()) return std::optional<RigInfo>{};
+  return std::optional<RigInfo>(std::move(all->front()));  // listed newest first
+}
+
+Result<std::optional<RigInfo>> SessionStore::rig_for(SessionId session) const {
+  auto info = this->session(session);
+  if (!info) return info.failure();
+  auto all = rigs(info->subject);
+  if (!all) return all.failure();
+  for (auto& r : *all)  // newest first
+    if (r.session == session) return std::optional<RigInfo>(std::move(r));
+  if (all->empty()) return std::optional<RigInfo>{};
+  return std::optional<RigInfo>(std::move(all->front()));
+}
+
+Result<RigData> SessionStore::read_rig(RigId id) const {
+  auto stmt =
+      sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, id);
+  auto row = stmt->step();
+  if (!row) return row.failure();
+  if (!*row) return fail("there is no rig " + std::to_string(id) + " in this store");
+  RigData rig;
+  rig.shape_names = names_from_json(stmt->text(1));
+  auto bytes = impl_->load_file(stmt->int64(0));
+  if (!bytes) return bytes.failure();
+  ByteReader r(*bytes);
+  std::uint32_t nv = 0, nt = 0, ns = 0;
+  const Failure bad = fail("the file of rig " + std::to_string(id) + " is malformed");
+  if (!r.magic(kRigMagic) || !r.get(nv) || !r.get(nt) || !r.get(ns) ||
+      ns != rig.shape_names.size() || !r.get_array(rig.neutral, std::size_t{3} * nv)) {
+    return bad;
+  }
+  rig.shapes.resize(ns);
+  for (auto& s : rig.shapes) {
+    if (!r.get_array(s, std::size_t{3} * nv)) return bad;
+  }
+  if (!r.get_array(rig.triangles, std::size_t{3} * nt) || !r.at_end()) return bad;
+  return rig;
+}
+
+Result<ModelId> SessionStore::add_model(const std::string& kind, const std::string& params_json,
+                                        std::span<const std::uint8_t> bytes) {
+  if (auto r = impl_->require_writer(); !r) return r.failure();
+  auto file = impl_->write_data_file("models", kind + ".bin", bytes);
+  if (!file) return file.failure();
+  sqlite3* db = impl_->db.get();
+  auto insert = [&]() -> Result<ModelId> {
+    auto tx = sql::Transaction::begin(db);
+    if (!tx) return tx.failure();
+    auto id = impl_->insert_file_row(*file);
+    if (!id) return id.failure();
+    auto stmt = sql::prepare(db, "INSERT INTO models(kind, params_json, file_id) VALUES(?,?,?)");
+    if (!stmt) return stmt.failure();
+    stmt->bind_all(kind, params_json, *id);
+    if (auto r = stmt->run(); !r) return r.failure();
+    const ModelId model_id = sqlite3_last_insert_rowid(db);
+    if (auto r = tx->commit(); !r) return r.failure();
+    return model_id;
+  };
+  auto id = insert();
+  if (!id) impl_->discard({*file});
+  return id;
+}
+
+Result<std::vector<ModelInfo>> SessionStore::models() const {
+  auto stmt = sql::prepare(impl_->db.get(),
+                           "SELECT m.id, m.kind, m.params_json, f.bytes, m.created_at FROM models "
+                           "m JOIN files f ON f.id=m.file_id ORDER BY m.id");
+  if (!stmt) return stmt.failure();
+  std::vector<ModelInfo> out;
+  for (;;) {
+    auto row = stmt->step();
+    if (!row) return row.failure();
+    if (!*row) break;
+    out.push_back({stmt->int64(0), stmt->text(1), stmt->text(2), stmt->int64(3), stmt->text(4)});
+  }
+  return out;
+}
+
+Result<std::vector<std::uint8_t>> SessionStore::read_model(ModelId id) const {
+  auto file =
+      sql::query_int(impl_->db.get(), "SELECT file_id FROM models WHERE id=" + std::to_string(id));
+  if (!file) return file.failure();
+  if (*file == 0) return fail("there is no model " + std::to_string(id) + " in this store");
+  return impl_->load_file(*file);
+}
+
+Result<TakeId> SessionStore::add_take(const TakeData& take) {
+  const TakeInfo& info = take.info;
+  if (auto r = impl_->require_writer(); !r) return r.failure();
+  if (info.fps <= 0) return fail("a take needs a positive frame rate");
+  const auto frames = static_cast<std::size_t>(std::max(info.frame_count, 0));
+  if (take.values.size() != frames * static_cast<std::size_t>(info.stride()) ||
+      take.times_s.size() != frames) {
+    return fail("a take of " + std::to_string(info.frame_count) + " frames and " +
+                std::to_string(info.shape_names.size()) + " shapes needs " +
+                std::to_string(frames * static_cast<std::size_t>(info.stride())) + " values and " +
+                std::to_string(frames) + " times, got " + std::to_string(take.values.size()) +
+                " and " + std::to_string(take.times_s.size()));
+  }
+  if (auto r = impl_->ensure_subject(info.subject); !r) return r.failure();
+  ByteWriter w;
+  w.bytes.reserve(16 + take.times_s.size() * sizeof(double) + take.values.size() * sizeof(float));
+  w.put_magic(kTakeMagic);
+  w.put(static_cast<std::uint32_t>(info.frame_count));
+  w.put(static_cast<std::uint32_t>(info.stride()));
+  w.put_span(std::span<const double>(take.times_s));
+  w.put_span(std::span<const float>(take.values));
+  auto file =
+      impl_->write_data_file("subjects/" + std::to_string(info.subject), "take.fbtak", w.bytes);
+  if (!file) return file.failure();
+  sqlite3* db = impl_->db.get();
+  auto insert = [&]() -> Result<TakeId> {
+    auto tx = sql::Transaction::begin(db);
+    if (!tx) return tx.failure();
+    auto id = impl_->insert_file_row(*file);
+    if (!id) return id.failure();
+    auto stmt = sql::prepare(db,
+                             "INSERT INTO takes(subject_id, session_id, fps, shape_names_json, "
+                             "frame_count, file_id, time_source) VALUES(?,?,?,?,?,?,'file')");
+    if (!stmt) return stmt.failure();
+    stmt->bind_all(info.subject, info.session, info.fps, names_to_json(info.shape_names),
+                   info.frame_count, *id);
+    if (auto r = stmt->run(); !r) return r.failure();
+    const TakeId take_id = sqlite3_last_insert_rowid(db);
+    if (auto r = tx->commit(); !r) return r.failure();
+    return take_id;
+  };
+  auto id = insert();
+  if (!id) impl_->discard({*file});
+  return id;
+}
+
+namespace {
+
+// The takes' columns; a reader of a v2 store (not migrated: readers never migrate) derives
+// time_source and the shape names the way the v3 migration does.
+std::string take_columns(int schema_version) {
+  if (schema_version >= 3)
+    return "SELECT id, subject_id, session_id, fps, shape_names_json, frame_count, created_at, "
+           "file_id, time_source FROM takes ";
+  const std::string host = kHostTimestampColumn;
+  return "SELECT id, subject_id, session_id, fps, CASE WHEN " + host +
+         " THEN json_remove(shape_names_json, '$[#-1]') ELSE shape_names_json END, frame_count, "
+         "created_at, file_id, CASE WHEN " +
+         host + " THEN 'last_column' ELSE 'frame_rate' END FROM takes ";
+}
+
+TakeInfo take_from_row(sql::Statement& stmt) {
+  TakeInfo t;
+  t.id = stmt.int64(0);
+  t.subject = stmt.int64(1);
+  t.session = stmt.optional_int64(2);
+  t.fps = stmt.real(3);
+  t.shape_names = names_from_json(stmt.text(4));
+  t.frame_count = stmt.int32(5);
+  t.created_at = stmt.text(6);
+  return t;
+}
+
+// Decodes a take file into `take` (whose info is set). FBTAK002 holds the times; an FBTAK001
+// file from before schema v3 has none ('frame_rate': frame / fps) or has them as its last
+// column ('last_column', the host's "timestamp_s" pseudo-shape).
+bool decode_take(std::span<const std::uint8_t> bytes, const std::string& time_source,
+                 TakeData& take) {
+  ByteReader r(bytes);
+  std::uint32_t frames = 0, stride = 0;
+  const auto want = static_cast<std::uint32_t>(take.info.stride());
+  if (time_source == "file") {
+    return r.magic(kTakeMagic) && r.get(frames) && r.get(stride) && stride == want &&
+           static_cast<int>(frames) == take.info.frame_count && r.get_array(take.times_s, frames) &&
+           r.get_array(take.values, std::size_t{frames} * stride) && r.at_end();
+  }
+  const bool last_column = time_source == "last_column";
+  std::vector<float> stored;
+  if (!r.magic(kTakeMagicV1) || !r.get(frames) || !r.get(stride) ||
+      stride != want + (last_column ? 1 : 0) || static_cast<int>(frames) != take.info.frame_count ||
+      !r.get_array(stored, std::size_t{frames} * stride) || !r.at_end())
+    return false;
+  take.times_s.resize(frames);
+  take.values.clear();
+  take.values.reserve(std::size_t{frames} * want);
+  for (std::uint32_t f = 0; f < frames; ++f) {
+    const float* row = stored.data() + std::size_t{f} * stride;
+    take.values.insert(take.values.end(), row, row + want);
+    take.times_s[f] = last_column ? row[want] : f / take.info.fps;
+  }
+  return true;
+}
+
+}  // namespace
+
+Result<std::vector<TakeInfo>> SessionStore::takes(SubjectId subject) const {
+  auto stmt = sql::prepare(impl_->db.get(),
+                           take_columns(impl_->schema_version) + "WHERE subject_id=? ORDER BY id");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, subject);
+  std::vector<TakeInfo> out;
+  for (;;) {
+    auto row = stmt->step();
+    if (!row) return row.failure();
+    if (!*row) break;
+    out.push_back(take_from_row(*stmt));
+  }
+  return out;
+}
+
+Result<TakeData> SessionStore::read_take(TakeId id) const {
+  auto stmt = sql::prepare(impl_->db.get(), take_columns(impl_->schema_version) + "WHERE id=?");
+  if (!stmt) return stmt.failure();
+  stmt->bind(1, id);
+  auto row = stmt->step();
+  if (!row) return row.failure();
+  if (!*row) return fail("there is no take " + std::to_string(id) + " in this store");
+  TakeData take;
+  take.info = take_from_row(*stmt);
+  const std::int64_t file_id = stmt->int64(7);
+  const std::string time_source = stmt->text(8);
+  auto bytes = impl_->load_file(file_id);
+  if (!bytes) return bytes.failure();
+  if (!decode_take(*bytes, time_source, take))
+    return fail("the file of take " + std::to_string(id) +
+                " is malformed (its size or layout does not match the database): restore it "
+                "from a backup");
+  return take;
+}
+
+}  // namespace fb

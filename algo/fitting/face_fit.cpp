@@ -418,6 +418,21 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
   return to_pose(r, t);
 }
 
+namespace {
+
+// Where the refinement pulls a vertex p with depth correspondence c: towards the foot of the
+// perpendicular on the sample's tangent plane, the step scaled by the sample's confidence and a
+// Cauchy weight on the plane residual. With the fixed matrix this has the weighted term's fixed
+// point (the rest of the pull keeps the vertex where it is; see refine_system.hpp).
+Eigen::Vector3d weighted_pull(const Eigen::Vector3d& p, const Correspondence& c,
+                              double robust_scale_mm) {
+  const double plane = c.n.dot(p - c.q);
+  const double rs = robust_scale_mm > 0 ? plane / robust_scale_mm : 0.0;
+  return p - (c.confidence / (1.0 + rs * rs)) * plane * c.n;
+}
+
+}  // namespace
+
 Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
                              std::span<const float> start, const RigidPose& camera_from_model,
                              const RefineOptions& o, const RefineSystem* shared) {
@@ -486,15 +501,8 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
         has_target[static_cast<std::size_t>(f)] =
             vis0[static_cast<std::size_t>(v)] &&
             correspond(target, p, vn.row(v).transpose(), o.max_distance_mm, cos_min, c);
-        if (has_target[static_cast<std::size_t>(f)]) {
-          // Weighted by confidence and a Cauchy weight on the residual, with the fixed matrix:
-          // the pull towards the sample is scaled, the rest stays where the vertex is, which
-          // has the weighted term's fixed point (see refine_system.hpp).
-          const double plane = c.n.dot(p - c.q);
-          const double rs = o.robust_scale_mm > 0 ? plane / o.robust_scale_mm : 0.0;
-          const double w = c.confidence / (1.0 + rs * rs);
-          depth_target[static_cast<std::size_t>(f)] = p - w * c.n * plane;
-        }
+        if (has_target[static_cast<std::size_t>(f)])
+          depth_target[static_cast<std::size_t>(f)] = weighted_pull(p, c, o.robust_scale_mm);
       }
       rhs.row(f) +=
           o.w_pos *

@@ -97,20 +97,36 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                 " has no ARKit curve names (e.g. jawOpen), so it cannot be written as Live Link "
                 "CSV; export it from the tracker's output instead");
   }
-  std::string text = livelink_csv_header() + "\n";
+  // Frame times: the take's timestamp_s column (relative to its first frame) when stored.
+  int time_column = -1;
+  for (std::size_t i = 0; i < info.shape_names.size(); ++i) {
+    if (info.shape_names[i] == "timestamp_s") time_column = static_cast<int>(i);
+  }
   const int stride = info.stride();
+  auto frame_time = [&](int f) {
+    const float* v = values->data() + static_cast<std::size_t>(f) * stride;
+    return time_column >= 0 ? static_cast<double>(v[7 + time_column]) : f / info.fps;
+  };
+  // The Timecode is the time of day the take was recorded: the store's created_at is when it
+  // was stored, just after its last frame.
+  double start_of_day_s = 0.0;
+  if (auto stored = local_time_of_day_s(info.created_at); stored && info.frame_count > 0) {
+    start_of_day_s = *stored - frame_time(info.frame_count - 1) - 1.0 / info.fps;
+    if (start_of_day_s < 0.0) start_of_day_s += 86400.0;
+  }
+  std::string text = livelink_csv_header() + "\n";
   for (int f = 0; f < info.frame_count; ++f) {
     const float* v = values->data() + static_cast<std::size_t>(f) * stride;
     ArkitFrame frame;
     frame.index = static_cast<std::uint64_t>(f);
-    frame.time_s = f / info.fps;
+    frame.time_s = frame_time(f);
     frame.face_found = true;
     for (int k = 0; k < kArkitShapeCount; ++k) {
       if (column[k] >= 0) frame.weights[k] = v[7 + column[k]];
     }
     frame.camera_from_model.translation = Eigen::Vector3d(v[0], v[1], v[2]);
     frame.camera_from_model.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();
-    text += format_livelink_row(to_livelink_row(frame), info.fps) + "\n";
+    text += format_livelink_row(to_livelink_row(frame), info.fps, start_of_day_s) + "\n";
   }
   auto folder = ExportFolder::create(out, overwrite);
   if (!folder) return folder.failure();
@@ -126,6 +142,11 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   manifest.details = {{"fps", std::to_string(info.fps)},
                       {"frames", std::to_string(info.frame_count)},
                       {"curves_matched", std::to_string(matched)},
+                      {"recorded_at", info.created_at},
+                      {"timecode", "local time of day, HH:MM:SS:FF.mmm at the take's fps"},
+                      {"columns",
+                       "the Live Link Face app's order (JawRight before JawLeft, MouthRight "
+                       "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
                       {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"}};
   if (auto r = folder->finish(manifest); !r) return r.failure();
   ExportSummary summary;

@@ -12,8 +12,10 @@
 #include <optional>
 #include <set>
 
+#include "algo/tracking/arkit.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
+#include "storage/export/arkit_rig.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/export_session.hpp"
 #include "storage/export/facewarehouse.hpp"
@@ -214,6 +216,24 @@ TEST_F(Export, FaceWarehouseFolderRoundTripsThroughImport) {
   for (int p = 0; p < 20; ++p) {
     EXPECT_EQ(t.poses[p].positions, subject_->poses[p].positions) << p;  // exact float text
   }
+
+  // The manifest says what the folder holds and how it differs from FaceWarehouse itself.
+  auto manifest = nlohmann::json::parse(std::ifstream(summary.path / "manifest.json"));
+  const auto& d = manifest["details"];
+  EXPECT_EQ(d["names"], "model");
+  EXPECT_NE(d["topology"].get<std::string>().find("ICT FaceKit skin"), std::string::npos);
+  EXPECT_NE(d["topology"].get<std::string>().find("11248 vertices, 22288 triangles"),
+            std::string::npos)
+      << d["topology"];
+  EXPECT_NE(d["units"].get<std::string>().find("millimetres"), std::string::npos);
+  std::string expressions = "shape_1..shape_" + std::to_string(ns) + " = ";
+  for (int j = 0; j < ns; ++j) expressions += (j ? "," : "") + subject_->rig.shape_names[j];
+  EXPECT_EQ(d["expressions"], expressions);
+  const std::string differs = d["differs_from_facewarehouse"];
+  EXPECT_NE(differs.find("11,510-vertex mesh and 46"), std::string::npos) << differs;
+  EXPECT_NE(differs.find("11248 vertices and " + std::to_string(ns) + " blendshapes"),
+            std::string::npos)
+      << differs;
 }
 
 TEST_F(Export, FaceWarehouseImportRejectsBrokenFolders) {
@@ -452,6 +472,42 @@ TEST_F(Export, GlbHasArkitTargetsNormalsUvsAndPassesTheKhronosValidator) {
   const auto loaded = run(std::string(FB_ASSIMP_PATH) + " info " + glb_path.string());
   ASSERT_EQ(loaded.exit_code, 0) << loaded.out;
   EXPECT_NE(loaded.out.find(std::to_string(vertices)), std::string::npos) << loaded.out;
+}
+
+// One mapping for all: the ARKit rig an export writes, driven by ARKit curves a, is the face
+// model rig driven by what the tracker's mapping (the VMC stream's) gives the model for a.
+TEST_F(Export, ArkitRigIsTheStreamsMappingApplied) {
+  auto model = load_face_model();
+  ASSERT_TRUE(model);
+  auto mapping = make_arkit_mapping(*model);  // what `track` and the daemon stream through
+  ASSERT_TRUE(mapping);
+  auto arkit = to_arkit_rig(subject_->rig);
+  ASSERT_TRUE(arkit) << arkit.error().message;
+  ASSERT_EQ(arkit->rig.shape_count(), kArkitShapeCount);
+  for (int i = 0; i < kArkitShapeCount; ++i)
+    EXPECT_EQ(arkit->rig.shape_names[i], kArkitNames[static_cast<std::size_t>(i)]);
+  EXPECT_EQ(arkit->dropped.size(), 4u);  // cheekRaiser_L/R, PupilDilate_L/R
+  std::array<float, kArkitShapeCount> a{};
+  for (int i = 0; i < kArkitShapeCount; ++i) a[i] = 0.05f + 0.9f * float((i * 37) % 52) / 52.0f;
+  std::vector<float> w(static_cast<std::size_t>(subject_->rig.shape_count()), 0.0f);
+  mapping->to_model(a, w);
+  double worst = 0.0;
+  for (std::size_t k = 0; k < subject_->rig.neutral.size(); ++k) {
+    double by_model = subject_->rig.neutral[k], by_arkit = subject_->rig.neutral[k];
+    for (int j = 0; j < subject_->rig.shape_count(); ++j)
+      by_model += w[j] * (subject_->rig.shapes[j][k] - subject_->rig.neutral[k]);
+    for (int i = 0; i < kArkitShapeCount; ++i)
+      by_arkit += a[i] * (arkit->rig.shapes[i][k] - arkit->rig.neutral[k]);
+    worst = std::max(worst, std::abs(by_model - by_arkit));
+  }
+  std::printf("ARKit rig vs model rig under the stream's mapping: max difference %.2g mm\n", worst);
+  EXPECT_LT(worst, 1e-3);
+  // A rig whose names are not the face model's cannot be named as ARKit's: it says what to do.
+  RigData other = subject_->rig;
+  for (auto& name : other.shape_names) name = "shape_" + name;
+  auto refused = to_arkit_rig(other);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("--names model"), std::string::npos);
 }
 
 // --names model keeps the face model's shapes and names (what the glb held before ARKit names).

@@ -129,7 +129,8 @@ Result<double> parse_number(const std::string& key, const std::string& text, dou
 
 constexpr std::string_view kAccepted =
     "accepted: seed=N, expr=neutral|NAME[:WEIGHT]+NAME... (model shapes or guide expressions), "
-    "motion=headturn|static, frames=N, "
+    "motion=headturn|static, anim=expressive (a scripted jaw, smile, blink and brow take), "
+    "frames=N, "
     "distance=MM, noise=on|off, background=MM|off, identity=random|neutral, "
     "unit=SEED (a decalibrated Kinect unit), reg_dx=PX, reg_dy=PX, reg_rot=DEG, depth_scale=S, "
     "calibrated=0|1 (report the unit's true calibration instead of the defaults), "
@@ -138,6 +139,43 @@ constexpr std::string_view kAccepted =
     "hair=on|off, beard=on|off, torso=on|off, desk=on|off, hand=on|off, hand_pass=on|off|START, "
     "offset_x=PX, offset_y=PX, block_noise=RAW, block_px=N, speckle=RATE; or "
     "target=checkerboard with its own keys (board=COLSxROWS:SIZEmm, ...)";
+
+// anim=expressive: a 5 s script repeated over the take, each expression a raised-cosine bump
+// (start, duration in s, peak weight) so every curve rises from and returns to neutral: jaw
+// open, smile, a blink, brows up, a second blink.
+std::vector<std::vector<float>> expressive_track(const FaceModel& model, int frames) {
+  struct Bump {
+    const char* shapes[4];
+    double start_s, duration_s;
+    float peak;
+  };
+  constexpr Bump kScript[] = {
+      {{"jawOpen"}, 0.4, 1.0, 0.6f},
+      {{"mouthSmile_L", "mouthSmile_R"}, 1.4, 1.0, 0.8f},
+      {{"eyeBlink_L", "eyeBlink_R"}, 2.45, 0.3, 1.0f},
+      {{"browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R"}, 2.9, 1.0, 0.8f},
+      {{"eyeBlink_L", "eyeBlink_R"}, 4.3, 0.3, 1.0f},
+  };
+  constexpr double kPeriodS = 5.0;
+  std::vector<std::vector<float>> track(
+      static_cast<std::size_t>(frames),
+      std::vector<float>(static_cast<std::size_t>(model.expression_count), 0.0f));
+  for (int f = 0; f < frames; ++f) {
+    const double t = std::fmod(f / 30.0, kPeriodS);
+    for (const Bump& bump : kScript) {
+      const double x = (t - bump.start_s) / bump.duration_s;
+      if (x <= 0.0 || x >= 1.0) continue;
+      const float w =
+          bump.peak * static_cast<float>(0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * x));
+      for (const char* name : bump.shapes) {
+        if (name == nullptr) continue;
+        const int j = model.expression_index(name);
+        if (j >= 0) track[static_cast<std::size_t>(f)][static_cast<std::size_t>(j)] = w;
+      }
+    }
+  }
+  return track;
+}
 
 }  // namespace
 
@@ -213,6 +251,7 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
   }
   SyntheticOptions options;
   bool random_identity = true;
+  bool expressive = false;
   bool decalibrated = false;
   int calibrated = -1;
   RegistrationCorrection& unit = options.calibration.correction;
@@ -265,6 +304,11 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
       } else {
         return fail("synthetic: bad motion '" + value + "'; expected headturn or static");
       }
+    } else if (key == "anim") {
+      if (value != "expressive" && value != "none") {
+        return fail("synthetic: bad anim '" + value + "'; expected expressive or none");
+      }
+      expressive = value == "expressive";
     } else if (key == "frames") {
       auto n = parse_number(key, value, 1, 1e6);
       if (!n) return n.failure();
@@ -300,6 +344,7 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
     }
   }
   if (!random_identity) options.identity_coeffs = std::vector<float>();
+  if (expressive) options.expression_track = expressive_track(model, options.frame_count);
   if (auto ok = apply_world_keys(*values, options); !ok) return ok.failure();
   // A decalibrated unit reports the defaults unless calibrated=1; calibrated=0 alone reports
   // the defaults for a unit that has none to differ by (harmless).

@@ -134,17 +134,21 @@ namespace {
 
 constexpr const char* kMaterialName = "skin";
 constexpr const char* kMtlFile = "face.mtl";
+constexpr const char* kTextureFile = "face.png";
 
-// A plain skin-tone material (Kd matches the glTF baseColorFactor).
-std::string skin_mtl() {
-  return "# facebooth: the skin material of the exported meshes\n"
-         "newmtl skin\n"
-         "Ka 0 0 0\n"
-         "Kd 0.8 0.6 0.5\n"
+// A plain skin-tone material (Kd matches the glTF baseColorFactor), with the texture when there
+// is one (white Kd then, as glTF's factor, so the texture is not tinted).
+std::string skin_mtl(bool texture) {
+  return std::string(
+             "# facebooth: the skin material of the exported meshes\n"
+             "newmtl skin\n"
+             "Ka 0 0 0\n") +
+         (texture ? "Kd 1 1 1\n" : "Kd 0.8 0.6 0.5\n") +
          "Ks 0.05 0.05 0.05\n"
          "Ns 20\n"
          "d 1\n"
-         "illum 2\n";
+         "illum 2\n" +
+         (texture ? std::string("map_Kd ") + kTextureFile + "\n" : std::string());
 }
 
 std::string safe_name(const std::string& name) {
@@ -160,7 +164,11 @@ Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, const Ri
   // OBJ: normals, the UV layout (when it fits) and the skin material from face.mtl, referenced
   // relative to each file's folder.
   if (!ply) {
-    if (auto r = folder.write_text(kMtlFile, skin_mtl()); !r) return r;
+    const bool texture = !c.texture_png.empty() && c.uvs.fits(rig.triangles);
+    if (auto r = folder.write_text(kMtlFile, skin_mtl(texture)); !r) return r;
+    if (texture) {
+      if (auto r = folder.write_file(kTextureFile, c.texture_png); !r) return r;
+    }
   }
   auto write = [&](const std::string& path, const MeshData& mesh, const std::string& comment) {
     if (ply) return folder.write_file(path, encode_ply(mesh, comment));
@@ -287,6 +295,7 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
       GlbOptions options;
       options.name = c.name;
       options.uvs = &c.uvs;
+      options.base_color_png = &c.texture_png;
       auto glb = encode_glb(rig, options);
       if (!glb) return glb.failure();
       if (auto r = folder->write_file(c.name + ".glb", *glb); !r) return r.failure();
@@ -298,7 +307,10 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
           has_uvs ? "POSITION, NORMAL, TEXCOORD_0 (the face model's UV layout; seam vertices "
                     "split, one glTF vertex per UV)"
                   : "POSITION, NORMAL (no UV layout: the rig is not on the face model's mesh)";
-      manifest.details["material"] = "skin: PBR metallic-roughness, base colour only";
+      manifest.details["material"] =
+          has_uvs && !c.texture_png.empty()
+              ? "skin: PBR metallic-roughness with the subject's texture as baseColorTexture"
+              : "skin: PBR metallic-roughness, base colour only (no texture)";
       break;
     }
     case ExportFormat::kObj:
@@ -309,7 +321,9 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
       if (request.format == ExportFormat::kObj) {
         manifest.details["attributes"] =
             has_uvs ? "v, vt (the face model's UV layout), vn" : "v, vn";
-        manifest.details["material"] = "face.mtl (skin, diffuse colour)";
+        manifest.details["material"] = has_uvs && !c.texture_png.empty()
+                                           ? "face.mtl (skin, map_Kd face.png)"
+                                           : "face.mtl (skin, diffuse colour)";
       }
       break;
   }

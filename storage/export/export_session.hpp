@@ -34,6 +34,9 @@ struct ExportContent {
   std::vector<std::vector<Landmark>> pose_landmarks;
   std::map<std::string, std::string> source;  // goes into the manifest
   MeshUvs uvs;  // the face model's UV layout when the rig has its topology (else empty)
+  // The subject's colour texture in that layout, PNG (empty: none; building it from the
+  // session's colour frames is issue 37 item 3). glTF: baseColorTexture; OBJ: face.png + map_Kd.
+  std::vector<std::uint8_t> texture_png;
 };
 
 // Attaches the face model's UV layout when the content's rig has the model's triangles (a rig

@@ -48,12 +48,15 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   std::vector<std::uint8_t> bin;
   nlohmann::json views = nlohmann::json::array();
   nlohmann::json accessors = nlohmann::json::array();
+  // target 0: no target (an image); blocks are padded to 4 bytes so accessors stay aligned.
   auto add_view = [&](const void* data, std::size_t bytes, int target) {
-    const std::size_t offset = bin.size();  // every block is a multiple of 4 bytes
+    const std::size_t offset = bin.size();
     bin.resize(offset + bytes);
     std::memcpy(bin.data() + offset, data, bytes);
-    views.push_back(
-        {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}, {"target", target}});
+    while (bin.size() % 4 != 0) bin.push_back(0);
+    nlohmann::json view = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}};
+    if (target != 0) view["target"] = target;
+    views.push_back(view);
     return static_cast<int>(views.size() - 1);
   };
   // A float accessor of `components` per element; min/max (required for POSITION) are exact.
@@ -117,11 +120,20 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
     mesh["weights"] = std::vector<float>(rig.shapes.size(), 0.0f);
     mesh["extras"] = {{"targetNames", rig.shape_names}};
   }
-  const nlohmann::json material = {{"name", "skin"},
-                                   {"pbrMetallicRoughness",
-                                    {{"baseColorFactor", options.base_color},
-                                     {"metallicFactor", 0.0},
-                                     {"roughnessFactor", options.roughness}}}};
+  nlohmann::json material = {{"name", "skin"},
+                             {"pbrMetallicRoughness",
+                              {{"baseColorFactor", options.base_color},
+                               {"metallicFactor", 0.0},
+                               {"roughnessFactor", options.roughness}}}};
+  // The base colour texture (a PNG in the UV layout), embedded in the binary chunk.
+  const bool with_texture =
+      textured && options.base_color_png != nullptr && !options.base_color_png->empty();
+  int image_view = -1;
+  if (with_texture) {
+    image_view = add_view(options.base_color_png->data(), options.base_color_png->size(), 0);
+    material["pbrMetallicRoughness"]["baseColorFactor"] = {1.0, 1.0, 1.0, 1.0};
+    material["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}, {"texCoord", 0}};
+  }
   nlohmann::json gltf = {
       {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
       {"scene", 0},
@@ -133,6 +145,13 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
       {"bufferViews", views},
       {"accessors", accessors},
   };
+  if (with_texture) {
+    gltf["images"] = {{{"bufferView", image_view}, {"mimeType", "image/png"}}};
+    // Linear filtering with mipmaps; clamp so the atlas's borders do not wrap.
+    gltf["samplers"] = {
+        {{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}};
+    gltf["textures"] = {{{"sampler", 0}, {"source", 0}}};
+  }
   std::string json = gltf.dump();
   while (json.size() % 4 != 0) json.push_back(' ');
   while (bin.size() % 4 != 0) bin.push_back(0);

@@ -6,7 +6,8 @@
 //  - one morph target per blendshape with POSITION and NORMAL deltas (the target's own vertex
 //    normals minus the neutral's), names in mesh.extras.targetNames (the convention Blender,
 //    three.js and Babylon read), default weights zero;
-//  - one PBR metallic-roughness material (a skin tone, metallic 0, roughness 0.6).
+//  - one PBR metallic-roughness material (a skin tone, metallic 0, roughness 0.6), or with a
+//    base colour texture when one is given.
 #pragma once
 
 #include <array>
@@ -25,6 +26,9 @@ struct GlbOptions {
   float scale = 0.001f;          // facebooth meshes are in millimetres; glTF's unit is the metre
   const MeshUvs* uvs = nullptr;  // the UV layout; ignored unless it fits the rig's triangles
   std::array<float, 4> base_color = {0.80f, 0.60f, 0.50f, 1.0f};  // linear RGBA
+  // A PNG in the UV layout as the material's baseColorTexture (embedded; used with the UVs
+  // only). The subject's own texture (issue 37 item 3) is not built yet; this is where it goes.
+  const std::vector<std::uint8_t>* base_color_png = nullptr;
   float roughness = 0.6f;
 };
 

@@ -510,6 +510,60 @@ TEST_F(Export, ArkitRigIsTheStreamsMappingApplied) {
   EXPECT_NE(refused.error().message.find("--names model"), std::string::npos);
 }
 
+// Where the subject's texture (issue 37 item 3, not built yet) will go: a PNG in the UV layout
+// becomes the glTF material's baseColorTexture (the validator then reports hasTextures) and the
+// OBJ's face.png + map_Kd, which assimp loads with the mesh.
+TEST_F(Export, ATextureInTheUvLayoutReachesGltfAndObjMtl) {
+  ColorImage checker;
+  checker.resize(256, 256);
+  for (int y = 0; y < 256; ++y)
+    for (int x = 0; x < 256; ++x)
+      checker.at(x, y) = ((x / 32 + y / 32) % 2) ? Rgb8{200, 150, 120} : Rgb8{90, 60, 50};
+  auto png = encode_png(checker);
+  ASSERT_TRUE(png);
+  ExportContent content = synthetic_content(*subject_, 5, "facemodel.fbfm");
+  content.uvs = uvs_;
+  content.texture_png = *png;
+  ExportRequest request;
+  request.format = ExportFormat::kGlb;
+  request.out = dir_ / "glb";
+  auto glb_summary = export_content(content, request);
+  ASSERT_TRUE(glb_summary) << glb_summary.error().message;
+  const fs::path glb_path = glb_summary->path / "synthetic5.glb";
+  const Glb glb = read_glb(glb_path);
+  EXPECT_EQ(glb.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"], 0);
+  EXPECT_EQ(glb.json["images"][0]["mimeType"], "image/png");
+
+  request.format = ExportFormat::kObj;
+  request.out = dir_ / "obj";
+  auto obj_summary = export_content(content, request);
+  ASSERT_TRUE(obj_summary) << obj_summary.error().message;
+  EXPECT_TRUE(fs::exists(obj_summary->path / "face.png"));
+  std::ifstream mtl(obj_summary->path / "face.mtl");
+  const std::string mtl_text((std::istreambuf_iterator<char>(mtl)), {});
+  EXPECT_NE(mtl_text.find("map_Kd face.png"), std::string::npos) << mtl_text;
+
+  std::string skip;
+  const auto report = validate(glb_path, skip);
+  if (report) {
+    std::cout << "textured glb: " << (*report)["numErrors"] << " errors, "
+              << (*report)["numWarnings"] << " warnings, " << (*report)["numInfos"]
+              << " infos; hasTextures " << (*report)["info"]["hasTextures"] << "\n";
+    EXPECT_EQ((*report)["numErrors"], 0) << (*report)["messages"].dump(1);
+    EXPECT_EQ((*report)["numWarnings"], 0) << (*report)["messages"].dump(1);
+    EXPECT_EQ((*report)["info"]["hasTextures"], true);
+    EXPECT_EQ((*report)["info"]["maxUVs"], 1);
+  } else if (skip.empty()) {
+    FAIL() << "the validator did not run";
+  }
+  if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
+  const auto info =
+      run(std::string(FB_ASSIMP_PATH) + " info " + (obj_summary->path / "neutral.obj").string());
+  ASSERT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_NE(info.out.find("face.png"), std::string::npos) << info.out;  // the diffuse texture
+  if (!skip.empty()) GTEST_SKIP() << skip;
+}
+
 // --names model keeps the face model's shapes and names (what the glb held before ARKit names).
 TEST_F(Export, GlbWithModelNamesKeepsTheRigsShapes) {
   const auto summary = export_as(ExportFormat::kGlb, "glb-model", ShapeNames::kModel);

@@ -78,6 +78,8 @@ constexpr SectionSpec kSectionSpecs[] = {
     {fbfm::SectionId::kFittingVertices, fbfm::ElementType::kUint32, true},
     {fbfm::SectionId::kRigidVertices, fbfm::ElementType::kUint32, true},
     {fbfm::SectionId::kProvenance, fbfm::ElementType::kBytes, false},
+    {fbfm::SectionId::kUvs, fbfm::ElementType::kFloat32, false},
+    {fbfm::SectionId::kTriangleUvs, fbfm::ElementType::kUint32, false},
 };
 
 const SectionSpec* find_spec(std::uint32_t id) {
@@ -409,6 +411,25 @@ Result<void> Parser::read_payload(FaceModel& m) {
     const auto s = section_bytes(*e);
     m.provenance.assign(reinterpret_cast<const char*>(s.data()), s.size());
   }
+
+  // UVs: optional, but the coordinates and the corners' indices only make sense together.
+  const auto uvs = section(SectionId::kUvs);
+  const auto corners = section(SectionId::kTriangleUvs);
+  if (uvs.has_value() != corners.has_value()) {
+    return fail(std::string("face model: section ") + (uvs ? "UVS" : "TRIANGLE_UVS") +
+                " is there without " + (uvs ? "TRIANGLE_UVS" : "UVS") + "." + kRegenerateHint);
+  }
+  if (uvs) {
+    if (uvs->size == 0 || uvs->size % 8 != 0) {
+      return fail("face model: section UVS has " + std::to_string(uvs->size) +
+                  " bytes, not a whole number of (u, v) pairs." + kRegenerateHint);
+    }
+    if (auto r = read_floats(SectionId::kUvs, uvs->size / 4, m.uvs); !r) return r;
+    if (auto r = read_indices(SectionId::kTriangleUvs, std::uint64_t{triangle_count_} * 3,
+                              uvs->size / 8, "UV count", m.triangle_uvs);
+        !r)
+      return r;
+  }
   return success();
 }
 
@@ -474,6 +495,10 @@ std::string_view section_name(std::uint32_t id) {
       return "FITTING_VERTICES";
     case SectionId::kRigidVertices:
       return "RIGID_VERTICES";
+    case SectionId::kUvs:
+      return "UVS";
+    case SectionId::kTriangleUvs:
+      return "TRIANGLE_UVS";
     case SectionId::kProvenance:
       return "PROVENANCE";
   }
@@ -524,6 +549,10 @@ Result<std::vector<std::byte>> serialize_face_model(const FaceModel& m) {
       m.triangles.size() % 3 != 0 || m.triangles.empty()) {
     return fail("serialize_face_model: the model's vectors do not match its counts");
   }
+  if (m.uvs.size() % 2 != 0 || (m.uvs.empty() != m.triangle_uvs.empty()) ||
+      (!m.triangle_uvs.empty() && m.triangle_uvs.size() != m.triangles.size())) {
+    return fail("serialize_face_model: the UVs do not match the triangles");
+  }
   if (m.face_vertex_count < 0 || m.face_vertex_count > m.vertex_count ||
       m.fitting_expression_count < 0 || m.fitting_expression_count > m.expression_count) {
     return fail("serialize_face_model: face vertex or fitting expression count out of range");
@@ -570,6 +599,10 @@ Result<std::vector<std::byte>> serialize_face_model(const FaceModel& m) {
   add_u32(SectionId::kRigidVertices, m.rigid_vertices);
   if (!m.provenance.empty()) {
     add_raw(SectionId::kProvenance, ElementType::kBytes, m.provenance.data(), m.provenance.size());
+  }
+  if (!m.uvs.empty()) {
+    add_f32(SectionId::kUvs, m.uvs);
+    add_u32(SectionId::kTriangleUvs, m.triangle_uvs);
   }
 
   auto align = [](std::size_t v) {

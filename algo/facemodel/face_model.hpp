@@ -41,6 +41,11 @@ struct FaceModel {
   std::vector<std::uint32_t> fitting_vertices;  // upstream's fitting subset
   std::vector<std::uint32_t> rigid_vertices;    // upstream's rigid subset (skin part)
   std::string provenance;  // where the data came from and its license (free text, may be empty)
+  // The source's UV layout (optional; both empty in assets converted without it): `uvs` holds
+  // (u, v) pairs, `triangle_uvs` the UV index of each triangle corner (same layout as
+  // `triangles`). A vertex on a UV seam has several UVs, one per side.
+  std::vector<float> uvs;
+  std::vector<std::uint32_t> triangle_uvs;
 
   int triangle_count() const { return static_cast<int>(triangles.size() / 3); }
   // Index of an expression by name, or -1.

@@ -63,6 +63,8 @@ enum class SectionId : std::uint32_t {
   kFittingVertices = 12,       // u32[n]
   kRigidVertices = 13,         // u32[n]
   kProvenance = 14,            // bytes: UTF-8 text, optional
+  kUvs = 15,                   // f32[2U]: texture coordinates (u, v), optional (with 16)
+  kTriangleUvs = 16,           // u32[3T]: the UV of each triangle corner, optional (with 15)
 };
 
 enum class ElementType : std::uint32_t { kFloat32 = 1, kUint32 = 2, kBytes = 3 };

@@ -47,9 +47,12 @@ const std::array<std::string_view, kArkitShapeCount> kLiveLinkNames = {
     "CheekSquintRight",  "NoseSneerLeft",      "NoseSneerRight",
     "TongueOut"};
 
-namespace {
+// Identity but for the two pairs the app writes right before left.
+const std::array<int, kArkitShapeCount> kLiveLinkCsvOrder = {
+    0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10, 11, 12, 13, 14, 16, 15, 17,
+    18, 19, 20, 22, 21, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
+    36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51};
 
-// "eyeBlink_L" -> "eyeBlinkLeft"; unsided names unchanged; the merged pairs lose their side.
 std::string arkit_name_of(std::string_view model_name) {
   std::string base(model_name);
   std::string side;
@@ -57,20 +60,32 @@ std::string arkit_name_of(std::string_view model_name) {
     side = base.back() == 'L' ? "Left" : "Right";
     base.resize(base.size() - 2);
   }
-  if (base == "browInnerUp" || base == "cheekPuff") return base;
-  return base + side;
+  // The merged pairs lose their side.
+  std::string name = base == "browInnerUp" || base == "cheekPuff" ? base : base + side;
+  // An ARKit name given as is (a rig already in ARKit names) maps to itself.
+  if (std::find(kArkitNames.begin(), kArkitNames.end(), name) == kArkitNames.end()) return {};
+  return name;
 }
 
-}  // namespace
-
 Result<ArkitMapping> make_arkit_mapping(const FaceModel& model) {
+  return make_arkit_mapping(std::span<const std::string>(
+      model.expression_names.data(), static_cast<std::size_t>(model.fitting_expression_count)));
+}
+
+Result<ArkitMapping> make_arkit_mapping(std::span<const std::string> shape_names,
+                                        std::vector<int>* unmapped) {
   ArkitMapping mapping;
   for (auto& s : mapping.sources) s = {-1, -1};
-  for (int j = 0; j < model.fitting_expression_count; ++j) {
-    const std::string name = arkit_name_of(model.expression_names[static_cast<std::size_t>(j)]);
+  for (int j = 0; j < static_cast<int>(shape_names.size()); ++j) {
+    const std::string& model_name = shape_names[static_cast<std::size_t>(j)];
+    const std::string name = arkit_name_of(model_name);
     const auto it = std::find(kArkitNames.begin(), kArkitNames.end(), name);
     if (it == kArkitNames.end()) {
-      return fail("tracking: model expression '" + model.expression_names[j] +
+      if (unmapped != nullptr) {
+        unmapped->push_back(j);
+        continue;
+      }
+      return fail("tracking: model expression '" + model_name +
                   "' has no ARKit curve (expected ICT FaceKit names such as eyeBlink_L)");
     }
     auto& slot = mapping.sources[static_cast<std::size_t>(it - kArkitNames.begin())];
@@ -84,8 +99,9 @@ Result<ArkitMapping> make_arkit_mapping(const FaceModel& model) {
   }
   for (int i = 0; i < kArkitShapeCount; ++i) {
     if (mapping.sources[i][0] < 0 && kArkitNames[i] != "tongueOut") {
-      return fail("tracking: the face model has no shape for ARKit '" +
-                  std::string(kArkitNames[i]) + "'");
+      return fail("the shapes (" + std::to_string(shape_names.size()) +
+                  " names) have none for ARKit '" + std::string(kArkitNames[i]) +
+                  "' (expected the face model's ICT FaceKit names such as eyeBlink_L)");
     }
   }
   return mapping;

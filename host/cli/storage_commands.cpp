@@ -93,6 +93,14 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                 " has no ARKit curve names (e.g. jawOpen), so it cannot be written as Live Link "
                 "CSV; export it from the tracker's output instead");
   }
+  // The Timecode is the time of day the take was recorded: the store's created_at is when it
+  // was stored, just after its last frame (frame times are the take's measured ones).
+  double start_of_day_s = 0.0;
+  if (auto stored = local_time_of_day_s(info.created_at); stored && info.frame_count > 0) {
+    start_of_day_s = *stored - take->times_s[static_cast<std::size_t>(info.frame_count - 1)] -
+                     1.0 / info.fps;
+    if (start_of_day_s < 0.0) start_of_day_s += 86400.0;
+  }
   std::string text = livelink_csv_header() + "\n";
   for (int f = 0; f < info.frame_count; ++f) {
     const float* v = take->frame(f).data();
@@ -105,7 +113,7 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
     }
     frame.camera_from_model.translation = Eigen::Vector3d(v[0], v[1], v[2]);
     frame.camera_from_model.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();
-    text += format_livelink_row(to_livelink_row(frame), info.fps) + "\n";
+    text += format_livelink_row(to_livelink_row(frame), info.fps, start_of_day_s) + "\n";
   }
   auto folder = ExportFolder::create(out, overwrite);
   if (!folder) return folder.failure();
@@ -121,6 +129,11 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   manifest.details = {{"fps", std::to_string(info.fps)},
                       {"frames", std::to_string(info.frame_count)},
                       {"curves_matched", std::to_string(matched)},
+                      {"recorded_at", info.created_at},
+                      {"timecode", "local time of day, HH:MM:SS:FF.mmm at the take's fps"},
+                      {"columns",
+                       "the Live Link Face app's order (JawRight before JawLeft, MouthRight "
+                       "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
                       {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"}};
   if (auto r = folder->finish(manifest); !r) return r.failure();
   ExportSummary summary;
@@ -164,6 +177,12 @@ Result<ExportSummary> export_model(const SessionStore& store, ModelId id, const 
 
 int run_export_stored_item(const ParsedOptions& options) {
   if (options.get("out").empty()) return usage_error("--out DIR is required");
+  if (!options.get("names").empty() && options.get("names") != "arkit") {
+    return usage_error(
+        "--take and --model exports have ARKit curve names only (Live Link Face "
+        "CSV columns are ARKit's); leave out --names " +
+        options.get("names"));
+  }
   auto store = open_reader(options);
   if (!store) return report_failure(store.error());
   const bool take = !options.get("take").empty();
@@ -204,6 +223,11 @@ int run_export(const ParsedOptions& options) {
   auto tester = options.get_int("tester");
   if (!tester) return report_failure(tester.error());
   request.tester_number = static_cast<int>(*tester);
+  if (!options.get("names").empty()) {
+    auto names = parse_shape_names(options.get("names"));
+    if (!names) return report_failure(names.error());
+    request.names = *names;
+  }
 
   ExportContent content;
   if (from_model) {
@@ -220,6 +244,7 @@ int run_export(const ParsedOptions& options) {
     auto subject = make_synthetic_subject(*model, subject_options);
     if (!subject) return report_failure(subject.error());
     content = synthetic_content(*subject, subject_options.seed, model_path);
+    use_face_model_uvs(content, *model);
   } else {
     auto session = options.get_int("session");
     if (!session) return report_failure(session.error());
@@ -230,6 +255,12 @@ int run_export(const ParsedOptions& options) {
     auto loaded = load_session_content(*store, *session);
     if (!loaded) return report_failure(loaded.error());
     content = std::move(*loaded);
+    // The UV layout comes from the face model the rig was fitted to.
+    if (auto model = load_face_model(); model) {
+      use_face_model_uvs(content, *model);
+    } else {
+      std::cerr << "export: " << model.error().message << "; exporting without UVs\n";
+    }
   }
   std::cerr << "export: writing " << to_string(*format) << " to " << request.out.string()
             << "...\n";
@@ -238,7 +269,9 @@ int run_export(const ParsedOptions& options) {
   nlohmann::json out = summary_json(*summary);
   out["format"] = to_string(*format);
   out["source"] = content.source;
-  out["blendshapes"] = content.rig.shape_count();
+  out["names"] = to_string(request.names.value_or(default_shape_names(*format)));
+  out["uvs"] = !content.uvs.empty();
+  out["blendshapes"] = summary->blendshapes;
   out["poses"] = content.poses.size();
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
@@ -514,9 +547,14 @@ std::vector<Command> storage_commands() {
         "Writes a folder with a manifest.json (source, versions, SHA-256 of every file). The "
         "folder appears only when complete (written under a temporary name, then renamed).\n"
         "Layouts: facewarehouse -> Tester_N/Blendshape/shape_0..K.obj + shape.bs, "
-        "Tester_N/TrainingPose/pose_i.obj/.png/.land; glb -> NAME.glb (neutral + one morph "
-        "target per blendshape, names in mesh.extras.targetNames, metres); obj/ply -> "
-        "neutral, blendshapes/NN_NAME, poses/pose_i.\n"
+        "Tester_N/TrainingPose/pose_i.obj/.png/.land (the ICT FaceKit skin, 11,248 vertices, "
+        "mm: not FaceWarehouse's 11,510-vertex mesh or its 46 shapes; see the manifest); glb -> "
+        "NAME.glb (neutral + one morph target per blendshape with normals, the face model's "
+        "UVs, a PBR material, names in mesh.extras.targetNames, metres); obj/ply -> neutral, "
+        "blendshapes/NN_NAME, poses/pose_i (OBJ with vt, vn and face.mtl).\n"
+        "--names arkit (the default for glb and --take) gives Apple's 52 ARKit blendshapes in "
+        "Apple's order (browInnerUp and cheekPuff combined from their halves, tongueOut a zero "
+        "target); --names model (the default for the others) keeps the face model's names.\n"
         "Without a session, --from-face-model --seed N exports a synthetic subject: the face "
         "model with a random identity and 20 poses at known weights.\n"
         "--take ID writes a tracking take as Live Link Face CSV (take_ID.csv); --model ID "
@@ -533,6 +571,8 @@ std::vector<Command> storage_commands() {
           "facewarehouse"},
          {"out", "DIR", "folder to create", ""},
          {"tester", "N", "FaceWarehouse Tester_N number", "1"},
+         {"names", "arkit|model",
+          "blendshape names (default: arkit for glb and --take, model for the others)", ""},
          {"force", "", "replace an existing --out folder", ""}}},
        run_export},
       {{"import",

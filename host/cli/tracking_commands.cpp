@@ -282,6 +282,7 @@ int run_track(const ParsedOptions& options) {
     if (!opened) return report_failure(opened.error());
     csv.emplace(std::move(*opened));
   }
+  bool csv_started = false;
   const bool print_sse = options.flag("sse");
 
   std::mt19937_64 rng(1);
@@ -366,6 +367,11 @@ int run_track(const ParsedOptions& options) {
     latency.push_back(ms_since(arrival));
     cost.push_back(report.times.total_ms());
     if (csv) {
+      // The Timecode is the time of day (as the app writes it): the first row's is now.
+      if (!csv_started) {
+        csv->set_start_of_day_s(local_time_of_day_s(std::chrono::system_clock::now()) - out.time_s);
+        csv_started = true;
+      }
       if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());
     }
     if (store) {

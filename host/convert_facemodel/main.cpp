@@ -9,12 +9,14 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include "algo/core/result.hpp"
@@ -100,6 +102,8 @@ Result<SourceLayout> locate_source(const fs::path& dir) {
 struct ObjData {
   std::vector<double> positions;  // 3 per vertex
   std::vector<std::vector<int>> polygons;
+  std::vector<double> uvs;                    // 2 per `vt` line (with polygons only)
+  std::vector<std::vector<int>> polygon_uvs;  // 0-based vt index per corner, -1 = none
 };
 
 std::string_view trim_left(std::string_view s) {
@@ -136,8 +140,22 @@ Result<ObjData> parse_obj(const fs::path& path, bool want_polygons) {
         obj.positions.push_back(value);
         p.remove_prefix(static_cast<std::size_t>(end - p.data()));
       }
+    } else if (want_polygons && line.size() >= 3 && line[0] == 'v' && line[1] == 't' &&
+               (line[2] == ' ' || line[2] == '\t')) {
+      std::string_view p = line.substr(3);
+      for (int k = 0; k < 2; ++k) {
+        p = trim_left(p);
+        double value = 0.0;
+        const auto [end, ec] = std::from_chars(p.data(), p.data() + p.size(), value);
+        if (ec != std::errc() || !std::isfinite(value)) {
+          return garbled("cannot read coordinate " + std::to_string(k + 1) + " of a `vt` line");
+        }
+        obj.uvs.push_back(value);
+        p.remove_prefix(static_cast<std::size_t>(end - p.data()));
+      }
     } else if (want_polygons && line.size() >= 2 && line[0] == 'f' && line[1] == ' ') {
       std::vector<int> poly;
+      std::vector<int> poly_uvs;
       std::string_view p = line.substr(2);
       while (true) {
         p = trim_left(p);
@@ -150,10 +168,21 @@ Result<ObjData> parse_obj(const fs::path& path, bool want_polygons) {
         }
         poly.push_back(index - 1);
         p.remove_prefix(static_cast<std::size_t>(end - p.data()));
-        while (!p.empty() && p.front() != ' ' && p.front() != '\t') p.remove_prefix(1);  // "/vt"
+        int uv = 0;
+        if (!p.empty() && p.front() == '/') {  // "v/vt", "v/vt/vn" or "v//vn"
+          p.remove_prefix(1);
+          const auto [uv_end, uv_ec] = std::from_chars(p.data(), p.data() + p.size(), uv);
+          if (uv_ec != std::errc())
+            uv = 0;
+          else
+            p.remove_prefix(static_cast<std::size_t>(uv_end - p.data()));
+        }
+        poly_uvs.push_back(uv - 1);
+        while (!p.empty() && p.front() != ' ' && p.front() != '\t') p.remove_prefix(1);  // "/vn"
       }
       if (poly.size() < 3) return garbled("polygon with fewer than 3 vertices");
       obj.polygons.push_back(std::move(poly));
+      obj.polygon_uvs.push_back(std::move(poly_uvs));
     }
   }
   if (obj.positions.size() != 3u * kSourceVertexCount) {
@@ -206,6 +235,34 @@ double dist2(const ObjData& obj, int a, int b) {
   return d;
 }
 
+// The skin's UV layout: the distinct (u, v) values its triangle corners use (the source repeats
+// some values under several vt indices), numbered in order of first use, and each corner's index
+// into them.
+Result<void> keep_uvs(const ObjData& neutral, const std::vector<int>& corner_uvs, FaceModel& m) {
+  const int source_uvs = static_cast<int>(neutral.uvs.size() / 2);
+  std::map<std::pair<float, float>, std::uint32_t> numbered;
+  for (std::size_t c = 0; c < corner_uvs.size(); ++c) {
+    const int uv = corner_uvs[c];
+    if (uv < 0 || uv >= source_uvs) {
+      return fail("generic_neutral_mesh.obj: skin triangle corner " + std::to_string(c) +
+                  " has no valid texture coordinate (vt index " + std::to_string(uv + 1) + " of " +
+                  std::to_string(source_uvs) + ")");
+    }
+    const std::pair<float, float> value(
+        static_cast<float>(neutral.uvs[2 * static_cast<std::size_t>(uv)]),
+        static_cast<float>(neutral.uvs[2 * static_cast<std::size_t>(uv) + 1]));
+    const auto [it, added] = numbered.emplace(value, static_cast<std::uint32_t>(m.uvs.size() / 2));
+    if (added) {
+      m.uvs.push_back(value.first);
+      m.uvs.push_back(value.second);
+    }
+    m.triangle_uvs.push_back(it->second);
+  }
+  std::cerr << "  UVs: " << m.uvs.size() / 2 << " distinct texture coordinates on the skin (the "
+            << "source has " << source_uvs << " vt lines)\n";
+  return success();
+}
+
 Result<void> triangulate(const ObjData& neutral, FaceModel& m) {
   if (static_cast<int>(neutral.polygons.size()) < kSkinPolygonCount) {
     return fail("generic_neutral_mesh.obj has only " + std::to_string(neutral.polygons.size()) +
@@ -213,6 +270,7 @@ Result<void> triangulate(const ObjData& neutral, FaceModel& m) {
   }
   int quads = 0;
   int tris = 0;
+  std::vector<int> corner_uvs;  // source vt index per triangle corner
   for (int p = 0; p < kSkinPolygonCount; ++p) {
     const auto& poly = neutral.polygons[p];
     for (const int v : poly) {
@@ -224,10 +282,12 @@ Result<void> triangulate(const ObjData& neutral, FaceModel& m) {
                     "expects.");
       }
     }
+    const auto& poly_uvs = neutral.polygon_uvs[p];
     auto tri = [&](int a, int b, int c) {
-      m.triangles.push_back(static_cast<std::uint32_t>(poly[a]));
-      m.triangles.push_back(static_cast<std::uint32_t>(poly[b]));
-      m.triangles.push_back(static_cast<std::uint32_t>(poly[c]));
+      for (int k : {a, b, c}) {
+        m.triangles.push_back(static_cast<std::uint32_t>(poly[k]));
+        corner_uvs.push_back(poly_uvs[k]);
+      }
     };
     if (poly.size() == 3) {
       tri(0, 1, 2);
@@ -250,7 +310,7 @@ Result<void> triangulate(const ObjData& neutral, FaceModel& m) {
   }
   std::cerr << "  skin polygons: " << kSkinPolygonCount << " (" << quads << " quads, " << tris
             << " triangles) -> " << m.triangles.size() / 3 << " triangles\n";
-  return success();
+  return keep_uvs(neutral, corner_uvs, m);
 }
 
 Result<FaceModel> convert(const SourceLayout& src) {
@@ -364,7 +424,8 @@ Result<FaceModel> convert(const SourceLayout& src) {
       "ICT FaceKit \"Light\" face model (github.com/ICT-VGL/ICT-FaceKit, commit "
       "da5f95a607f5e6b37755b38d3385d7f2853732e5), MIT License, Copyright (c) 2020 USC "
       "Institute for Creative Technologies; see data/LICENSE. Converted by "
-      "facebooth-convert-facemodel: skin vertices 0-11247, millimetres, float32 deltas.";
+      "facebooth-convert-facemodel: skin vertices 0-11247, millimetres, float32 deltas, the "
+      "source's UV layout for the skin.";
   return m;
 }
 

@@ -114,7 +114,36 @@ ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t s
   return content;
 }
 
+void use_face_model_uvs(ExportContent& content, const FaceModel& model) {
+  if (model.uvs.empty() || model.triangles != content.rig.triangles) return;
+  content.uvs.uvs = model.uvs;
+  content.uvs.triangle_uvs = model.triangle_uvs;
+}
+
+ShapeNames default_shape_names(ExportFormat format) {
+  return format == ExportFormat::kGlb ? ShapeNames::kArkit : ShapeNames::kModel;
+}
+
 namespace {
+
+constexpr const char* kMaterialName = "skin";
+constexpr const char* kMtlFile = "face.mtl";
+constexpr const char* kTextureFile = "face.png";
+
+// A plain skin-tone material (Kd matches the glTF baseColorFactor), with the texture when there
+// is one (white Kd then, as glTF's factor, so the texture is not tinted).
+std::string skin_mtl(bool texture) {
+  return std::string(
+             "# facebooth: the skin material of the exported meshes\n"
+             "newmtl skin\n"
+             "Ka 0 0 0\n") +
+         (texture ? "Kd 1 1 1\n" : "Kd 0.8 0.6 0.5\n") +
+         "Ks 0.05 0.05 0.05\n"
+         "Ns 20\n"
+         "d 1\n"
+         "illum 2\n" +
+         (texture ? std::string("map_Kd ") + kTextureFile + "\n" : std::string());
+}
 
 std::string safe_name(const std::string& name) {
   std::string out;
@@ -123,19 +152,34 @@ std::string safe_name(const std::string& name) {
   return out;
 }
 
-Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, bool ply) {
+Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, const RigData& rig,
+                          bool ply) {
   const std::string ext = ply ? ".ply" : ".obj";
+  // OBJ: normals, the UV layout (when it fits) and the skin material from face.mtl, referenced
+  // relative to each file's folder.
+  if (!ply) {
+    const bool texture = !c.texture_png.empty() && c.uvs.fits(rig.triangles);
+    if (auto r = folder.write_text(kMtlFile, skin_mtl(texture)); !r) return r;
+    if (texture) {
+      if (auto r = folder.write_file(kTextureFile, c.texture_png); !r) return r;
+    }
+  }
   auto write = [&](const std::string& path, const MeshData& mesh, const std::string& comment) {
     if (ply) return folder.write_file(path, encode_ply(mesh, comment));
-    return folder.write_text(path, encode_obj(mesh, comment));
+    ObjExtras extras;
+    extras.uvs = c.uvs.fits(mesh.triangles) ? &c.uvs : nullptr;
+    extras.normals = true;
+    extras.mtllib = path.find('/') == std::string::npos ? kMtlFile : std::string("../") + kMtlFile;
+    extras.material = kMaterialName;
+    return folder.write_text(path, encode_obj(mesh, comment, &extras));
   };
-  if (auto r = write("neutral" + ext, c.rig.neutral_mesh(), "neutral, millimetres"); !r) return r;
-  for (int j = 0; j < c.rig.shape_count(); ++j) {
+  if (auto r = write("neutral" + ext, rig.neutral_mesh(), "neutral, millimetres"); !r) return r;
+  for (int j = 0; j < rig.shape_count(); ++j) {
     char index[16];
     std::snprintf(index, sizeof index, "%02d", j + 1);
-    const std::string& name = c.rig.shape_names[static_cast<std::size_t>(j)];
+    const std::string& name = rig.shape_names[static_cast<std::size_t>(j)];
     if (auto r = write("blendshapes/" + std::string(index) + "_" + safe_name(name) + ext,
-                       c.rig.shape_mesh(j), name + ", millimetres");
+                       rig.shape_mesh(j), name + ", millimetres");
         !r) {
       return r;
     }
@@ -152,6 +196,62 @@ Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, bool ply
 
 }  // namespace
 
+namespace {
+
+std::string joined(const std::vector<std::string>& items, const char* separator = ",") {
+  std::string out;
+  for (const auto& item : items) out += (out.empty() ? "" : separator) + item;
+  return out;
+}
+
+// What a FaceWarehouse-layout export holds and how it differs from the original dataset, for
+// readers that assume FaceWarehouse's own mesh and expression set.
+void describe_facewarehouse(const RigData& rig, const ExportContent& c, ExportManifest& manifest) {
+  const bool ict_skin = rig.vertex_count() == 11248;
+  manifest.details["layout"] =
+      "Tester_N/Blendshape/shape_0..K.obj + shape.bs (int32 nShapes,nVerts,nFaces; float32 "
+      "(nShapes+1) x nVerts x 3, neutral first, little-endian); Tester_N/TrainingPose/"
+      "pose_i.obj (+ .png colour, .land landmarks); Tester_N/Blendshape/shape_names.txt";
+  manifest.details["topology"] =
+      (ict_skin ? std::string("the ICT FaceKit skin (face, back of head and neck; eyes, mouth "
+                              "socket and teeth left out): ")
+                : std::string("the rig's own mesh: ")) +
+      std::to_string(rig.vertex_count()) + " vertices, " +
+      std::to_string(rig.triangles.size() / 3) + " triangles (shape_0.obj)";
+  manifest.details["units"] =
+      "millimetres; model frame +X subject's left, +Y up, +Z out of the face";
+  manifest.details["expressions"] =
+      "shape_1..shape_" + std::to_string(rig.shape_count()) + " = " + joined(rig.shape_names);
+  manifest.details["poses_note"] =
+      "TrainingPose/pose_i = the session's fitted captures in capture order (" +
+      joined(c.pose_names) + "), not FaceWarehouse's 20 training poses";
+  manifest.details["differs_from_facewarehouse"] =
+      "FaceWarehouse (Cao et al. 2014) has its own 11,510-vertex mesh and 46 FACS-style "
+      "expression blendshapes (shape_0 neutral + 46); this export has " +
+      std::to_string(rig.vertex_count()) + " vertices and " + std::to_string(rig.shape_count()) +
+      " blendshapes named in shape_names.txt (the ICT FaceKit / ARKit-style set), with no "
+      "vertex or expression correspondence to FaceWarehouse. Readers that take the counts "
+      "from shape.bs's header (e.g. face_toolkit's loadBlendshapeFW: absolute shapes, shape 0 "
+      "the neutral) read it; readers that hard-code 11,510 vertices or 46 shapes refuse it.";
+}
+
+// The rig under the requested names, and what the naming did, for the manifest.
+Result<RigData> named_rig(const ExportContent& c, ShapeNames names, ExportManifest& manifest) {
+  manifest.details["names"] = to_string(names);
+  if (names == ShapeNames::kModel || c.rig.shape_count() == 0) return c.rig;
+  auto arkit = to_arkit_rig(c.rig);
+  if (!arkit) return arkit.failure();
+  manifest.details["names_note"] =
+      "Apple's 52 ARKit blendshapes in Apple's order (ARFaceAnchor.BlendShapeLocation); "
+      "tongueOut is a zero target (the skin has no tongue); combined: " +
+      joined(arkit->combined, "; ") +
+      (arkit->dropped.empty() ? std::string()
+                              : "; left out (no ARKit name): " + joined(arkit->dropped));
+  return std::move(arkit->rig);
+}
+
+}  // namespace
+
 Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   auto folder = ExportFolder::create(request.out, request.overwrite);
@@ -159,49 +259,65 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
   ExportManifest manifest;
   manifest.what = to_string(request.format);
   manifest.source = c.source;
-  manifest.details = {{"vertices", std::to_string(c.rig.vertex_count())},
-                      {"triangles", std::to_string(c.rig.triangles.size() / 3)},
-                      {"blendshapes", std::to_string(c.rig.shape_count())},
-                      {"poses", std::to_string(c.poses.size())}};
-  std::string names;
-  for (const auto& n : c.rig.shape_names) names += (names.empty() ? "" : ",") + n;
-  manifest.details["blendshape_names"] = names;
+  auto named = named_rig(c, request.names.value_or(default_shape_names(request.format)), manifest);
+  if (!named) return named.failure();
+  const RigData& rig = *named;
+  manifest.details["vertices"] = std::to_string(rig.vertex_count());
+  manifest.details["triangles"] = std::to_string(rig.triangles.size() / 3);
+  manifest.details["blendshapes"] = std::to_string(rig.shape_count());
+  manifest.details["poses"] = std::to_string(c.poses.size());
+  manifest.details["blendshape_names"] = joined(rig.shape_names);
+  const bool has_uvs = c.uvs.fits(rig.triangles);
   switch (request.format) {
     case ExportFormat::kFaceWarehouse: {
-      if (c.rig.shape_count() == 0)
+      if (rig.shape_count() == 0)
         return fail(
             "FaceWarehouse's layout is a blendshape set and this export has only the "
             "neutral (no rig): use --format obj, ply or glb, or fit the session's "
             "expressions and build a rig first");
       FaceWarehouseTester tester;
       tester.number = request.tester_number;
-      tester.rig = c.rig;
+      tester.rig = rig;
       tester.poses = c.poses;
       tester.pose_colors = c.pose_colors;
       tester.pose_landmarks = c.pose_landmarks;
       if (auto r = write_facewarehouse_tester(*folder, tester); !r) return r.failure();
-      manifest.details["layout"] =
-          "Tester_N/Blendshape/shape_0..K.obj + shape.bs (int32 nShapes,nVerts,nFaces; float32 "
-          "(nShapes+1) x nVerts x 3, neutral first, little-endian); Tester_N/TrainingPose/"
-          "pose_i.obj (+ .png colour, .land landmarks)";
+      describe_facewarehouse(rig, c, manifest);
       break;
     }
     case ExportFormat::kGlb: {
       GlbOptions options;
       options.name = c.name;
-      auto glb = encode_glb(c.rig, options);
+      options.uvs = &c.uvs;
+      options.base_color_png = &c.texture_png;
+      auto glb = encode_glb(rig, options);
       if (!glb) return glb.failure();
       if (auto r = folder->write_file(c.name + ".glb", *glb); !r) return r.failure();
       manifest.details["units"] = "metres (glTF)";
-      manifest.details["morph_targets"] = c.rig.shape_count() > 0
-                                              ? "POSITION deltas, names in mesh.extras.targetNames"
-                                              : "none (the neutral alone)";
+      manifest.details["morph_targets"] =
+          rig.shape_count() > 0 ? "POSITION and NORMAL deltas, names in mesh.extras.targetNames"
+                                : "none (the neutral alone)";
+      manifest.details["attributes"] =
+          has_uvs ? "POSITION, NORMAL, TEXCOORD_0 (the face model's UV layout; seam vertices "
+                    "split, one glTF vertex per UV)"
+                  : "POSITION, NORMAL (no UV layout: the rig is not on the face model's mesh)";
+      manifest.details["material"] =
+          has_uvs && !c.texture_png.empty()
+              ? "skin: PBR metallic-roughness with the subject's texture as baseColorTexture"
+              : "skin: PBR metallic-roughness, base colour only (no texture)";
       break;
     }
     case ExportFormat::kObj:
     case ExportFormat::kPly:
-      if (auto r = write_meshes(*folder, c, request.format == ExportFormat::kPly); !r) {
+      if (auto r = write_meshes(*folder, c, rig, request.format == ExportFormat::kPly); !r) {
         return r.failure();
+      }
+      if (request.format == ExportFormat::kObj) {
+        manifest.details["attributes"] =
+            has_uvs ? "v, vt (the face model's UV layout), vn" : "v, vn";
+        manifest.details["material"] = has_uvs && !c.texture_png.empty()
+                                           ? "face.mtl (skin, map_Kd face.png)"
+                                           : "face.mtl (skin, diffuse colour)";
       }
       break;
   }
@@ -209,6 +325,7 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
   ExportSummary summary;
   summary.path = folder->destination();
   summary.files = static_cast<int>(folder->files().size()) + 1;
+  summary.blendshapes = rig.shape_count();
   std::error_code ec;
   summary.bytes =
       folder->total_bytes() + std::filesystem::file_size(summary.path / "manifest.json", ec);

@@ -6,12 +6,15 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
+#include "storage/export/arkit_rig.hpp"
+#include "storage/export/mesh_geometry.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "storage/session_store.hpp"
 #include "storage/stored_data.hpp"
@@ -30,7 +33,15 @@ struct ExportContent {
   std::vector<ColorImage> pose_colors;  // first frame of each capture (may be empty)
   std::vector<std::vector<Landmark>> pose_landmarks;
   std::map<std::string, std::string> source;  // goes into the manifest
+  MeshUvs uvs;  // the face model's UV layout when the rig has its topology (else empty)
+  // The subject's colour texture in that layout, PNG (empty: none; building it from the
+  // session's colour frames is issue 37 item 3). glTF: baseColorTexture; OBJ: face.png + map_Kd.
+  std::vector<std::uint8_t> texture_png;
 };
+
+// Attaches the face model's UV layout when the content's rig has the model's triangles (a rig
+// fitted to the model, or a synthetic subject); otherwise leaves the content without UVs.
+void use_face_model_uvs(ExportContent& content, const FaceModel& model);
 
 // The session's subject's newest rig (preferring one built from this session), the session's
 // fitted meshes by capture index (a kNeutral mesh counts as pose 0), and each done capture's
@@ -45,12 +56,19 @@ struct ExportRequest {
   std::filesystem::path out;  // the folder to create
   bool overwrite = false;
   int tester_number = 1;  // FaceWarehouse's Tester_N
+  // Blendshape names; unset = the format's default (default_shape_names).
+  std::optional<ShapeNames> names;
 };
+
+// ARKit's 52 for glTF (what engines and Live Link tools look for), the model's names for OBJ,
+// PLY and FaceWarehouse (the fitted shapes as they are).
+ShapeNames default_shape_names(ExportFormat format);
 
 struct ExportSummary {
   std::filesystem::path path;
   std::uint64_t bytes = 0;  // all files including the manifest
   int files = 0;
+  int blendshapes = 0;  // as exported (52 with ARKit names)
   double seconds = 0.0;
 };
 

@@ -24,66 +24,115 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   if (nv == 0 || rig.triangles.empty()) return fail("cannot export an empty rig as glTF");
   if (rig.shape_names.size() != rig.shapes.size()) return fail("rig shape names do not match");
 
+  // Output vertices: one per (vertex, UV) corner pair with UVs, else the rig's own.
+  const bool textured = options.uvs != nullptr && options.uvs->fits(rig.triangles);
+  SplitMesh split;
+  if (textured) {
+    split = split_seams(rig.triangles, *options.uvs);
+  } else {
+    split.triangles = rig.triangles;
+    split.source_vertex.resize(static_cast<std::size_t>(nv));
+    for (int v = 0; v < nv; ++v) split.source_vertex[static_cast<std::size_t>(v)] = v;
+  }
+  const std::size_t out_count = split.source_vertex.size();
+  // Per-output-vertex attribute from a per-rig-vertex one (3 floats each).
+  auto gather = [&](const std::vector<float>& per_vertex, float scale) {
+    std::vector<float> out(3 * out_count);
+    for (std::size_t o = 0; o < out_count; ++o) {
+      const std::size_t v = split.source_vertex[o];
+      for (int k = 0; k < 3; ++k) out[3 * o + k] = per_vertex[3 * v + k] * scale;
+    }
+    return out;
+  };
+
   std::vector<std::uint8_t> bin;
   nlohmann::json views = nlohmann::json::array();
   nlohmann::json accessors = nlohmann::json::array();
+  // target 0: no target (an image); blocks are padded to 4 bytes so accessors stay aligned.
   auto add_view = [&](const void* data, std::size_t bytes, int target) {
-    const std::size_t offset = bin.size();  // every block is a multiple of 4 bytes
+    const std::size_t offset = bin.size();
     bin.resize(offset + bytes);
     std::memcpy(bin.data() + offset, data, bytes);
-    views.push_back(
-        {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}, {"target", target}});
+    while (bin.size() % 4 != 0) bin.push_back(0);
+    nlohmann::json view = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}};
+    if (target != 0) view["target"] = target;
+    views.push_back(view);
     return static_cast<int>(views.size() - 1);
   };
-  // A VEC3 float accessor; min/max are required for POSITION and must be exact.
-  auto add_vec3 = [&](const std::vector<float>& values) {
-    float lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::numeric_limits<float>::max();
-      hi[k] = std::numeric_limits<float>::lowest();
-    }
+  // A float accessor of `components` per element; min/max (required for POSITION) are exact.
+  auto add_floats = [&](const std::vector<float>& values, int components, const char* type) {
+    std::vector<float> lo(static_cast<std::size_t>(components), std::numeric_limits<float>::max());
+    std::vector<float> hi(static_cast<std::size_t>(components),
+                          std::numeric_limits<float>::lowest());
     for (std::size_t i = 0; i < values.size(); ++i) {
-      lo[i % 3] = std::min(lo[i % 3], values[i]);
-      hi[i % 3] = std::max(hi[i % 3], values[i]);
+      const std::size_t k = i % static_cast<std::size_t>(components);
+      lo[k] = std::min(lo[k], values[i]);
+      hi[k] = std::max(hi[k], values[i]);
     }
     const int view = add_view(values.data(), values.size() * sizeof(float), kArrayBuffer);
     accessors.push_back({{"bufferView", view},
                          {"componentType", kFloat},
-                         {"count", values.size() / 3},
-                         {"type", "VEC3"},
-                         {"min", {lo[0], lo[1], lo[2]}},
-                         {"max", {hi[0], hi[1], hi[2]}}});
+                         {"count", values.size() / static_cast<std::size_t>(components)},
+                         {"type", type},
+                         {"min", lo},
+                         {"max", hi}});
     return static_cast<int>(accessors.size() - 1);
   };
 
   const int indices_view = add_view(
-      rig.triangles.data(), rig.triangles.size() * sizeof(std::uint32_t), kElementArrayBuffer);
+      split.triangles.data(), split.triangles.size() * sizeof(std::uint32_t), kElementArrayBuffer);
   accessors.push_back({{"bufferView", indices_view},
                        {"componentType", kUnsignedInt},
-                       {"count", rig.triangles.size()},
+                       {"count", split.triangles.size()},
                        {"type", "SCALAR"}});
   const int indices = 0;
 
-  std::vector<float> neutral(rig.neutral.size());
-  for (std::size_t i = 0; i < neutral.size(); ++i) neutral[i] = rig.neutral[i] * options.scale;
-  const int position = add_vec3(neutral);
+  const std::vector<float> neutral = gather(rig.neutral, options.scale);
+  const std::vector<float> neutral_normals = vertex_normals(rig.neutral, rig.triangles);
+  nlohmann::json attributes = {{"POSITION", add_floats(neutral, 3, "VEC3")},
+                               {"NORMAL", add_floats(gather(neutral_normals, 1.0f), 3, "VEC3")}};
+  if (textured) {
+    std::vector<float> texcoords(2 * out_count);
+    for (std::size_t o = 0; o < out_count; ++o) {
+      const std::size_t uv = split.uv_index[o];
+      texcoords[2 * o] = options.uvs->uvs[2 * uv];
+      texcoords[2 * o + 1] = 1.0f - options.uvs->uvs[2 * uv + 1];  // glTF's v runs downwards
+    }
+    attributes["TEXCOORD_0"] = add_floats(texcoords, 2, "VEC2");
+  }
 
   nlohmann::json targets = nlohmann::json::array();
   std::vector<float> delta(rig.neutral.size());
   for (const auto& shape : rig.shapes) {
-    for (std::size_t i = 0; i < delta.size(); ++i) {
-      delta[i] = shape[i] * options.scale - neutral[i];
-    }
-    targets.push_back({{"POSITION", add_vec3(delta)}});
+    for (std::size_t i = 0; i < delta.size(); ++i) delta[i] = shape[i] - rig.neutral[i];
+    const int position = add_floats(gather(delta, options.scale), 3, "VEC3");
+    const std::vector<float> normals = vertex_normals(shape, rig.triangles);
+    for (std::size_t i = 0; i < delta.size(); ++i) delta[i] = normals[i] - neutral_normals[i];
+    targets.push_back(
+        {{"POSITION", position}, {"NORMAL", add_floats(gather(delta, 1.0f), 3, "VEC3")}});
   }
 
   nlohmann::json primitive = {
-      {"attributes", {{"POSITION", position}}}, {"indices", indices}, {"mode", 4}};
+      {"attributes", attributes}, {"indices", indices}, {"mode", 4}, {"material", 0}};
   nlohmann::json mesh = {{"name", options.name}, {"primitives", {primitive}}};
   if (!rig.shapes.empty()) {
     mesh["primitives"][0]["targets"] = targets;
     mesh["weights"] = std::vector<float>(rig.shapes.size(), 0.0f);
     mesh["extras"] = {{"targetNames", rig.shape_names}};
+  }
+  nlohmann::json material = {{"name", "skin"},
+                             {"pbrMetallicRoughness",
+                              {{"baseColorFactor", options.base_color},
+                               {"metallicFactor", 0.0},
+                               {"roughnessFactor", options.roughness}}}};
+  // The base colour texture (a PNG in the UV layout), embedded in the binary chunk.
+  const bool with_texture =
+      textured && options.base_color_png != nullptr && !options.base_color_png->empty();
+  int image_view = -1;
+  if (with_texture) {
+    image_view = add_view(options.base_color_png->data(), options.base_color_png->size(), 0);
+    material["pbrMetallicRoughness"]["baseColorFactor"] = {1.0, 1.0, 1.0, 1.0};
+    material["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}, {"texCoord", 0}};
   }
   nlohmann::json gltf = {
       {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
@@ -91,10 +140,18 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
       {"scenes", {{{"nodes", {0}}}}},
       {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
       {"meshes", {mesh}},
+      {"materials", {material}},
       {"buffers", {{{"byteLength", bin.size()}}}},
       {"bufferViews", views},
       {"accessors", accessors},
   };
+  if (with_texture) {
+    gltf["images"] = {{{"bufferView", image_view}, {"mimeType", "image/png"}}};
+    // Linear filtering with mipmaps; clamp so the atlas's borders do not wrap.
+    gltf["samplers"] = {
+        {{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}};
+    gltf["textures"] = {{{"sampler", 0}, {"source", 0}}};
+  }
   std::string json = gltf.dump();
   while (json.size() % 4 != 0) json.push_back(' ');
   while (bin.size() % 4 != 0) bin.push_back(0);

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <sstream>
 
 namespace fb {
@@ -57,6 +58,7 @@ LiveLinkRow to_livelink_row(const ArkitFrame& frame) {
 
 std::string livelink_timecode(double time_s, double fps) {
   if (!(time_s >= 0.0)) time_s = 0.0;
+  time_s = std::fmod(time_s, 86400.0);  // a time of day: wraps at midnight
   const double frames_total = time_s * fps;
   // Whole frames, and the fraction of a frame (rounded to 3 decimals, carrying into the frame).
   long long whole = static_cast<long long>(std::floor(frames_total));
@@ -69,8 +71,9 @@ std::string livelink_timecode(double time_s, double fps) {
   const long long seconds_total = whole / per_second;
   const long long frame = whole % per_second;
   char buffer[128];
-  std::snprintf(buffer, sizeof(buffer), "%02lld:%02lld:%02lld:%02lld.%03lld", seconds_total / 3600,
-                (seconds_total / 60) % 60, seconds_total % 60, frame, milli);
+  std::snprintf(buffer, sizeof(buffer), "%02lld:%02lld:%02lld:%02lld.%03lld",
+                (seconds_total / 3600) % 24, (seconds_total / 60) % 60, seconds_total % 60, frame,
+                milli);
   return buffer;
 }
 
@@ -86,11 +89,40 @@ Result<double> parse_livelink_timecode(std::string_view text, double fps) {
   return (static_cast<double>(h) * 3600.0 + m * 60.0 + s) + f / static_cast<double>(per_second);
 }
 
+double local_time_of_day_s(std::chrono::system_clock::time_point when) {
+  const auto since_epoch = when.time_since_epoch();
+  const std::time_t seconds =
+      static_cast<std::time_t>(std::chrono::floor<std::chrono::seconds>(since_epoch).count());
+  const double fraction =
+      std::chrono::duration<double>(since_epoch - std::chrono::seconds(seconds)).count();
+  std::tm local{};
+  localtime_r(&seconds, &local);
+  return local.tm_hour * 3600.0 + local.tm_min * 60.0 + local.tm_sec + fraction;
+}
+
+Result<double> local_time_of_day_s(std::string_view utc_iso8601) {
+  std::tm utc{};
+  double sec = 0.0;
+  const std::string text(utc_iso8601);
+  if (std::sscanf(text.c_str(), "%d-%d-%dT%d:%d:%lf", &utc.tm_year, &utc.tm_mon, &utc.tm_mday,
+                  &utc.tm_hour, &utc.tm_min, &sec) != 6) {
+    return fail("Live Link CSV: cannot read the time '" + text +
+                "' (expected YYYY-MM-DDTHH:MM:SS.sssZ, UTC)");
+  }
+  utc.tm_year -= 1900;
+  utc.tm_mon -= 1;
+  utc.tm_sec = static_cast<int>(std::floor(sec));
+  const std::time_t t = timegm(&utc);
+  return local_time_of_day_s(std::chrono::system_clock::from_time_t(t) +
+                             std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                                 std::chrono::duration<double>(sec - std::floor(sec))));
+}
+
 std::string livelink_csv_header() {
   std::string out = "Timecode,BlendShapeCount";
-  for (auto name : kLiveLinkNames) {
+  for (int k : kLiveLinkCsvOrder) {
     out += ',';
-    out += name;
+    out += kLiveLinkNames[static_cast<std::size_t>(k)];
   }
   for (auto name : kAngleColumns) {
     out += ',';
@@ -99,13 +131,13 @@ std::string livelink_csv_header() {
   return out;
 }
 
-std::string format_livelink_row(const LiveLinkRow& row, double fps) {
-  std::string out = livelink_timecode(row.time_s, fps);
+std::string format_livelink_row(const LiveLinkRow& row, double fps, double start_of_day_s) {
+  std::string out = livelink_timecode(start_of_day_s + row.time_s, fps);
   out += ',';
   out += std::to_string(kBlendShapeCount);
-  for (float w : row.weights) {
+  for (int k : kLiveLinkCsvOrder) {
     out += ',';
-    append_number(out, w);
+    append_number(out, row.weights[static_cast<std::size_t>(k)]);
   }
   for (double a : {row.head.yaw, row.head.pitch, row.head.roll}) {
     out += ',';
@@ -119,8 +151,9 @@ std::string format_livelink_row(const LiveLinkRow& row, double fps) {
 }
 
 Result<void> write_livelink_csv(const std::filesystem::path& path,
-                                std::span<const LiveLinkRow> rows, double fps) {
-  auto writer = LiveLinkCsvWriter::open(path, fps);
+                                std::span<const LiveLinkRow> rows, double fps,
+                                double start_of_day_s) {
+  auto writer = LiveLinkCsvWriter::open(path, fps, start_of_day_s);
   if (!writer) return writer.failure();
   for (const auto& row : rows) {
     if (auto r = writer->append(row); !r) return r;
@@ -186,11 +219,13 @@ Result<std::vector<LiveLinkRow>> read_livelink_csv(const std::filesystem::path& 
   return rows;
 }
 
-Result<LiveLinkCsvWriter> LiveLinkCsvWriter::open(const std::filesystem::path& path, double fps) {
+Result<LiveLinkCsvWriter> LiveLinkCsvWriter::open(const std::filesystem::path& path, double fps,
+                                                  double start_of_day_s) {
   if (!(fps > 0.0)) return fail("Live Link CSV: fps must be positive");
   LiveLinkCsvWriter writer;
   writer.path_ = path;
   writer.fps_ = fps;
+  writer.start_of_day_s_ = start_of_day_s;
   writer.out_.open(path, std::ios::out | std::ios::trunc);
   if (!writer.out_) return fail("Live Link CSV: cannot create " + path.string());
   writer.out_ << livelink_csv_header() << '\n';
@@ -198,7 +233,7 @@ Result<LiveLinkCsvWriter> LiveLinkCsvWriter::open(const std::filesystem::path& p
 }
 
 Result<void> LiveLinkCsvWriter::append(const LiveLinkRow& row) {
-  out_ << format_livelink_row(row, fps_) << '\n';
+  out_ << format_livelink_row(row, fps_, start_of_day_s_) << '\n';
   if (!out_) return fail("Live Link CSV: writing " + path_.string() + " failed (disk full?)");
   return success();
 }

@@ -23,30 +23,56 @@ void append_uint(std::string& out, std::uint64_t v) {
 
 }  // namespace
 
-std::string encode_obj(const MeshData& mesh, std::string_view comment) {
+std::string encode_obj(const MeshData& mesh, std::string_view comment, const ObjExtras* extras) {
   std::string out;
-  out.reserve(mesh.positions.size() * 10 + mesh.triangles.size() * 7 + 64);
+  out.reserve(mesh.positions.size() * 20 + mesh.triangles.size() * 14 + 64);
   if (!comment.empty()) {
     out += "# ";
     out += comment;
     out += "\n";
   }
-  for (std::size_t i = 0; i + 2 < mesh.positions.size(); i += 3) {
-    out += "v ";
-    append_float(out, mesh.positions[i]);
-    out += ' ';
-    append_float(out, mesh.positions[i + 1]);
-    out += ' ';
-    append_float(out, mesh.positions[i + 2]);
-    out += '\n';
+  const ObjExtras none;
+  const ObjExtras& x = extras != nullptr ? *extras : none;
+  if (!x.mtllib.empty()) out += "mtllib " + x.mtllib + "\n";
+  auto append_vec3 = [&](const char* tag, const std::vector<float>& values) {
+    for (std::size_t i = 0; i + 2 < values.size(); i += 3) {
+      out += tag;
+      append_float(out, values[i]);
+      out += ' ';
+      append_float(out, values[i + 1]);
+      out += ' ';
+      append_float(out, values[i + 2]);
+      out += '\n';
+    }
+  };
+  append_vec3("v ", mesh.positions);
+  const bool uvs = x.uvs != nullptr && x.uvs->fits(mesh.triangles);
+  if (uvs) {
+    for (std::size_t i = 0; i + 1 < x.uvs->uvs.size(); i += 2) {
+      out += "vt ";
+      append_float(out, x.uvs->uvs[i]);
+      out += ' ';
+      append_float(out, x.uvs->uvs[i + 1]);
+      out += '\n';
+    }
   }
+  if (x.normals) append_vec3("vn ", vertex_normals(mesh.positions, mesh.triangles));
+  if (!x.material.empty()) out += "usemtl " + x.material + "\n";
   for (std::size_t i = 0; i + 2 < mesh.triangles.size(); i += 3) {
-    out += "f ";
-    append_uint(out, mesh.triangles[i] + std::uint64_t{1});
-    out += ' ';
-    append_uint(out, mesh.triangles[i + 1] + std::uint64_t{1});
-    out += ' ';
-    append_uint(out, mesh.triangles[i + 2] + std::uint64_t{1});
+    out += 'f';
+    for (std::size_t k = i; k < i + 3; ++k) {
+      const std::uint64_t v = mesh.triangles[k] + std::uint64_t{1};
+      out += ' ';
+      append_uint(out, v);
+      if (uvs || x.normals) {
+        out += '/';
+        if (uvs) append_uint(out, x.uvs->triangle_uvs[k] + std::uint64_t{1});
+        if (x.normals) {
+          out += '/';
+          append_uint(out, v);
+        }
+      }
+    }
     out += '\n';
   }
   return out;

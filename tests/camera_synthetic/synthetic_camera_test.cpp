@@ -117,6 +117,7 @@ TEST(SyntheticCamera, BadUrisGiveClearErrors) {
       {"synthetic:expr=notAnExpression", "jawOpen"},
       {"synthetic:expr=jawOpen:lots", "weight"},
       {"synthetic:motion=spin", "headturn or static"},
+      {"synthetic:anim=dance", "expressive or none"},
       {"synthetic:frames=0", "frames"},
       {"synthetic:distance=50", "distance"},
       {"synthetic:noise=maybe", "on or off"},

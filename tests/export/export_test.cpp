@@ -3,18 +3,25 @@
 // manifests with checksums, and exports that are never visible half-written.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
 
+#include "algo/tracking/arkit.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
+#include "storage/export/arkit_rig.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/export_session.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/export/gltf.hpp"
 #include "storage/export/mesh_files.hpp"
+#include "storage/export/mesh_geometry.hpp"
 #include "storage/export/png_file.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "tests/common/run_command.hpp"
@@ -39,6 +46,8 @@ class Export : public ::testing::Test {
     ASSERT_TRUE(subject) << subject.error().message;
     subject_ = std::make_unique<SyntheticSubject>(std::move(*subject));
     expression_count_ = model->expression_count;
+    uvs_.uvs = model->uvs;
+    uvs_.triangle_uvs = model->triangle_uvs;
   }
   static void TearDownTestSuite() { subject_.reset(); }
 
@@ -52,21 +61,99 @@ class Export : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  ExportSummary export_as(ExportFormat format, const std::string& name) {
+  ExportSummary export_as(ExportFormat format, const std::string& name,
+                          std::optional<ShapeNames> names = std::nullopt) {
     ExportRequest request;
     request.format = format;
     request.out = dir_ / name;
-    auto summary = export_content(synthetic_content(*subject_, 5, "facemodel.fbfm"), request);
+    request.names = names;
+    ExportContent content = synthetic_content(*subject_, 5, "facemodel.fbfm");
+    content.uvs = uvs_;
+    auto summary = export_content(content, request);
     EXPECT_TRUE(summary) << summary.error().message;
     return summary ? *summary : ExportSummary{};
   }
 
   static std::unique_ptr<SyntheticSubject> subject_;
+  static MeshUvs uvs_;  // the face model's UV layout
   static int expression_count_;
   fs::path dir_;
 };
 std::unique_ptr<SyntheticSubject> Export::subject_;
+MeshUvs Export::uvs_;
 int Export::expression_count_ = 0;
+
+// Apple's 52 ARKit blendshapes in the order ARFaceAnchor.BlendShapeLocation's documentation
+// lists them (left eye, right eye, mouth and jaw, brows/cheeks/nose, tongue); written out here
+// rather than taken from kArkitNames, so the test checks the table.
+const std::vector<std::string> kAppleOrder = {
+    "eyeBlinkLeft",      "eyeLookDownLeft",    "eyeLookInLeft",
+    "eyeLookOutLeft",    "eyeLookUpLeft",      "eyeSquintLeft",
+    "eyeWideLeft",       "eyeBlinkRight",      "eyeLookDownRight",
+    "eyeLookInRight",    "eyeLookOutRight",    "eyeLookUpRight",
+    "eyeSquintRight",    "eyeWideRight",       "jawForward",
+    "jawLeft",           "jawRight",           "jawOpen",
+    "mouthClose",        "mouthFunnel",        "mouthPucker",
+    "mouthLeft",         "mouthRight",         "mouthSmileLeft",
+    "mouthSmileRight",   "mouthFrownLeft",     "mouthFrownRight",
+    "mouthDimpleLeft",   "mouthDimpleRight",   "mouthStretchLeft",
+    "mouthStretchRight", "mouthRollLower",     "mouthRollUpper",
+    "mouthShrugLower",   "mouthShrugUpper",    "mouthPressLeft",
+    "mouthPressRight",   "mouthLowerDownLeft", "mouthLowerDownRight",
+    "mouthUpperUpLeft",  "mouthUpperUpRight",  "browDownLeft",
+    "browDownRight",     "browInnerUp",        "browOuterUpLeft",
+    "browOuterUpRight",  "cheekPuff",          "cheekSquintLeft",
+    "cheekSquintRight",  "noseSneerLeft",      "noseSneerRight",
+    "tongueOut"};
+
+// The JSON chunk of a .glb and the float data of one accessor (tightly packed views only).
+struct Glb {
+  nlohmann::json json;
+  std::vector<std::uint8_t> bytes;
+  std::size_t bin_offset = 0;
+  std::vector<float> floats(int accessor) const {
+    const auto& a = json["accessors"][accessor];
+    const auto& v = json["bufferViews"][a["bufferView"].get<int>()];
+    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2" ? 2 : 3);
+    std::vector<float> out(count);
+    std::memcpy(out.data(), bytes.data() + bin_offset + v["byteOffset"].get<std::size_t>(),
+                count * sizeof(float));
+    return out;
+  }
+};
+Glb read_glb(const fs::path& path) {
+  Glb glb;
+  auto bytes = read_file_bytes(path);
+  EXPECT_TRUE(bytes);
+  if (!bytes) return glb;
+  glb.bytes = std::move(*bytes);
+  std::uint32_t head[5];
+  std::memcpy(head, glb.bytes.data(), sizeof head);
+  glb.json = nlohmann::json::parse(glb.bytes.begin() + 20, glb.bytes.begin() + 20 + head[3]);
+  glb.bin_offset = 20 + head[3] + 8;
+  return glb;
+}
+
+// The Khronos validator's report on a .glb (node + tools/node_modules/gltf-validator), or a
+// reason to skip.
+std::optional<nlohmann::json> validate(const fs::path& glb, std::string& skip) {
+  if (std::string(FB_NODE_PATH).empty()) {
+    skip = "node is not installed (scripts/install-deps installs it)";
+    return std::nullopt;
+  }
+  if (!fs::exists(FB_GLTF_VALIDATOR_MODULE)) {
+    skip = "the Khronos glTF validator is missing from " FB_GLTF_VALIDATOR_MODULE
+           ": run scripts/install-deps (npm ci --prefix tools)";
+    return std::nullopt;
+  }
+  const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
+                             FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
+  EXPECT_EQ(validated.exit_code, 0) << validated.out;
+  auto report = nlohmann::json::parse(validated.out, nullptr, false);
+  EXPECT_FALSE(report.is_discarded()) << validated.out;
+  if (validated.exit_code != 0 || report.is_discarded()) return std::nullopt;
+  return report;
+}
 
 TEST_F(Export, SyntheticSubjectIsTheRigAtKnownWeights) {
   const auto& s = *subject_;
@@ -129,6 +216,24 @@ TEST_F(Export, FaceWarehouseFolderRoundTripsThroughImport) {
   for (int p = 0; p < 20; ++p) {
     EXPECT_EQ(t.poses[p].positions, subject_->poses[p].positions) << p;  // exact float text
   }
+
+  // The manifest says what the folder holds and how it differs from FaceWarehouse itself.
+  auto manifest = nlohmann::json::parse(std::ifstream(summary.path / "manifest.json"));
+  const auto& d = manifest["details"];
+  EXPECT_EQ(d["names"], "model");
+  EXPECT_NE(d["topology"].get<std::string>().find("ICT FaceKit skin"), std::string::npos);
+  EXPECT_NE(d["topology"].get<std::string>().find("11248 vertices, 22288 triangles"),
+            std::string::npos)
+      << d["topology"];
+  EXPECT_NE(d["units"].get<std::string>().find("millimetres"), std::string::npos);
+  std::string expressions = "shape_1..shape_" + std::to_string(ns) + " = ";
+  for (int j = 0; j < ns; ++j) expressions += (j ? "," : "") + subject_->rig.shape_names[j];
+  EXPECT_EQ(d["expressions"], expressions);
+  const std::string differs = d["differs_from_facewarehouse"];
+  EXPECT_NE(differs.find("11,510-vertex mesh and 46"), std::string::npos) << differs;
+  EXPECT_NE(differs.find("11248 vertices and " + std::to_string(ns) + " blendshapes"),
+            std::string::npos)
+      << differs;
 }
 
 TEST_F(Export, FaceWarehouseImportRejectsBrokenFolders) {
@@ -224,7 +329,8 @@ TEST_F(Export, NeutralOnlySessionExportsItsNeutral) {
     EXPECT_TRUE(fs::exists(summary->path / ("neutral." + ext)));
     EXPECT_TRUE(fs::exists(summary->path / "poses" / ("pose_0." + ext)));
     EXPECT_FALSE(fs::exists(summary->path / "blendshapes"));
-    EXPECT_EQ(summary->files, 3) << ext;  // neutral, pose 0, manifest
+    // neutral, pose 0, manifest (+ face.mtl for OBJ)
+    EXPECT_EQ(summary->files, format == ExportFormat::kObj ? 4 : 3) << ext;
   }
   auto back = read_obj(dir_ / "obj" / "neutral.obj");
   ASSERT_TRUE(back);
@@ -261,48 +367,215 @@ TEST_F(Export, NeutralOnlySessionExportsItsNeutral) {
   EXPECT_EQ(report["numErrors"], 0) << report["messages"].dump(1);
 }
 
-TEST_F(Export, GlbPassesTheKhronosValidatorAndLoadsInAssimp) {
+// The default glTF export as engines and DCC tools take it: Apple's 52 ARKit targets in Apple's
+// order, normals on the neutral and in every target, the face model's UVs (seams split), a PBR
+// material; the Khronos validator reports 0 errors and 0 warnings, and assimp loads it.
+TEST_F(Export, GlbHasArkitTargetsNormalsUvsAndPassesTheKhronosValidator) {
   const auto summary = export_as(ExportFormat::kGlb, "glb");
-  const fs::path glb = summary.path / "synthetic5.glb";
-  ASSERT_TRUE(fs::exists(glb));
+  const fs::path glb_path = summary.path / "synthetic5.glb";
+  ASSERT_TRUE(fs::exists(glb_path));
   ASSERT_TRUE(verify_export_folder(summary.path));
+  EXPECT_EQ(summary.blendshapes, 52);
 
-  // Our own reading of the container: header, chunk layout, target names.
-  auto bytes = read_file_bytes(glb);
-  ASSERT_TRUE(bytes);
-  std::uint32_t head[5];
-  std::memcpy(head, bytes->data(), sizeof head);
+  // Our own reading of the container: header, names, attributes, material.
+  const Glb glb = read_glb(glb_path);
+  std::uint32_t head[3];
+  std::memcpy(head, glb.bytes.data(), sizeof head);
   EXPECT_EQ(head[0], 0x46546C67u);
   EXPECT_EQ(head[1], 2u);
-  EXPECT_EQ(head[2], bytes->size());
-  auto j = nlohmann::json::parse(bytes->begin() + 20, bytes->begin() + 20 + head[3]);
-  const auto& names = j["meshes"][0]["extras"]["targetNames"];
-  ASSERT_EQ(names.size(), std::size_t(subject_->rig.shape_count()));
-  EXPECT_EQ(names[0], subject_->rig.shape_names[0]);
-  EXPECT_EQ(j["meshes"][0]["primitives"][0]["targets"].size(), names.size());
+  EXPECT_EQ(head[2], glb.bytes.size());
+  const auto& mesh = glb.json["meshes"][0];
+  const auto& primitive = mesh["primitives"][0];
+  ASSERT_EQ(mesh["extras"]["targetNames"].get<std::vector<std::string>>(), kAppleOrder);
+  ASSERT_EQ(primitive["targets"].size(), 52u);
+  EXPECT_EQ(mesh["weights"].size(), 52u);
+  for (const auto& target : primitive["targets"]) {
+    EXPECT_TRUE(target.contains("POSITION"));
+    EXPECT_TRUE(target.contains("NORMAL"));
+  }
+  ASSERT_TRUE(primitive["attributes"].contains("NORMAL"));
+  ASSERT_TRUE(primitive["attributes"].contains("TEXCOORD_0"));
+  EXPECT_FALSE(primitive["attributes"].contains("TEXCOORD_1"));
+  ASSERT_EQ(glb.json["materials"].size(), 1u);
+  EXPECT_EQ(glb.json["materials"][0]["pbrMetallicRoughness"]["metallicFactor"], 0.0);
+  EXPECT_EQ(primitive["material"], 0);
 
-  if (std::string(FB_NODE_PATH).empty()) GTEST_SKIP() << "node is not installed";
-  ASSERT_TRUE(fs::exists(FB_GLTF_VALIDATOR_MODULE))
-      << "gltf-validator is missing: run ctest (fixture export_install_gltf_validator) or npm "
-         "install --prefix <build>/node gltf-validator";
-  const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
-                             FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
-  ASSERT_EQ(validated.exit_code, 0) << validated.out;
-  auto report = nlohmann::json::parse(validated.out, nullptr, false);
-  ASSERT_FALSE(report.is_discarded()) << validated.out;
-  std::cout << "gltf-validator " << report["validatorVersion"] << ": " << report["numErrors"]
-            << " errors, " << report["numWarnings"] << " warnings, " << report["numInfos"]
-            << " infos\n";
-  EXPECT_EQ(report["numErrors"], 0) << report["messages"].dump(1);
+  // One glTF vertex per (vertex, UV) pair: 11,248 vertices + 214 seam copies.
+  const int position = primitive["attributes"]["POSITION"];
+  const std::size_t vertices = glb.json["accessors"][position]["count"];
+  std::set<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  for (std::size_t c = 0; c < uvs_.triangle_uvs.size(); ++c)
+    pairs.insert({subject_->rig.triangles[c], uvs_.triangle_uvs[c]});
+  EXPECT_EQ(vertices, pairs.size());
+  EXPECT_GT(vertices, std::size_t(subject_->rig.vertex_count()));
+
+  // The combined shapes: browInnerUp = browInnerUp_L + browInnerUp_R (deltas), tongueOut zero.
+  auto target_floats = [&](int t, const char* attribute) {
+    return glb.floats(primitive["targets"][t][attribute].get<int>());
+  };
+  const auto brow = target_floats(43, "POSITION");
+  const auto tongue = target_floats(51, "POSITION");
+  double brow_max = 0, tongue_max = 0;
+  for (float v : brow) brow_max = std::max(brow_max, double(std::abs(v)));
+  for (float v : tongue) tongue_max = std::max(tongue_max, double(std::abs(v)));
+  const int brow_l = static_cast<int>(std::find(subject_->rig.shape_names.begin(),
+                                                subject_->rig.shape_names.end(), "browInnerUp_L") -
+                                      subject_->rig.shape_names.begin());
+  double sum_max = 0;
+  for (std::size_t i = 0; i < subject_->rig.neutral.size(); ++i) {
+    const double l = subject_->rig.shapes[brow_l][i] - subject_->rig.neutral[i];
+    const double r = subject_->rig.shapes[brow_l + 1][i] - subject_->rig.neutral[i];
+    sum_max = std::max(sum_max, std::abs(l + r) * 0.001);
+  }
+  std::printf(
+      "glb: %zu vertices (%d + seam copies), browInnerUp max delta %.4f m (L+R %.4f), "
+      "tongueOut max %.1g\n",
+      vertices, subject_->rig.vertex_count(), brow_max, sum_max, tongue_max);
+  EXPECT_NEAR(brow_max, sum_max, 1e-6);
+  EXPECT_GT(brow_max, 0.001);
+  EXPECT_EQ(tongue_max, 0.0);
+  // Neutral normals are unit length and face out over the face (+Z on average).
+  const auto normals = glb.floats(primitive["attributes"]["NORMAL"].get<int>());
+  double worst_length = 0, mean_z = 0;
+  for (std::size_t v = 0; v < vertices; ++v) {
+    const double x = normals[3 * v], y = normals[3 * v + 1], z = normals[3 * v + 2];
+    worst_length = std::max(worst_length, std::abs(std::sqrt(x * x + y * y + z * z) - 1.0));
+    mean_z += z / double(vertices);
+  }
+  EXPECT_LT(worst_length, 1e-5);
+  const auto jaw_normals = target_floats(17, "NORMAL");  // jawOpen turns the chin's normals
+  double jaw_normal_max = 0;
+  for (float v : jaw_normals) jaw_normal_max = std::max(jaw_normal_max, double(std::abs(v)));
+  std::printf("glb: normals |n|-1 <= %.2g, mean z %.3f; jawOpen normal delta max %.3f\n",
+              worst_length, mean_z, jaw_normal_max);
+  EXPECT_GT(jaw_normal_max, 0.05);
+
+  std::string skip;
+  const auto report = validate(glb_path, skip);
+  if (!report) {
+    if (!skip.empty()) GTEST_SKIP() << skip;
+    FAIL() << "the validator did not run";
+  }
+  const auto& info = (*report)["info"];
+  std::cout << "gltf-validator " << (*report)["validatorVersion"] << ": " << (*report)["numErrors"]
+            << " errors, " << (*report)["numWarnings"] << " warnings, " << (*report)["numInfos"]
+            << " infos; info " << info.dump() << "\n";
+  EXPECT_EQ((*report)["numErrors"], 0) << (*report)["messages"].dump(1);
+  EXPECT_EQ((*report)["numWarnings"], 0) << (*report)["messages"].dump(1);
+  EXPECT_EQ(info["maxUVs"], 1);
+  EXPECT_EQ(info["hasMorphTargets"], true);
+  EXPECT_EQ(info["materialCount"], 1);
+  EXPECT_EQ(info["hasTextures"], false);  // the subject's texture is issue 37 item 3
+  EXPECT_EQ(info["totalVertexCount"], vertices);
 
   if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
-  const auto info = run(std::string(FB_ASSIMP_PATH) + " info " + glb.string());
-  ASSERT_EQ(info.exit_code, 0) << info.out;
-  EXPECT_NE(info.out.find(std::to_string(subject_->rig.vertex_count())), std::string::npos)
-      << info.out;
+  const auto loaded = run(std::string(FB_ASSIMP_PATH) + " info " + glb_path.string());
+  ASSERT_EQ(loaded.exit_code, 0) << loaded.out;
+  EXPECT_NE(loaded.out.find(std::to_string(vertices)), std::string::npos) << loaded.out;
 }
 
-TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
+// One mapping for all: the ARKit rig an export writes, driven by ARKit curves a, is the face
+// model rig driven by what the tracker's mapping (the VMC stream's) gives the model for a.
+TEST_F(Export, ArkitRigIsTheStreamsMappingApplied) {
+  auto model = load_face_model();
+  ASSERT_TRUE(model);
+  auto mapping = make_arkit_mapping(*model);  // what `track` and the daemon stream through
+  ASSERT_TRUE(mapping);
+  auto arkit = to_arkit_rig(subject_->rig);
+  ASSERT_TRUE(arkit) << arkit.error().message;
+  ASSERT_EQ(arkit->rig.shape_count(), kArkitShapeCount);
+  for (int i = 0; i < kArkitShapeCount; ++i)
+    EXPECT_EQ(arkit->rig.shape_names[i], kArkitNames[static_cast<std::size_t>(i)]);
+  EXPECT_EQ(arkit->dropped.size(), 4u);  // cheekRaiser_L/R, PupilDilate_L/R
+  std::array<float, kArkitShapeCount> a{};
+  for (int i = 0; i < kArkitShapeCount; ++i) a[i] = 0.05f + 0.9f * float((i * 37) % 52) / 52.0f;
+  std::vector<float> w(static_cast<std::size_t>(subject_->rig.shape_count()), 0.0f);
+  mapping->to_model(a, w);
+  double worst = 0.0;
+  for (std::size_t k = 0; k < subject_->rig.neutral.size(); ++k) {
+    double by_model = subject_->rig.neutral[k], by_arkit = subject_->rig.neutral[k];
+    for (int j = 0; j < subject_->rig.shape_count(); ++j)
+      by_model += w[j] * (subject_->rig.shapes[j][k] - subject_->rig.neutral[k]);
+    for (int i = 0; i < kArkitShapeCount; ++i)
+      by_arkit += a[i] * (arkit->rig.shapes[i][k] - arkit->rig.neutral[k]);
+    worst = std::max(worst, std::abs(by_model - by_arkit));
+  }
+  std::printf("ARKit rig vs model rig under the stream's mapping: max difference %.2g mm\n", worst);
+  EXPECT_LT(worst, 1e-3);
+  // A rig whose names are not the face model's cannot be named as ARKit's: it says what to do.
+  RigData other = subject_->rig;
+  for (auto& name : other.shape_names) name = "shape_" + name;
+  auto refused = to_arkit_rig(other);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("--names model"), std::string::npos);
+}
+
+// Where the subject's texture (issue 37 item 3, not built yet) will go: a PNG in the UV layout
+// becomes the glTF material's baseColorTexture (the validator then reports hasTextures) and the
+// OBJ's face.png + map_Kd, which assimp loads with the mesh.
+TEST_F(Export, ATextureInTheUvLayoutReachesGltfAndObjMtl) {
+  ColorImage checker;
+  checker.resize(256, 256);
+  for (int y = 0; y < 256; ++y)
+    for (int x = 0; x < 256; ++x)
+      checker.at(x, y) = ((x / 32 + y / 32) % 2) ? Rgb8{200, 150, 120} : Rgb8{90, 60, 50};
+  auto png = encode_png(checker);
+  ASSERT_TRUE(png);
+  ExportContent content = synthetic_content(*subject_, 5, "facemodel.fbfm");
+  content.uvs = uvs_;
+  content.texture_png = *png;
+  ExportRequest request;
+  request.format = ExportFormat::kGlb;
+  request.out = dir_ / "glb";
+  auto glb_summary = export_content(content, request);
+  ASSERT_TRUE(glb_summary) << glb_summary.error().message;
+  const fs::path glb_path = glb_summary->path / "synthetic5.glb";
+  const Glb glb = read_glb(glb_path);
+  EXPECT_EQ(glb.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"], 0);
+  EXPECT_EQ(glb.json["images"][0]["mimeType"], "image/png");
+
+  request.format = ExportFormat::kObj;
+  request.out = dir_ / "obj";
+  auto obj_summary = export_content(content, request);
+  ASSERT_TRUE(obj_summary) << obj_summary.error().message;
+  EXPECT_TRUE(fs::exists(obj_summary->path / "face.png"));
+  std::ifstream mtl(obj_summary->path / "face.mtl");
+  const std::string mtl_text((std::istreambuf_iterator<char>(mtl)), {});
+  EXPECT_NE(mtl_text.find("map_Kd face.png"), std::string::npos) << mtl_text;
+
+  std::string skip;
+  const auto report = validate(glb_path, skip);
+  if (report) {
+    std::cout << "textured glb: " << (*report)["numErrors"] << " errors, "
+              << (*report)["numWarnings"] << " warnings, " << (*report)["numInfos"]
+              << " infos; hasTextures " << (*report)["info"]["hasTextures"] << "\n";
+    EXPECT_EQ((*report)["numErrors"], 0) << (*report)["messages"].dump(1);
+    EXPECT_EQ((*report)["numWarnings"], 0) << (*report)["messages"].dump(1);
+    EXPECT_EQ((*report)["info"]["hasTextures"], true);
+    EXPECT_EQ((*report)["info"]["maxUVs"], 1);
+  } else if (skip.empty()) {
+    FAIL() << "the validator did not run";
+  }
+  if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
+  const auto info =
+      run(std::string(FB_ASSIMP_PATH) + " info " + (obj_summary->path / "neutral.obj").string());
+  ASSERT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_NE(info.out.find("face.png"), std::string::npos) << info.out;  // the diffuse texture
+  if (!skip.empty()) GTEST_SKIP() << skip;
+}
+
+// --names model keeps the face model's shapes and names (what the glb held before ARKit names).
+TEST_F(Export, GlbWithModelNamesKeepsTheRigsShapes) {
+  const auto summary = export_as(ExportFormat::kGlb, "glb-model", ShapeNames::kModel);
+  const Glb glb = read_glb(summary.path / "synthetic5.glb");
+  EXPECT_EQ(glb.json["meshes"][0]["extras"]["targetNames"].get<std::vector<std::string>>(),
+            subject_->rig.shape_names);
+  auto manifest = nlohmann::json::parse(std::ifstream(summary.path / "manifest.json"));
+  EXPECT_EQ(manifest["details"]["names"], "model");
+}
+
+// OBJ with the face model's UVs, normals and face.mtl, and PLY, both loaded by assimp.
+TEST_F(Export, ObjWithMtlAndPlyFoldersLoadInAssimp) {
   for (auto format : {ExportFormat::kObj, ExportFormat::kPly}) {
     const std::string ext = format == ExportFormat::kObj ? "obj" : "ply";
     const auto summary = export_as(format, ext);
@@ -315,6 +588,21 @@ TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
       auto back = read_obj(summary.path / "neutral.obj");
       ASSERT_TRUE(back);
       EXPECT_EQ(back->mesh.positions, subject_->rig.neutral);
+      EXPECT_EQ(back->mesh.triangles, subject_->rig.triangles);
+      ASSERT_TRUE(fs::exists(summary.path / "face.mtl"));
+      std::ifstream in(summary.path / "neutral.obj");
+      std::string line;
+      std::size_t vt = 0, vn = 0;
+      bool mtllib = false, usemtl = false;
+      while (std::getline(in, line)) {
+        vt += line.rfind("vt ", 0) == 0;
+        vn += line.rfind("vn ", 0) == 0;
+        mtllib = mtllib || line == "mtllib face.mtl";
+        usemtl = usemtl || line == "usemtl skin";
+      }
+      EXPECT_EQ(vt, uvs_.uvs.size() / 2);
+      EXPECT_EQ(vn, std::size_t(subject_->rig.vertex_count()));
+      EXPECT_TRUE(mtllib && usemtl);
     } else {
       const auto size = fs::file_size(summary.path / "neutral.ply");
       const std::size_t payload =
@@ -323,11 +611,21 @@ TEST_F(Export, ObjAndPlyFoldersLoadInAssimp) {
       EXPECT_LT(size, payload + 400);
     }
     if (std::string(FB_ASSIMP_PATH).empty()) continue;
-    const auto info =
-        run(std::string(FB_ASSIMP_PATH) + " info " + (summary.path / ("neutral." + ext)).string());
-    ASSERT_EQ(info.exit_code, 0) << info.out;
-    EXPECT_NE(info.out.find(std::to_string(subject_->rig.triangles.size() / 3)), std::string::npos)
-        << info.out;
+    for (const std::string file :
+         {"neutral." + ext, "blendshapes/01_" + subject_->rig.shape_names[0] + "." + ext}) {
+      const auto info =
+          run(std::string(FB_ASSIMP_PATH) + " info " + (summary.path / file).string());
+      ASSERT_EQ(info.exit_code, 0) << info.out;
+      EXPECT_NE(info.out.find(std::to_string(subject_->rig.triangles.size() / 3)),
+                std::string::npos)
+          << info.out;
+      if (format == ExportFormat::kObj) {
+        // assimp read face.mtl (a material named skin) and the UV channel.
+        EXPECT_NE(info.out.find("skin"), std::string::npos) << info.out;
+        EXPECT_EQ(info.out.find("Warn"), std::string::npos) << info.out;
+      }
+      if (file.rfind("neutral", 0) == 0) std::cout << "assimp info " << file << ":\n" << info.out;
+    }
   }
 }
 

@@ -88,6 +88,8 @@ TEST(facemodel_format, TinyModelRoundTripsExactly) {
   EXPECT_EQ(b.fitting_vertices, a.fitting_vertices);
   EXPECT_EQ(b.rigid_vertices, a.rigid_vertices);
   EXPECT_EQ(b.provenance, a.provenance);
+  EXPECT_EQ(b.uvs, a.uvs);
+  EXPECT_EQ(b.triangle_uvs, a.triangle_uvs);
   // Serialising the parsed model gives the same bytes: the format has one canonical form.
   auto again = serialize_face_model(b);
   ASSERT_TRUE(again.ok());

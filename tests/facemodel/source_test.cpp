@@ -11,6 +11,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "algo/facemodel/face_model.hpp"
@@ -183,6 +184,57 @@ TEST(facemodel_source, TrianglesCoverTheSkinPolygons) {
     nz += ux * wy - uy * wx;
   }
   EXPECT_GT(nz, 0.0) << "face triangles are wound clockwise as seen from the front";
+}
+
+// The asset's UV layout is the source's: every triangle corner carries the `vt` its polygon
+// corner has in generic_neutral_mesh.obj (seam vertices keep one UV per side).
+TEST(facemodel_source, UvsAreTheSourceLayout) {
+  FB_REQUIRE_SOURCE();
+  const FaceModel& m = test::asset_model();
+  ASSERT_FALSE(m.uvs.empty()) << "data/facemodel.fbfm has no UVs: re-run the converter";
+  ASSERT_EQ(m.triangle_uvs.size(), m.triangles.size());
+  std::istringstream in(slurp(src / "FaceXModel" / "generic_neutral_mesh.obj"));
+  std::vector<double> vt;
+  // (vertex, u, v) triples the skin polygons use.
+  std::set<std::tuple<std::uint32_t, float, float>> corners;
+  std::string line;
+  int polygons = 0;
+  while (polygons < 11144 && std::getline(in, line)) {
+    if (line.rfind("vt ", 0) == 0) {
+      std::istringstream ls(line.substr(3));
+      double u = 0, v = 0;
+      ls >> u >> v;
+      vt.push_back(u);
+      vt.push_back(v);
+    } else if (line.rfind("f ", 0) == 0) {
+      ++polygons;
+      std::istringstream ls(line.substr(2));
+      std::string tok;
+      while (ls >> tok) {
+        const auto slash = tok.find('/');
+        ASSERT_NE(slash, std::string::npos) << "polygon " << polygons << " has no vt";
+        const auto vertex = static_cast<std::uint32_t>(std::stoul(tok)) - 1;
+        const auto uv = std::stoul(tok.substr(slash + 1)) - 1;
+        ASSERT_LT(2 * uv + 1, vt.size());
+        corners.insert(
+            {vertex, static_cast<float>(vt[2 * uv]), static_cast<float>(vt[2 * uv + 1])});
+      }
+    }
+  }
+  std::set<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  for (std::size_t c = 0; c < m.triangles.size(); ++c) {
+    const std::uint32_t uv = m.triangle_uvs[c];
+    ASSERT_LT(2 * uv + 1, m.uvs.size());
+    EXPECT_TRUE(corners.count({m.triangles[c], m.uvs[2 * uv], m.uvs[2 * uv + 1]}))
+        << "corner " << c << " (vertex " << m.triangles[c] << ") has a UV its polygon lacks";
+    pairs.insert({m.triangles[c], uv});
+  }
+  std::printf(
+      "UVs: %zu for %d vertices; %zu (vertex, UV) pairs in the source's skin corners, "
+      "%zu in the asset\n",
+      m.uvs.size() / 2, m.vertex_count, corners.size(), pairs.size());
+  EXPECT_EQ(pairs.size(), corners.size());
+  EXPECT_GT(m.uvs.size() / 2, static_cast<std::size_t>(m.vertex_count));  // seams are split
 }
 
 TEST(facemodel_source, VertexListsMatchTheJsonFiles) {

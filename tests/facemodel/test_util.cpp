@@ -34,6 +34,8 @@ FaceModel make_tiny_model() {
   m.fitting_vertices = {0, 1, 2};
   m.rigid_vertices = {4};
   m.provenance = "tiny test model";
+  m.uvs = {0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f};
+  m.triangle_uvs = {0, 1, 2, 0, 2, 3, 2, 3, 1};
   return m;
 }
 

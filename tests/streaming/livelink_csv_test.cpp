@@ -1,9 +1,12 @@
 #include "storage/export/livelink_csv.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -54,6 +57,84 @@ TEST(LiveLinkCsv, RoundTripsATake) {
     EXPECT_NEAR((*read)[f].head.roll, rows[f].head.roll, 1e-6);
   }
   std::filesystem::remove(path);
+}
+
+std::vector<std::string> split_line(const std::string& line) {
+  std::vector<std::string> fields;
+  std::stringstream ss(line);
+  std::string field;
+  while (std::getline(ss, field, ',')) fields.push_back(field);
+  return fields;
+}
+
+// The app's own header (a fixture copied from a published Live Link Face take): facebooth's CSV
+// has the same 63 columns in the same order, and every column holds the curve its name says.
+TEST(LiveLinkCsv, ColumnsMatchTheAppsHeaderOneByOne) {
+  std::ifstream fixture(FB_LIVELINK_HEADER_FIXTURE);
+  ASSERT_TRUE(fixture) << "missing fixture " << FB_LIVELINK_HEADER_FIXTURE;
+  std::string app_header;
+  std::getline(fixture, app_header);
+  const auto app_columns = split_line(app_header);
+  ASSERT_EQ(app_columns.size(), 63u);
+
+  // Distinct values per curve (curve i = (i + 1) / 100) and head angles, at 60 fps, starting at
+  // the app's example time of day 12:27:47, frame 47 and .169 of a frame.
+  LiveLinkRow row;
+  for (int i = 0; i < kArkitShapeCount; ++i) row.weights[i] = (i + 1) / 100.0f;
+  row.head = {0.25, -0.125, 0.0625};
+  const double fps = 60.0;
+  const double start = 12 * 3600.0 + 27 * 60.0 + 47.0 + 47.169 / fps;
+  const auto path = temp_file("columns.csv");
+  ASSERT_TRUE(write_livelink_csv(path, std::span<const LiveLinkRow>(&row, 1), fps, start).ok());
+  std::ifstream in(path);
+  std::string header, line;
+  std::getline(in, header);
+  std::getline(in, line);
+  const auto columns = split_line(header);
+  const auto fields = split_line(line);
+  ASSERT_EQ(columns.size(), app_columns.size());
+  ASSERT_EQ(fields.size(), app_columns.size());
+  int curves_checked = 0;
+  for (std::size_t c = 0; c < app_columns.size(); ++c) {
+    EXPECT_EQ(columns[c], app_columns[c]) << "column " << c;
+    const auto it = std::find(kLiveLinkNames.begin(), kLiveLinkNames.end(), app_columns[c]);
+    if (it == kLiveLinkNames.end()) continue;
+    const int curve = static_cast<int>(it - kLiveLinkNames.begin());
+    EXPECT_NEAR(std::stod(fields[c]), (curve + 1) / 100.0, 1e-6) << app_columns[c];
+    ++curves_checked;
+  }
+  EXPECT_EQ(curves_checked, kArkitShapeCount);
+  // The pairs the app writes right before left sit where the app has them.
+  EXPECT_EQ(columns[17], "JawRight");
+  EXPECT_EQ(columns[18], "JawLeft");
+  EXPECT_EQ(columns[23], "MouthRight");
+  EXPECT_EQ(columns[24], "MouthLeft");
+  EXPECT_EQ(fields[0], "12:27:47:47.169");
+  EXPECT_EQ(fields[1], "61");
+  EXPECT_NEAR(std::stod(fields[54]), 0.25, 1e-6);    // HeadYaw
+  EXPECT_NEAR(std::stod(fields[55]), -0.125, 1e-6);  // HeadPitch
+  EXPECT_NEAR(std::stod(fields[56]), 0.0625, 1e-6);  // HeadRoll
+  std::filesystem::remove(path);
+}
+
+// The Timecode is a time of day with the frame number at the take's rate.
+TEST(LiveLinkCsv, TimecodeIsTheTimeOfDayAtTheTakesRate) {
+  EXPECT_EQ(livelink_timecode(12 * 3600.0 + 27 * 60.0 + 47.0 + 47.5 / 60.0, 60.0),
+            "12:27:47:47.500");
+  EXPECT_EQ(livelink_timecode(12 * 3600.0 + 27 * 60.0 + 47.0 + 29.0 / 30.0, 30.0),
+            "12:27:47:29.000");
+  EXPECT_EQ(livelink_timecode(86399.0 + 59.0 / 60.0 + 1.0 / 60.0, 60.0), "00:00:00:00.000");
+  // Consecutive rows of a 30 fps take starting at 23:59:59 frame 28 cross midnight.
+  const double start = 86399.0 + 28.0 / 30.0;
+  EXPECT_EQ(livelink_timecode(start + 1.0 / 30.0, 30.0), "23:59:59:29.000");
+  EXPECT_EQ(livelink_timecode(start + 2.0 / 30.0, 30.0), "00:00:00:00.000");
+  // The store's UTC created_at read as a local time of day (TZ=UTC here: the same clock time).
+  ::setenv("TZ", "UTC", 1);
+  ::tzset();
+  auto tod = local_time_of_day_s("2026-12-06T12:27:47.250Z");
+  ASSERT_TRUE(tod.ok()) << tod.error().message;
+  EXPECT_NEAR(*tod, 12 * 3600.0 + 27 * 60.0 + 47.25, 1e-6);
+  EXPECT_FALSE(local_time_of_day_s("yesterday").ok());
 }
 
 TEST(LiveLinkCsv, HeadAnglesMatchTheConstruction) {

@@ -321,3 +321,52 @@ TEST_F(TrackStoreCli, SaveRigStoresTheCalibratedSubject) {
 
 }  // namespace
 }  // namespace fb
+
+namespace fb {
+namespace {
+
+// The demo's take (scripts/demo step 5): the head turns while the face opens the jaw, smiles,
+// blinks and raises the brows (synthetic anim=expressive), so its Live Link CSV shows curves;
+// the Timecode is the time of day at which the take was tracked.
+TEST_F(TrackStoreCli, ExpressiveTakeCsvShowsItsCurves) {
+  const fs::path csv = dir_ / "take.csv";
+  const double before = local_time_of_day_s(std::chrono::system_clock::now());
+  auto r = facebooth(
+      "track --camera synthetic:seed=1,motion=headturn,anim=expressive,frames=150 --frames 150 "
+      "--csv " +
+      csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto rows = read_livelink_csv(csv, 30.0);
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  ASSERT_EQ(rows->size(), 150u);
+  // The first row's time of day is when tracking started (allow a midnight wrap).
+  double start = (*rows)[0].time_s - before;
+  if (start < -43200) start += 86400;
+  EXPECT_GE(start, -1.0);
+  EXPECT_LT(start, 120.0);
+  EXPECT_NEAR((*rows)[149].time_s - (*rows)[0].time_s, 149 / 30.0, 1e-3);
+  struct Curve {
+    const char* name;
+    float truth_peak;
+  } const curves[] = {{"JawOpen", 0.6f},         {"MouthSmileLeft", 0.8f},
+                      {"MouthSmileRight", 0.8f}, {"EyeBlinkLeft", 1.0f},
+                      {"EyeBlinkRight", 1.0f},   {"BrowInnerUp", 0.8f},
+                      {"BrowOuterUpLeft", 0.8f}, {"BrowOuterUpRight", 0.8f}};
+  for (const auto& curve : curves) {
+    const auto it = std::find(kLiveLinkNames.begin(), kLiveLinkNames.end(), curve.name);
+    ASSERT_NE(it, kLiveLinkNames.end());
+    const auto k = static_cast<std::size_t>(it - kLiveLinkNames.begin());
+    float peak = 0.0f, first_frames = 0.0f;
+    for (std::size_t f = 0; f < rows->size(); ++f) {
+      peak = std::max(peak, (*rows)[f].weights[k]);
+      if (f < 10) first_frames = std::max(first_frames, (*rows)[f].weights[k]);
+    }
+    std::printf("%s: peak %.3f (script %.1f), first 10 frames <= %.3f\n", curve.name, peak,
+                curve.truth_peak, first_frames);
+    EXPECT_GT(peak, 0.6f * curve.truth_peak) << curve.name;
+    EXPECT_LT(first_frames, 0.1f) << curve.name;  // the take starts neutral
+  }
+}
+
+}  // namespace
+}  // namespace fb

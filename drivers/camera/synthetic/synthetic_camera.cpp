@@ -13,6 +13,7 @@
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/synthetic/board_scene.hpp"
 #include "drivers/camera/synthetic/color_fill.hpp"
+#include "drivers/camera/synthetic/expressive_track.hpp"
 #include "drivers/camera/synthetic/world_presets.hpp"
 #include "storage/asset_files.hpp"
 
@@ -129,7 +130,8 @@ Result<double> parse_number(const std::string& key, const std::string& text, dou
 
 constexpr std::string_view kAccepted =
     "accepted: seed=N, expr=neutral|NAME[:WEIGHT]+NAME... (model shapes or guide expressions), "
-    "motion=headturn|static, frames=N, "
+    "motion=headturn|static, anim=expressive (a scripted jaw, smile, blink and brow take), "
+    "frames=N, "
     "distance=MM, noise=on|off, background=MM|off, identity=random|neutral, "
     "unit=SEED (a decalibrated Kinect unit), reg_dx=PX, reg_dy=PX, reg_rot=DEG, depth_scale=S, "
     "calibrated=0|1 (report the unit's true calibration instead of the defaults), "
@@ -213,6 +215,7 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
   }
   SyntheticOptions options;
   bool random_identity = true;
+  bool expressive = false;
   bool decalibrated = false;
   int calibrated = -1;
   RegistrationCorrection& unit = options.calibration.correction;
@@ -265,6 +268,11 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
       } else {
         return fail("synthetic: bad motion '" + value + "'; expected headturn or static");
       }
+    } else if (key == "anim") {
+      if (value != "expressive" && value != "none") {
+        return fail("synthetic: bad anim '" + value + "'; expected expressive or none");
+      }
+      expressive = value == "expressive";
     } else if (key == "frames") {
       auto n = parse_number(key, value, 1, 1e6);
       if (!n) return n.failure();
@@ -300,6 +308,7 @@ Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
     }
   }
   if (!random_identity) options.identity_coeffs = std::vector<float>();
+  if (expressive) options.expression_track = expressive_track(model, options.frame_count);
   if (auto ok = apply_world_keys(*values, options); !ok) return ok.failure();
   // A decalibrated unit reports the defaults unless calibrated=1; calibrated=0 alone reports
   // the defaults for a unit that has none to differ by (harmless).

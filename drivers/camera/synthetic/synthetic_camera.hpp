@@ -3,6 +3,7 @@
 // (algo/render/kinect_sensor.hpp) and emits per-frame ground truth (FrameTruth).
 //
 // URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
+//      anim=expressive (jaw open, smile, blinks, brows up as 5 s of smooth bumps, repeated),
 //      distance=700,noise=on|off,background=1200|off,identity=random|neutral,
 //      unit=SEED|reg_dx=PX,reg_dy=PX,reg_rot=DEG,depth_scale=S,calibrated=0|1,
 //      world=realistic|identity|texture|hair|clutter|noise|unit and the world's own keys

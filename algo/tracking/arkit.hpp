@@ -12,7 +12,7 @@
 //    as the mean of the two halves (a symmetric ARKit value v is the model's L = R = v);
 //  - tongueOut has no model shape: always 0;
 //  - the 8 eyeLook* (gaze) curves are sent but stay near 0: the tracker holds them
-//    (TrackerOptions::hold_gaze_shapes), as depth has no eyeballs and the 68 landmarks no irises;
+//    (WeightSolverOptions::hold_gaze_shapes), as depth has no eyeballs and the 68 landmarks no irises;
 //  - the model's 4 extras (cheekRaiser_L/R, PupilDilate_L/R) are not fitted and not sent.
 #pragma once
 

@@ -84,14 +84,14 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   model_.allocate(intrinsics, box, options_.model_view_level);
   scratch_depths_.clear();
   scratch_depths_.reserve(static_cast<std::size_t>(box.width) * box.height);
-  last_good_ = PoseF{};
+  last_good_ = RigidPoseF{};
   started_ = false;
   lost_ = false;
   configured_ = true;
   return success();
 }
 
-void FaceFusion::place_volume(const PoseF& world_from_camera) {
+void FaceFusion::place_volume(const RigidPoseF& world_from_camera) {
   // The nearest part of the box is the face (nose, cheeks): take a low percentile of the depths
   // so background or shoulders do not pull the cube away, then centre the cube laterally on the
   // pixels near that depth and put its centre a fixed distance behind the face. With a detected
@@ -140,7 +140,7 @@ void FaceFusion::place_volume(const PoseF& world_from_camera) {
   anchor_depth_ = z;
 }
 
-FaceBox FaceFusion::box_at(const PoseF& world_from_camera) const {
+FaceBox FaceFusion::box_at(const RigidPoseF& world_from_camera) const {
   if (!options_.box_follows_face || !(anchor_depth_ > 0.0f)) return start_box_;
   const Eigen::Vector3f p = world_from_camera.inverse().apply(anchor_world_);
   if (!(p.z() > 1.0f)) return start_box_;
@@ -158,7 +158,7 @@ FaceBox FaceFusion::box_at(const PoseF& world_from_camera) const {
   return out.width < 16 || out.height < 16 ? box_ : out;
 }
 
-void FaceFusion::cast_model(const PoseF& pose) {
+void FaceFusion::cast_model(const RigidPoseF& pose) {
   // The model view covers the box the next frame will be read in (predicted from this pose).
   if (options_.box_follows_face) model_.move_box(box_at(pose));
   // The frame just fused is the hint: raw depth at full resolution, the pyramid level otherwise.
@@ -215,7 +215,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
       report.loss_reason = "too little valid depth in the face box to start fusion";
       return report;
     }
-    last_good_ = known_pose ? PoseF::from(*known_pose) : PoseF{};
+    last_good_ = known_pose ? RigidPoseF::from(*known_pose) : RigidPoseF{};
     place_volume(last_good_);
     report.integrated_bricks =
         integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
@@ -239,7 +239,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
   IcpResult icp;
   if (known_pose) {
     // Poses given by the caller (ground truth, or a tracker elsewhere): fuse without ICP.
-    icp.world_from_camera = PoseF::from(*known_pose);
+    icp.world_from_camera = RigidPoseF::from(*known_pose);
     icp.solved = true;
     icp.inliers = icp.candidates = pyramid_.valid_pixels;
   } else {
@@ -252,7 +252,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
   // Plausibility in the head's terms: how far the volume centre (the head) moved relative to
   // the camera, and by how much the view turned; a head turn of a few degrees moves the camera
   // centre by many centimetres relative to the head, so the camera centre is not the measure.
-  const PoseF delta = last_good_.inverse() * icp.world_from_camera;
+  const RigidPoseF delta = last_good_.inverse() * icp.world_from_camera;
   const Eigen::Vector3f head =
       volume_.origin() + Eigen::Vector3f::Constant(0.5f * volume_.size_mm());
   const float moved =
@@ -297,7 +297,7 @@ void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
   else
     render_level_.move_box(box);
   std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
-  ray_caster_.cast(volume_, PoseF::from(world_from_camera), nullptr, false, true, render_level_,
+  ray_caster_.cast(volume_, RigidPoseF::from(world_from_camera), nullptr, false, true, render_level_,
                    *runner_);
   out.depth_mm = render_level_.depth;
   out.normals = render_level_.normals;

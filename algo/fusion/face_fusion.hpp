@@ -55,7 +55,7 @@ class FaceFusion {
   // The face box for a camera pose: reset()'s box moved and scaled with the face when
   // box_follows_face (the box a frame at that pose is fused over), else reset()'s box.
   FaceBox box_for(const RigidPose& world_from_camera) const {
-    return box_at(PoseF::from(world_from_camera));
+    return box_at(RigidPoseF::from(world_from_camera));
   }
   const FusionOptions& options() const { return options_; }
   const TsdfVolume& volume() const { return volume_; }
@@ -69,9 +69,9 @@ class FaceFusion {
   TriangleMesh extract_mesh(const MeshOptions& options = {}) const;
 
  private:
-  void place_volume(const PoseF& world_from_camera);
-  void cast_model(const PoseF& pose);
-  FaceBox box_at(const PoseF& world_from_camera) const;
+  void place_volume(const RigidPoseF& world_from_camera);
+  void cast_model(const RigidPoseF& pose);
+  FaceBox box_at(const RigidPoseF& world_from_camera) const;
 
   FusionOptions options_;
   PinholeIntrinsics intrinsics_;
@@ -91,7 +91,7 @@ class FaceFusion {
   ModelView model_;
   MapLevel render_level_;              // scratch for render()
   std::vector<float> scratch_depths_;  // for placing the volume
-  PoseF last_good_;
+  RigidPoseF last_good_;
   bool configured_ = false;
   bool started_ = false;
   bool lost_ = false;

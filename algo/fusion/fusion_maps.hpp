@@ -8,30 +8,12 @@
 #include <Eigen/Core>
 
 #include "algo/core/image.hpp"
+#include "algo/core/rigid_pose.hpp"
 #include "algo/fusion/fusion_types.hpp"
 
 namespace fb {
 
 inline constexpr int kPyramidLevels = 3;
-
-// A float rigid transform for hot loops: p' = r * p + t.
-struct PoseF {
-  Eigen::Matrix3f r = Eigen::Matrix3f::Identity();
-  Eigen::Vector3f t = Eigen::Vector3f::Zero();
-
-  Eigen::Vector3f apply(const Eigen::Vector3f& p) const { return r * p + t; }
-  PoseF inverse() const { return {r.transpose(), -(r.transpose() * t)}; }
-  PoseF operator*(const PoseF& o) const { return {r * o.r, r * o.t + t}; }
-  static PoseF from(const RigidPose& p) {
-    return {p.rotation.toRotationMatrix().cast<float>(), p.translation.cast<float>()};
-  }
-  RigidPose to_rigid() const {
-    RigidPose p;
-    p.rotation = Eigen::Quaterniond(r.cast<double>()).normalized();
-    p.translation = t.cast<double>();
-    return p;
-  }
-};
 
 // Float pinhole intrinsics of one pyramid level (hot loops use float).
 struct LevelIntrinsics {
@@ -87,7 +69,7 @@ struct DepthPyramid {
 struct ModelView {
   std::array<MapLevel, kPyramidLevels> levels;
   int first_level = 0;
-  PoseF world_from_camera;  // the pose it was cast from
+  RigidPoseF world_from_camera;  // the pose it was cast from
   bool valid = false;
 
   void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first);

@@ -69,13 +69,13 @@ void IcpTracker::configure(const FusionOptions& options) {
 }
 
 FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model,
-                                               const PoseF& initial, ParallelRunner& runner) const {
+                                               const RigidPoseF& initial, ParallelRunner& runner) const {
   IcpResult result;
   result.world_from_camera = initial;
   result.solved = true;
   // Work in the model camera's frame: T maps input camera points into it.
-  const PoseF model_from_world = model.world_from_camera.inverse();
-  PoseF t_rel = model_from_world * initial;
+  const RigidPoseF model_from_world = model.world_from_camera.inverse();
+  RigidPoseF t_rel = model_from_world * initial;
   const float huber = options_.icp_huber_mm;
   Normal6 parts_acc[2];
 

@@ -10,7 +10,7 @@
 namespace fb {
 
 struct IcpResult {
-  PoseF world_from_camera;
+  RigidPoseF world_from_camera;
   int inliers = 0;      // at level 0, last iteration
   int candidates = 0;   // valid input points at level 0
   float rms_mm = 0.0f;  // of the inliers at level 0
@@ -21,7 +21,7 @@ struct IcpResult {
 class IcpTracker {
  public:
   void configure(const FusionOptions& options);
-  IcpResult track(const DepthPyramid& input, const ModelView& model, const PoseF& initial,
+  IcpResult track(const DepthPyramid& input, const ModelView& model, const RigidPoseF& initial,
                   ParallelRunner& runner) const;
 
  private:

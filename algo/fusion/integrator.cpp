@@ -164,7 +164,7 @@ void TsdfIntegrator::configure(const FusionOptions& options, const TsdfVolume& v
 
 FB_CLONE_X86_64_V3 int TsdfIntegrator::integrate(const Image<float>& depth,
                                                  const LevelIntrinsics& k, const FaceBox& box,
-                                                 const PoseF& world_from_camera, TsdfVolume& volume,
+                                                 const RigidPoseF& world_from_camera, TsdfVolume& volume,
                                                  ParallelRunner& runner) {
   const float vs = volume.voxel_size();
   const float inv_vs = 1.0f / vs;
@@ -243,7 +243,7 @@ FB_CLONE_X86_64_V3 int TsdfIntegrator::integrate(const Image<float>& depth,
   }
 
   // 2. Update every voxel of the marked bricks.
-  const PoseF cam = world_from_camera.inverse();
+  const RigidPoseF cam = world_from_camera.inverse();
   BrickUpdate update;
   update.volume = &volume;
   update.bricks = bricks_.data();

@@ -20,7 +20,7 @@ class TsdfIntegrator {
   // depth: level-0 depth (mm, 0 = invalid), only pixels inside `box` are used.
   // Returns the number of bricks updated.
   int integrate(const Image<float>& depth, const LevelIntrinsics& k, const FaceBox& box,
-                const PoseF& world_from_camera, TsdfVolume& volume, ParallelRunner& runner);
+                const RigidPoseF& world_from_camera, TsdfVolume& volume, ParallelRunner& runner);
 
   // The widest voxel-update vector this CPU runs (8 or 4 lanes), and whether `lanes` (0 = that
   // widest) is one it runs.

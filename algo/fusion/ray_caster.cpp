@@ -49,7 +49,7 @@ inline Sample nearest(const TsdfVolume& vol, const Eigen::Vector3f& g) {
 
 }  // namespace
 
-FB_CLONE_X86_64_V3 void RayCaster::cast(const TsdfVolume& volume, const PoseF& world_from_camera,
+FB_CLONE_X86_64_V3 void RayCaster::cast(const TsdfVolume& volume, const RigidPoseF& world_from_camera,
                                         const Image<float>* hint, bool hint_is_raw,
                                         bool full_search, MapLevel& out,
                                         ParallelRunner& runner) const {

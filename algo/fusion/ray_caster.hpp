@@ -20,7 +20,7 @@ class RayCaster {
   // wider for raw depth (`hint_is_raw`) than for filtered depth. With `full_search` false, pixels
   // without any hint are left empty (the tracker's model view: it only needs surface where the
   // frame has data), which skips the long march through empty space around the head.
-  void cast(const TsdfVolume& volume, const PoseF& world_from_camera, const Image<float>* hint,
+  void cast(const TsdfVolume& volume, const RigidPoseF& world_from_camera, const Image<float>* hint,
             bool hint_is_raw, bool full_search, MapLevel& out, ParallelRunner& runner) const;
 
  private:

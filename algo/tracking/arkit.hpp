@@ -18,7 +18,7 @@
 //    combined shape (exports) is the sum of the two halves' deltas;
 //  - tongueOut has no model shape (the skin has no tongue): always 0, a zero target in exports;
 //  - the 8 eyeLook* (gaze) curves are sent but stay near 0: the tracker holds them
-//    (TrackerOptions::hold_gaze_shapes), as depth has no eyeballs and the 68 landmarks no irises;
+//    (WeightSolverOptions::hold_gaze_shapes), as depth has no eyeballs and the 68 landmarks no irises;
 //  - the model's 4 extras (cheekRaiser_L/R, PupilDilate_L/R) are not fitted and not sent.
 #pragma once
 

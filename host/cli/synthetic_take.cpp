@@ -17,7 +17,7 @@ namespace {
 
 // The gaze shapes are not animated in the takes: eyeLook* turn the eyeballs, which are not in
 // the skin mesh, and what they do to the lids eyeWide and eyeBlink also do, so the tracker
-// holds them (TrackerOptions::hold_gaze_shapes). They are still scored (truth 0).
+// holds them (WeightSolverOptions::hold_gaze_shapes). They are still scored (truth 0).
 bool animatable(const std::string& name) {
   return !is_gaze_shape(name);
 }

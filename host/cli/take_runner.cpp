@@ -14,7 +14,6 @@
 #include <string_view>
 #include <type_traits>
 #include <utility>
-#include <variant>
 
 #include "storage/durable_file.hpp"
 
@@ -36,65 +35,121 @@ Result<LandmarkDetector> load_landmark_detector(const std::string& option) {
   return LandmarkDetector::create(in);
 }
 
+namespace {
+
+// Sets one tracker option, (options.*Group).*Member = value: ints truncated, booleans 0 / 1.
+template <auto Group, auto Member>
+void set_option(TrackerOptions& options, double value) {
+  auto& field = (options.*Group).*Member;
+  using T = std::remove_reference_t<decltype(field)>;
+  if constexpr (std::is_same_v<T, bool>) {
+    field = value != 0.0;
+  } else {
+    field = static_cast<T>(value);
+  }
+}
+
+// Each key is the option's own name (its field in its room's group, tracker_options.hpp).
+const std::pair<std::string_view, void (*)(TrackerOptions&, double)> kFields[] = {
+    {"temporal_frames",
+     &set_option<&TrackerOptions::depth, &DepthSmootherOptions::temporal_frames>},
+    {"temporal_range_mm",
+     &set_option<&TrackerOptions::depth, &DepthSmootherOptions::temporal_range_mm>},
+    {"spatial_radius_px",
+     &set_option<&TrackerOptions::depth, &DepthSmootherOptions::spatial_radius_px>},
+    {"spatial_range_mm",
+     &set_option<&TrackerOptions::depth, &DepthSmootherOptions::spatial_range_mm>},
+    {"temporal_decay", &set_option<&TrackerOptions::depth, &DepthSmootherOptions::temporal_decay>},
+    {"temporal_weight",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::temporal_weight>},
+    {"sparsity", &set_option<&TrackerOptions::weights, &WeightSolverOptions::sparsity>},
+    {"sparsity_signal_power",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::sparsity_signal_power>},
+    {"support_sparsity",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::support_sparsity>},
+    {"stale_temporal_floor",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::stale_temporal_floor>},
+    {"ridge", &set_option<&TrackerOptions::weights, &WeightSolverOptions::ridge>},
+    {"landmark_weight",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::landmark_weight>},
+    {"weight_iterations",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::weight_iterations>},
+    {"icp_gate_mm", &set_option<&TrackerOptions::icp, &RigidIcpOptions::icp_gate_mm>},
+    {"identity_prior",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::identity_prior>},
+    {"calibrate_depth_offsets",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::calibrate_depth_offsets>},
+    {"max_depth_offset_mm",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::max_depth_offset_mm>},
+    {"antagonist_weight",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::antagonist_weight>},
+    {"calibration_frames",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::calibration_frames>},
+    {"calibration_rounds",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::calibration_rounds>},
+    {"level_gain", &set_option<&TrackerOptions::pose_filter, &PoseFilterOptions::level_gain>},
+    {"trend_gain", &set_option<&TrackerOptions::pose_filter, &PoseFilterOptions::trend_gain>},
+    {"rest_level_gain",
+     &set_option<&TrackerOptions::pose_filter, &PoseFilterOptions::rest_level_gain>},
+    {"sample_spacing_mm",
+     &set_option<&TrackerOptions::samples, &RigSampleOptions::sample_spacing_mm>},
+    {"extra_samples_per_shape",
+     &set_option<&TrackerOptions::samples, &RigSampleOptions::extra_samples_per_shape>},
+    {"hole_margin_mm", &set_option<&TrackerOptions::samples, &RigSampleOptions::hole_margin_mm>},
+    {"hold_gaze_shapes",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::hold_gaze_shapes>},
+    {"on_shape_sparsity",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::on_shape_sparsity>},
+    {"on_shape_min_weight",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::on_shape_min_weight>},
+    {"on_shape_max_signal",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::on_shape_max_signal>},
+    {"weak_shape_fraction",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::weak_shape_fraction>},
+    {"weak_shape_ridge",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::weak_shape_ridge>},
+    {"keep_identity_rigid",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::keep_identity_rigid>},
+    {"weight_tukey_k", &set_option<&TrackerOptions::weights, &WeightSolverOptions::weight_tukey_k>},
+    {"weight_min_gate_mm",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::weight_min_gate_mm>},
+    {"calibrate_landmark_offsets",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::calibrate_landmark_offsets>},
+    {"max_landmark_offset_mm",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::max_landmark_offset_mm>},
+    {"landmark_offset_depth_gate_mm",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::landmark_offset_depth_gate_mm>},
+    {"prior_noise_reference_mm",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::prior_noise_reference_mm>},
+    {"max_prior_noise_scale",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::max_prior_noise_scale>},
+    {"max_hidden_landmark_fraction",
+     &set_option<&TrackerOptions::occlusion, &OcclusionMaskOptions::max_hidden_landmark_fraction>},
+    {"landmark_huber_px",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::landmark_huber_px>},
+    {"calibration_landmark_weight",
+     &set_option<&TrackerOptions::calibration, &CalibratorOptions::calibration_landmark_weight>},
+    {"uncalibrated_max_rms_mm",
+     &set_option<&TrackerOptions::loss, &LossOptions::uncalibrated_max_rms_mm>},
+    {"icp_iterations", &set_option<&TrackerOptions::icp, &RigidIcpOptions::icp_iterations>},
+    {"pose_refine_iterations",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::pose_refine_iterations>},
+    {"icp_converged_rad", &set_option<&TrackerOptions::icp, &RigidIcpOptions::icp_converged_rad>},
+    {"icp_converged_mm", &set_option<&TrackerOptions::icp, &RigidIcpOptions::icp_converged_mm>},
+    {"hidden_hold", &set_option<&TrackerOptions::weights, &WeightSolverOptions::hidden_hold>},
+    {"occluder_margin_mm",
+     &set_option<&TrackerOptions::occlusion, &OcclusionMaskOptions::occluder_margin_mm>},
+    {"occluder_radius_px",
+     &set_option<&TrackerOptions::occlusion, &OcclusionMaskOptions::occluder_radius_px>},
+    {"occlusion_report_fraction",
+     &set_option<&TrackerOptions::occlusion, &OcclusionMaskOptions::occlusion_report_fraction>},
+    {"report_weight_sigma",
+     &set_option<&TrackerOptions::weights, &WeightSolverOptions::report_weight_sigma>},
+};
+
+}  // namespace
+
 Result<TrackerOptions> tracker_overrides(const std::string& text) {
-  // Each key is the option's own name; ints take the value truncated, booleans 0 / 1.
-  using Field = std::variant<float TrackerOptions::*, int TrackerOptions::*, bool TrackerOptions::*,
-                             double PoseFilterOptions::*>;
-  static const std::pair<std::string_view, Field> kFields[] = {
-      {"temporal_frames", &TrackerOptions::temporal_frames},
-      {"temporal_range_mm", &TrackerOptions::temporal_range_mm},
-      {"spatial_radius_px", &TrackerOptions::spatial_radius_px},
-      {"spatial_range_mm", &TrackerOptions::spatial_range_mm},
-      {"temporal_decay", &TrackerOptions::temporal_decay},
-      {"temporal_weight", &TrackerOptions::temporal_weight},
-      {"sparsity", &TrackerOptions::sparsity},
-      {"sparsity_signal_power", &TrackerOptions::sparsity_signal_power},
-      {"support_sparsity", &TrackerOptions::support_sparsity},
-      {"stale_temporal_floor", &TrackerOptions::stale_temporal_floor},
-      {"ridge", &TrackerOptions::ridge},
-      {"landmark_weight", &TrackerOptions::landmark_weight},
-      {"weight_iterations", &TrackerOptions::weight_iterations},
-      {"icp_gate_mm", &TrackerOptions::icp_gate_mm},
-      {"identity_prior", &TrackerOptions::identity_prior},
-      {"calibrate_depth_offsets", &TrackerOptions::calibrate_depth_offsets},
-      {"max_depth_offset_mm", &TrackerOptions::max_depth_offset_mm},
-      {"antagonist_weight", &TrackerOptions::antagonist_weight},
-      {"calibration_frames", &TrackerOptions::calibration_frames},
-      {"calibration_rounds", &TrackerOptions::calibration_rounds},
-      {"level_gain", &PoseFilterOptions::level_gain},
-      {"trend_gain", &PoseFilterOptions::trend_gain},
-      {"rest_level_gain", &PoseFilterOptions::rest_level_gain},
-      {"sample_spacing_mm", &TrackerOptions::sample_spacing_mm},
-      {"extra_samples_per_shape", &TrackerOptions::extra_samples_per_shape},
-      {"hole_margin_mm", &TrackerOptions::hole_margin_mm},
-      {"hold_gaze_shapes", &TrackerOptions::hold_gaze_shapes},
-      {"on_shape_sparsity", &TrackerOptions::on_shape_sparsity},
-      {"on_shape_min_weight", &TrackerOptions::on_shape_min_weight},
-      {"on_shape_max_signal", &TrackerOptions::on_shape_max_signal},
-      {"weak_shape_fraction", &TrackerOptions::weak_shape_fraction},
-      {"weak_shape_ridge", &TrackerOptions::weak_shape_ridge},
-      {"keep_identity_rigid", &TrackerOptions::keep_identity_rigid},
-      {"weight_tukey_k", &TrackerOptions::weight_tukey_k},
-      {"weight_min_gate_mm", &TrackerOptions::weight_min_gate_mm},
-      {"calibrate_landmark_offsets", &TrackerOptions::calibrate_landmark_offsets},
-      {"max_landmark_offset_mm", &TrackerOptions::max_landmark_offset_mm},
-      {"landmark_offset_depth_gate_mm", &TrackerOptions::landmark_offset_depth_gate_mm},
-      {"prior_noise_reference_mm", &TrackerOptions::prior_noise_reference_mm},
-      {"max_prior_noise_scale", &TrackerOptions::max_prior_noise_scale},
-      {"max_hidden_landmark_fraction", &TrackerOptions::max_hidden_landmark_fraction},
-      {"landmark_huber_px", &TrackerOptions::landmark_huber_px},
-      {"calibration_landmark_weight", &TrackerOptions::calibration_landmark_weight},
-      {"uncalibrated_max_rms_mm", &TrackerOptions::uncalibrated_max_rms_mm},
-      {"icp_iterations", &TrackerOptions::icp_iterations},
-      {"pose_refine_iterations", &TrackerOptions::pose_refine_iterations},
-      {"icp_converged_rad", &TrackerOptions::icp_converged_rad},
-      {"icp_converged_mm", &TrackerOptions::icp_converged_mm},
-      {"hidden_hold", &TrackerOptions::hidden_hold},
-      {"occluder_margin_mm", &TrackerOptions::occluder_margin_mm},
-      {"occluder_radius_px", &TrackerOptions::occluder_radius_px},
-      {"occlusion_report_fraction", &TrackerOptions::occlusion_report_fraction},
-      {"report_weight_sigma", &TrackerOptions::report_weight_sigma},
-  };
   TrackerOptions o;
   std::size_t start = 0;
   while (start < text.size()) {
@@ -116,18 +171,7 @@ Result<TrackerOptions> tracker_overrides(const std::string& text) {
       for (const auto& f : kFields) known += (known.empty() ? "" : ", ") + std::string(f.first);
       return fail("--set: unknown key '" + std::string(key) + "' (known: " + known + ")");
     }
-    std::visit(
-        [&](auto member) {
-          if constexpr (std::is_same_v<decltype(member), double PoseFilterOptions::*>) {
-            o.pose_filter.*member = v;
-          } else if constexpr (std::is_same_v<decltype(member), bool TrackerOptions::*>) {
-            o.*member = v != 0.0;
-          } else {
-            using T = std::remove_reference_t<decltype(o.*member)>;
-            o.*member = static_cast<T>(v);
-          }
-        },
-        field->second);
+    field->second(o, v);
   }
   return o;
 }
@@ -268,7 +312,7 @@ Result<std::vector<FrameResult>> run_take(const FaceModel& model, const ArkitMap
       r.abs_error[static_cast<std::size_t>(j)] =
           std::abs(report.weights[static_cast<std::size_t>(j)] - truth);
     }
-    if (run.tracker.report_weight_sigma)
+    if (run.tracker.weights.report_weight_sigma)
       r.weight_sigma.assign(report.weight_sigma.begin(), report.weight_sigma.begin() + k);
     const RigidPose& truth_pose = tf.truth.camera_from_model;
     const Eigen::Vector3d c = take.take.face_centre_model;

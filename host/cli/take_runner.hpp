@@ -57,7 +57,7 @@ struct FrameResult {
   TrackState state = TrackState::kSearching;
   bool calibrated = false;
   std::vector<float> abs_error;  // per model fitting shape
-  // Per shape, with TrackerOptions::report_weight_sigma: the weight's data-only standard error
+  // Per shape, with WeightSolverOptions::report_weight_sigma: the weight's data-only standard error
   // (TrackReport::weight_sigma); empty otherwise.
   std::vector<float> weight_sigma;
   double rotation_error_deg = 0, centre_error_mm = 0, origin_error_mm = 0;

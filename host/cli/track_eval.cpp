@@ -279,7 +279,7 @@ Result<nlohmann::json> evaluate_occluder_take(const FaceModel& model, const Arki
   if (!otake) return otake.failure();
   RunOptions orun = run;
   orun.landmarks = true;
-  orun.tracker.report_weight_sigma = true;  // what each frame's data allows, see per_frame
+  orun.tracker.weights.report_weight_sigma = true;  // what each frame's data allows, see per_frame
   auto ores = run_take(model, mapping, *otake, orun);
   if (!ores) return ores.failure();
   // The control: the same take (motion, weights, landmark noise) without the plate, so the

@@ -218,7 +218,7 @@ int run_track(const ParsedOptions& options) {
   if (!camera) return report_failure(camera.error());
   const CameraInfo info = (*camera)->info();
   TrackerOptions tracker_options;
-  tracker_options.calibration_frames = static_cast<int>(*calibration);
+  tracker_options.calibration.calibration_frames = static_cast<int>(*calibration);
   // --model: calibrate in a bilinear model's identity space and track with the subject's own
   // blendshapes from it (a stored rig, when loaded, still takes precedence).
   std::unique_ptr<BilinearSubjectModel> bilinear;
@@ -395,7 +395,7 @@ int run_track(const ParsedOptions& options) {
     if (report.state == TrackState::kCalibrating)
       most_calibration_frames =
           std::max(most_calibration_frames,
-                   tracker_options.calibration_frames - report.calibration_frames_left);
+                   tracker_options.calibration.calibration_frames - report.calibration_frames_left);
     if (!report.face_found && std::string_view(report.loss_reason).starts_with("calibration")) {
       ++rejected_sets;
       rejection = report.loss_reason;
@@ -444,9 +444,9 @@ int run_track(const ParsedOptions& options) {
     // above, and one that fell back to calibration for want of a rig is calibrated here).
     if (!(*tracker)->calibrated() || !subject) {
       std::cout << result.dump(2) << std::endl;
-      return report_failure({never_calibrated_message(tracker_options.calibration_frames, read,
-                                                      found, most_calibration_frames, rejected_sets,
-                                                      rejection, last_reason) +
+      return report_failure({never_calibrated_message(
+                                 tracker_options.calibration.calibration_frames, read, found,
+                                 most_calibration_frames, rejected_sets, rejection, last_reason) +
                              "; --save-rig stored no rig"});
     }
     const RigData saved = calibrated_rig(tracker_model, (*tracker)->identity(),
@@ -491,7 +491,7 @@ int run_track(const ParsedOptions& options) {
   if (!camera_failed && !(*tracker)->calibrated()) {
     // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.
     return report_failure(
-        {never_calibrated_message(tracker_options.calibration_frames, read, found,
+        {never_calibrated_message(tracker_options.calibration.calibration_frames, read, found,
                                   most_calibration_frames, rejected_sets, rejection, last_reason)});
   }
   return camera_failed ? kExitFailure : kExitOk;

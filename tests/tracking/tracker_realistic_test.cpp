@@ -73,7 +73,7 @@ TEST(TrackerRealistic, CorrelatedSensorNoiseLeavesANeutralFaceNeutral) {
   // The acceptance check on real neutral faces: weights summing to <= 1 per frame on average,
   // none over 0.4. Priors fixed at the usual noise read sums of 0.53-0.58 here.
   TrackerOptions fixed;
-  fixed.prior_noise_reference_mm = 0.0f;
+  fixed.weights.prior_noise_reference_mm = 0.0f;
   const TrackerOptions scaled;  // defaults: the priors follow the frame's noise
   for (std::uint64_t seed : {1, 2}) {
     const NeutralFigures a = track_neutral("noise", seed, scaled);

@@ -299,10 +299,10 @@ PairScene track_rising_brow_and_lid(std::uint64_t seed, float antagonist_weight)
                                   {{test::face_model().expression_index("browDown_L"), 0.6f},
                                    {test::face_model().expression_index("eyeWide_R"), 0.4f}});
   TrackerOptions options;
-  options.antagonist_weight = antagonist_weight;
+  options.weights.antagonist_weight = antagonist_weight;
   // The identity from depth alone: its misfit is what made the pair stand in here (the landmark
   // rows of the identity fit took it out of this scene, 0.0119 -> 0 co-activation).
-  options.calibration_landmark_weight = 0.0f;
+  options.calibration.calibration_landmark_weight = 0.0f;
   const std::pair<const char*, const char*> pairs[] = {{"browDown_L", "browInnerUp_L"},
                                                        {"browDown_L", "browOuterUp_L"},
                                                        {"eyeWide_R", "eyeBlink_R"},
@@ -329,7 +329,7 @@ PairScene track_rising_brow_and_lid(std::uint64_t seed, float antagonist_weight)
 
 TEST(Tracker, AntagonistsDoNotStandInTogether) {
   const PairScene without = track_rising_brow_and_lid(6, 0.0f);
-  const PairScene with = track_rising_brow_and_lid(6, TrackerOptions{}.antagonist_weight);
+  const PairScene with = track_rising_brow_and_lid(6, TrackerOptions{}.weights.antagonist_weight);
   std::printf("co-activation %.4f -> %.4f, weight MAE %.4f -> %.4f\n", without.coactivation,
               with.coactivation, without.weight_mae, with.weight_mae);
   // Measured 0.0119 -> 0.0000, weight MAE 0.0048 -> 0.0046.
@@ -576,7 +576,7 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
   EXPECT_LT(worst_lower, 0.008);
   {
     TrackerOptions no_hold;
-    no_hold.hidden_hold = 0.0f;
+    no_hold.weights.hidden_hold = 0.0f;
     double u = 0, r = 0;
     int rec = -1, mis = 0;
     run(no_hold, false, u, r, rec, mis);
@@ -610,10 +610,11 @@ TEST(Tracker, OccluderDoesNotDragTheUpperFace) {
   EXPECT_LT(upper_errors[upper_errors.size() / 2], 0.003);
   EXPECT_LT(upper_errors.back(), 0.02);
   TrackerOptions no_mask;
-  no_mask.occluder_margin_mm = 0.0f;  // no occlusion test: the misdetected points are used
+  no_mask.occlusion.occluder_margin_mm =
+      0.0f;  // no occlusion test: the misdetected points are used
   // The plate's residuals raise the frame's noise estimate and with it the L1 weight, which
   // alone holds the upper face here (measured 0.0000); fixed priors show what the mask guards.
-  no_mask.prior_noise_reference_mm = 0.0f;
+  no_mask.weights.prior_noise_reference_mm = 0.0f;
   noise_seed = 5;
   run(no_mask, true, upper_error, rotation, recovery, misdetected_used);
   std::fprintf(stderr,
@@ -639,10 +640,10 @@ NeutralHold hold_neutral(std::uint64_t seed, bool depth_offsets) {
   o.frame_count = 40;
   o.expression_weights.assign(test::face_model().expression_count, 0.0f);
   TrackerOptions options;
-  options.calibrate_depth_offsets = depth_offsets;
+  options.calibration.calibrate_depth_offsets = depth_offsets;
   // The identity from depth alone, whose misses the offsets are for (with the landmark rows in
   // the identity fit there is less to absorb: 0.00068 -> 0.00047).
-  options.calibration_landmark_weight = 0.0f;
+  options.calibration.calibration_landmark_weight = 0.0f;
   NeutralHold out;
   int n = 0;
   track_scene(o, options, static_cast<std::uint32_t>(seed),
@@ -692,7 +693,7 @@ TEST(Tracker, CalibratedLandmarkOffsetsAbsorbADetectorBias) {
   ASSERT_EQ(frames.depth.size(), 30u);
   auto run = [&](bool offsets, double& mae, double& brow_down) {
     TrackerOptions options;
-    options.calibrate_landmark_offsets = offsets;
+    options.calibration.calibrate_landmark_offsets = offsets;
     auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
     ASSERT_TRUE(tracker.ok()) << tracker.error().message;
     std::mt19937 rng(3);
@@ -812,7 +813,7 @@ AcquisitionRun acquire_subject(std::uint32_t seed, const std::vector<float>& ide
 // two of these six subjects are never acquired in 20 frames.
 TEST(Tracker, AcquiresAnAtypicalFaceWithLandmarks) {
   TrackerOptions strict;
-  strict.uncalibrated_max_rms_mm = strict.max_rms_mm;
+  strict.loss.uncalibrated_max_rms_mm = strict.loss.max_rms_mm;
   int calibrated_by_10 = 0, calibrated = 0, strict_calibrated = 0;
   for (std::uint32_t seed = 1; seed <= 6; ++seed) {
     const std::vector<float> identity = atypical_identity(seed, 2.0f);
@@ -865,7 +866,7 @@ TEST(Tracker, AHeadSizedEllipsoidIsNotAFace) {
       return found;
     };
     TrackerOptions loose;
-    loose.max_rms_mm = loose.uncalibrated_max_rms_mm;
+    loose.loss.max_rms_mm = loose.loss.uncalibrated_max_rms_mm;
     EXPECT_EQ(frames_found(TrackerOptions{}), 0) << "radius " << radius << " x " << stretch;
     EXPECT_GT(frames_found(loose), 0) << "radius " << radius << " x " << stretch;
   }
@@ -881,10 +882,10 @@ TEST(Tracker, AHeadSizedEllipsoidIsNotAFace) {
 TEST(Tracker, CalibrationThatDoesNotFitStartsOver) {
   const std::vector<float> identity = atypical_identity(5, 2.5f);
   TrackerOptions depth_only_fit;
-  depth_only_fit.calibration_landmark_weight = 0.0f;
+  depth_only_fit.calibration.calibration_landmark_weight = 0.0f;
   const AcquisitionRun checked = acquire_subject(5, identity, depth_only_fit);
   TrackerOptions unchecked = depth_only_fit;
-  unchecked.acquire_max_rms_mm = 10.0f;
+  unchecked.acquire.acquire_max_rms_mm = 10.0f;
   const AcquisitionRun trusted = acquire_subject(5, identity, unchecked);
   std::printf("checked: calibrated %d, worst tracked %.1f deg; unchecked: %d, %.1f deg\n",
               checked.calibrated_at, checked.worst_tracked_deg, trusted.calibrated_at,
@@ -1060,16 +1061,16 @@ std::array<SigmaCheck, 2> weight_sigma_against_error(bool with_landmarks,
   o.expression_weights[test::face_model().expression_index("mouthSmile_R")] = 0.4f;
   const Frames frames = render(o);
   TrackerOptions options;
-  options.report_weight_sigma = true;
+  options.weights.report_weight_sigma = true;
   // The plain least-squares solve the bound is for: no temporal, L1 or shape priors, and no
   // depth ring (each frame's noise its own).
-  options.temporal_weight = 0.0f;
-  options.sparsity = 0.0f;
-  options.ridge = 1e-3f;
-  options.weak_shape_ridge = 0.0f;
-  options.hold_gaze_shapes = false;
-  options.antagonist_weight = 0.0f;
-  options.temporal_frames = 1;
+  options.weights.temporal_weight = 0.0f;
+  options.weights.sparsity = 0.0f;
+  options.weights.ridge = 1e-3f;
+  options.weights.weak_shape_ridge = 0.0f;
+  options.weights.hold_gaze_shapes = false;
+  options.weights.antagonist_weight = 0.0f;
+  options.depth.temporal_frames = 1;
   std::array<SigmaCheck, 2> out{};
   auto tracker = FaceTracker::create(test::face_model(), frames.intrinsics, options);
   EXPECT_TRUE(tracker.ok());
@@ -1114,7 +1115,7 @@ std::array<SigmaCheck, 2> weight_sigma_against_error(bool with_landmarks,
 // browDown_L 0.103 against 0.118; with landmarks 0.008 against 0.021 (the bounded solve clips
 // the mouth shapes that share the jaw's signal, so it scatters less than the unbounded bound)
 // and 0.108 against 0.099. The priors the test takes out are what bring the brow's error down
-// in tracking (TrackerOptions::temporal_weight and sparsity).
+// in tracking (WeightSolverOptions::temporal_weight and sparsity).
 TEST(Tracker, WeightSigmaIsTheDataOnlyStandardError) {
   const auto depth_only = weight_sigma_against_error(false, true);
   const auto with_landmarks = weight_sigma_against_error(true, false);

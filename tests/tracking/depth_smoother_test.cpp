@@ -1,6 +1,8 @@
-#include "algo/tracking/depth_filter.hpp"
+#include "algo/tracking/depth_smoother.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -83,6 +85,53 @@ TEST(DepthFilter, WritesOnlyTheRectangleInterior) {
   edge_aware_mean(s.noisy, {0, 0, 80, 60}, {.radius_px = 0, .range_mm = 3.0f}, untouched);
   edge_aware_mean(s.noisy, {5, 5, 7, 40}, {.radius_px = 1, .range_mm = 3.0f}, untouched);
   for (float d : untouched.pixels) ASSERT_EQ(d, 0.0f);
+}
+
+// The temporal mean over the ring: frames that agree with the newest are averaged, a frame
+// that moved by more than temporal_range_mm does not count, out-of-range depth is invalid.
+TEST(DepthSmoother, AveragesAgreeingFramesAndDoesNotSmearMotion) {
+  DepthSmootherOptions options;
+  options.spatial_radius_px = 0;  // the temporal mean alone
+  DepthSmoother smoother;
+  smoother.allocate(options, 40, 30);
+  const PixelRect all{0, 0, 40, 30};
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 1.5f);
+  DepthImage frame;
+  frame.resize(40, 30);
+  auto fill = [&](float z) {
+    for (auto& d : frame.pixels) d = static_cast<std::uint16_t>(std::lround(z + noise(rng)));
+  };
+  auto rms_about = [&](float z) {
+    double sum = 0.0;
+    for (float d : smoother.smoothed().pixels) sum += (d - z) * (d - z);
+    return std::sqrt(sum / static_cast<double>(smoother.smoothed().pixels.size()));
+  };
+  int valid = 0;
+  for (int f = 0; f < options.temporal_frames; ++f) {
+    fill(700.0f);
+    smoother.push(frame);
+    valid = smoother.smooth(frame, all);
+  }
+  EXPECT_EQ(valid, 40 * 30);
+  const double one_frame = std::sqrt(1.5 * 1.5 + 1.0 / 12.0);  // noise + rounding to 1 mm
+  // 1.53 mm on one frame, 1.18 over five (seed 3): the range test down-weights older frames
+  // that differ by a noise excursion, so the mean is weaker than sqrt(5), never a smear.
+  const double averaged = rms_about(700.0f);
+  EXPECT_LT(averaged, 0.85 * one_frame) << averaged;
+
+  // The face moved 60 mm: the older frames disagree, the newest stands alone.
+  fill(760.0f);
+  smoother.push(frame);
+  smoother.smooth(frame, all);
+  for (std::size_t i = 0; i < frame.pixels.size(); ++i)
+    ASSERT_EQ(smoother.smoothed().pixels[i], static_cast<float>(frame.pixels[i]));
+
+  // Nearer than min_depth_mm: no valid pixel, all 0.
+  std::fill(frame.pixels.begin(), frame.pixels.end(), std::uint16_t{300});
+  smoother.push(frame);
+  EXPECT_EQ(smoother.smooth(frame, all), 0);
+  for (float d : smoother.smoothed().pixels) ASSERT_EQ(d, 0.0f);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <chrono>
 
+#include "algo/core/clock.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
 
 namespace fb {
@@ -15,13 +16,12 @@ TrackLandmarkSource::TrackLandmarkSource(LandmarkDetector detector,
 }
 
 LandmarkFrameResult TrackLandmarkSource::detect(const ColorImage& color, const DepthImage& depth) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   LandmarkFrameResult result;
   have_ = false;
   auto finish = [&](const char* reason) {
     result.reason = reason;
-    result.ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    result.ms = ms_since(start);
     return result;
   };
   if (color.empty()) return finish("no colour image");

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <string>
 
+#include "algo/core/clock.hpp"
 #include "algo/tracking/acquisition.hpp"
 #include "algo/tracking/calibrator.hpp"
 #include "algo/tracking/depth_smoother.hpp"
@@ -35,12 +36,6 @@ const char* to_string(TrackState state) {
 }
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 Result<void> check_inputs(const FaceModel& model, const PinholeIntrinsics& intrinsics,
                           const TrackerOptions& options) {

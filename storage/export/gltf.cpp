@@ -17,6 +17,65 @@ constexpr int kUnsignedInt = 5125;
 constexpr int kArrayBuffer = 34962;
 constexpr int kElementArrayBuffer = 34963;
 
+// The .glb container: header, the JSON chunk and the binary chunk, each padded to 4 bytes.
+Result<std::vector<std::uint8_t>> pack_glb(std::string json, std::vector<std::uint8_t> bin) {
+  while (json.size() % 4 != 0) json.push_back(' ');
+  while (bin.size() % 4 != 0) bin.push_back(0);
+  const std::size_t total = 12 + 8 + json.size() + 8 + bin.size();
+  if (total > std::numeric_limits<std::uint32_t>::max()) return fail("rig too large for a .glb");
+  std::vector<std::uint8_t> out(total);
+  std::uint8_t* p = out.data();
+  auto put32 = [&](std::uint32_t v) {
+    std::memcpy(p, &v, 4);  // glb is little-endian, like the hosts we build for
+    p += 4;
+  };
+  put32(kGlbMagic);
+  put32(2);
+  put32(static_cast<std::uint32_t>(total));
+  put32(static_cast<std::uint32_t>(json.size()));
+  put32(kJsonChunk);
+  std::memcpy(p, json.data(), json.size());
+  p += json.size();
+  put32(static_cast<std::uint32_t>(bin.size()));
+  put32(kBinChunk);
+  std::memcpy(p, bin.data(), bin.size());
+  return out;
+}
+
+// Per-output-vertex texture coordinates of a seam-split mesh (glTF's v runs downwards).
+std::vector<float> split_texcoords(const SplitMesh& split, const std::vector<float>& uvs) {
+  std::vector<float> texcoords(2 * split.source_vertex.size());
+  for (std::size_t o = 0; o < split.source_vertex.size(); ++o) {
+    const std::size_t uv = split.uv_index[o];
+    texcoords[2 * o] = uvs[2 * uv];
+    texcoords[2 * o + 1] = 1.0f - uvs[2 * uv + 1];
+  }
+  return texcoords;
+}
+
+// One PBR material for the skin; with a texture its colour comes from baseColorTexture 0.
+nlohmann::json skin_material(const GlbOptions& options, bool with_texture) {
+  nlohmann::json material = {{"name", "skin"},
+                             {"pbrMetallicRoughness",
+                              {{"baseColorFactor", options.base_color},
+                               {"metallicFactor", 0.0},
+                               {"roughnessFactor", options.roughness}}}};
+  if (with_texture) {
+    material["pbrMetallicRoughness"]["baseColorFactor"] = {1.0, 1.0, 1.0, 1.0};
+    material["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}, {"texCoord", 0}};
+  }
+  return material;
+}
+
+// Texture 0: the PNG in buffer view `image_view`, linear filtering with mipmaps, clamped so
+// the atlas's borders do not wrap.
+void add_texture(nlohmann::json& gltf, int image_view) {
+  gltf["images"] = {{{"bufferView", image_view}, {"mimeType", "image/png"}}};
+  gltf["samplers"] = {
+      {{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}};
+  gltf["textures"] = {{{"sampler", 0}, {"source", 0}}};
+}
+
 }  // namespace
 
 Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOptions& options) {
@@ -92,13 +151,7 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   nlohmann::json attributes = {{"POSITION", add_floats(neutral, 3, "VEC3")},
                                {"NORMAL", add_floats(gather(neutral_normals, 1.0f), 3, "VEC3")}};
   if (textured) {
-    std::vector<float> texcoords(2 * out_count);
-    for (std::size_t o = 0; o < out_count; ++o) {
-      const std::size_t uv = split.uv_index[o];
-      texcoords[2 * o] = options.uvs->uvs[2 * uv];
-      texcoords[2 * o + 1] = 1.0f - options.uvs->uvs[2 * uv + 1];  // glTF's v runs downwards
-    }
-    attributes["TEXCOORD_0"] = add_floats(texcoords, 2, "VEC2");
+    attributes["TEXCOORD_0"] = add_floats(split_texcoords(split, options.uvs->uvs), 2, "VEC2");
   }
 
   nlohmann::json targets = nlohmann::json::array();
@@ -120,20 +173,13 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
     mesh["weights"] = std::vector<float>(rig.shapes.size(), 0.0f);
     mesh["extras"] = {{"targetNames", rig.shape_names}};
   }
-  nlohmann::json material = {{"name", "skin"},
-                             {"pbrMetallicRoughness",
-                              {{"baseColorFactor", options.base_color},
-                               {"metallicFactor", 0.0},
-                               {"roughnessFactor", options.roughness}}}};
   // The base colour texture (a PNG in the UV layout), embedded in the binary chunk.
   const bool with_texture =
       textured && options.base_color_png != nullptr && !options.base_color_png->empty();
-  int image_view = -1;
-  if (with_texture) {
-    image_view = add_view(options.base_color_png->data(), options.base_color_png->size(), 0);
-    material["pbrMetallicRoughness"]["baseColorFactor"] = {1.0, 1.0, 1.0, 1.0};
-    material["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}, {"texCoord", 0}};
-  }
+  const int image_view =
+      with_texture ? add_view(options.base_color_png->data(), options.base_color_png->size(), 0)
+                   : -1;
+  const nlohmann::json material = skin_material(options, with_texture);
   nlohmann::json gltf = {
       {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
       {"scene", 0},
@@ -145,36 +191,8 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
       {"bufferViews", views},
       {"accessors", accessors},
   };
-  if (with_texture) {
-    gltf["images"] = {{{"bufferView", image_view}, {"mimeType", "image/png"}}};
-    // Linear filtering with mipmaps; clamp so the atlas's borders do not wrap.
-    gltf["samplers"] = {
-        {{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}};
-    gltf["textures"] = {{{"sampler", 0}, {"source", 0}}};
-  }
-  std::string json = gltf.dump();
-  while (json.size() % 4 != 0) json.push_back(' ');
-  while (bin.size() % 4 != 0) bin.push_back(0);
-
-  const std::size_t total = 12 + 8 + json.size() + 8 + bin.size();
-  if (total > std::numeric_limits<std::uint32_t>::max()) return fail("rig too large for a .glb");
-  std::vector<std::uint8_t> out(total);
-  std::uint8_t* p = out.data();
-  auto put32 = [&](std::uint32_t v) {
-    std::memcpy(p, &v, 4);  // glb is little-endian, like the hosts we build for
-    p += 4;
-  };
-  put32(kGlbMagic);
-  put32(2);
-  put32(static_cast<std::uint32_t>(total));
-  put32(static_cast<std::uint32_t>(json.size()));
-  put32(kJsonChunk);
-  std::memcpy(p, json.data(), json.size());
-  p += json.size();
-  put32(static_cast<std::uint32_t>(bin.size()));
-  put32(kBinChunk);
-  std::memcpy(p, bin.data(), bin.size());
-  return out;
+  if (with_texture) add_texture(gltf, image_view);
+  return pack_glb(gltf.dump(), std::move(bin));
 }
 
 }  // namespace fb

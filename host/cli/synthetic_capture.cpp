@@ -124,11 +124,8 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
 }
 
 RigidPose fitted_to_truth(const Capture& c, const RigidPose& fitted_camera_from_model) {
-  const RigidPose true_from_camera = c.truth_pose.inverse();
-  RigidPose p;
-  p.rotation = true_from_camera.rotation * fitted_camera_from_model.rotation;
-  p.translation = true_from_camera.apply(fitted_camera_from_model.translation);
-  return p;
+  // Both poses map into the camera frame: the fitted model frame seen from the true one.
+  return relative_pose(c.truth_pose, fitted_camera_from_model);
 }
 
 Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,

@@ -1,5 +1,8 @@
 # .deb packaging (CPack DEB) for the device: the daemon, the host tool, the systemd unit, the
-# udev rules, the default config and the data (face model, guide expressions). Included from
+# udev rules, the default config, the data (face model, guide expressions) and the synthetic
+# camera module (lib/facebooth/cameras/fb_camera_synthetic.so: the default config's demo camera
+# and the kiosk's guide pictures). The laboratory's facebooth-lab has no install rule and is
+# not in the package (sim/README.md). Included from
 # firmware/daemon/CMakeLists.txt. Build with:  cpack --config <build>/CPackConfig.cmake -G DEB
 # (amd64 natively; arm64 from the cross build, see scripts/cross-build).
 set(_board ${PROJECT_SOURCE_DIR}/board)

@@ -12,6 +12,7 @@
 #include "algo/core/frame.hpp"
 #include "algo/core/result.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
+#include "drivers/camera/camera_controls.hpp"
 
 namespace fb {
 
@@ -33,19 +34,6 @@ enum class FrameStatus {
   kEndOfStream,  // a recording or synthetic take has ended; no more frames will come
 };
 
-// Per-frame ground truth, filled only by the synthetic backend.
-struct FrameTruth {
-  RigidPose camera_from_model;                      // model frame (mm) -> depth camera frame (mm)
-  std::vector<float> identity_coeffs;               // model identity coefficients (sigma units)
-  std::vector<float> expression_weights;            // one per model expression shape
-  std::vector<Eigen::Vector3d> landmarks_3d;        // 68 iBUG points, depth camera frame, mm
-  std::vector<Eigen::Vector2d> landmarks_depth_px;  // 68 points projected into the depth image
-  std::vector<Eigen::Vector2d> landmarks_color_px;  // 68 points in the colour image
-  Image<float> noiseless_depth_mm;  // rendered depth before the sensor model, 0 = background/none
-  // Fraction of the face (jaw line and brows polygon) hidden by a hand in front of it.
-  double face_hidden_fraction = 0.0;
-};
-
 class DepthCamera {
  public:
   virtual ~DepthCamera() = default;
@@ -60,9 +48,6 @@ class DepthCamera {
   // Errors (device unplugged, unreadable file) are failures; the end of a recording is not.
   virtual Result<FrameStatus> next_frame(RgbdFrame& frame, std::chrono::milliseconds timeout) = 0;
 
-  // Ground truth of the frame last returned, or nullptr when the backend has none.
-  virtual const FrameTruth* truth() const { return nullptr; }
-
  protected:
   DepthCamera() = default;
 };
@@ -73,16 +58,23 @@ struct CameraListing {
   std::string description;
 };
 
-// Opens a camera from a URI such as `synthetic:seed=3,expr=mouthSmile_L`, `replay:PATH`,
-// `freenect:0`, `openni2:PATH.oni` or `openni2:` (first live device). Only backends that
-// were built are accepted; the error lists those that are.
-Result<std::unique_ptr<DepthCamera>> open_camera(std::string_view uri);
+// Opens a camera from a URI such as `replay:PATH`, `freenect:0`, `openni2:PATH.oni`,
+// `openni2:` (first live device) or, through a loadable module (camera_plugin.hpp),
+// `synthetic:seed=3,expr=mouthSmile_L`. `controls` (camera_controls.hpp) override the URI; a
+// control the backend does not take is an error. The error for an unknown backend lists those
+// there are.
+Result<std::unique_ptr<DepthCamera>> open_camera(std::string_view uri,
+                                                 const CameraControls& controls = {});
 
-// Backends compiled into this build, e.g. {"synthetic", "replay", "freenect", "openni2"}.
+// Whether the backend of `uri` takes `control` (false when the backend is unknown).
+bool camera_has_control(std::string_view uri, std::string_view control);
+
+// Backends this binary can open: built in, then loadable modules, e.g. {"replay", "freenect",
+// "openni2", "synthetic"}.
 std::vector<std::string> built_camera_backends();
 
 // Devices and sources that can be opened now (live devices enumerated by their backends,
-// plus the always-available synthetic source).
+// plus what the modules offer, e.g. the synthetic source).
 std::vector<CameraListing> list_cameras();
 
 }  // namespace fb

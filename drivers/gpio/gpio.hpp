@@ -69,16 +69,21 @@ class Gpio {
   // The LED's level right now (the pattern at this instant).
   virtual bool led_on() const = 0;
 
-  // Injects a press as if a person had pressed the button. Only the simulated backend supports
-  // it; the HTTP API and the headless session use it.
-  virtual Result<void> simulate_press(const ButtonEvent& event) {
-    return fail("GPIO backend '" + info().backend +
-                "' has real buttons; it cannot simulate presses");
-  }
-
  protected:
   Gpio() = default;
 };
+
+// What a backend without real buttons offers besides Gpio (the `sim` backend): presses injected
+// as if a person had pressed the button. The daemon's /api/sim/button, its headless session and
+// the tests reach it through simulate_press(), never through Gpio.
+class ButtonSimulator {
+ public:
+  virtual ~ButtonSimulator() = default;
+  virtual Result<void> simulate_press(const ButtonEvent& event) = 0;
+};
+
+// Injects `event` when `gpio` is a ButtonSimulator; fails for a backend with real buttons.
+Result<void> simulate_press(Gpio& gpio, const ButtonEvent& event);
 
 // Opens the backend named by options.backend. Only built backends are accepted; the error lists
 // those that are.

@@ -67,4 +67,11 @@ std::vector<std::string> built_gpio_backends() {
   return names;
 }
 
+Result<void> simulate_press(Gpio& gpio, const ButtonEvent& event) {
+  if (auto* simulator = dynamic_cast<ButtonSimulator*>(&gpio))
+    return simulator->simulate_press(event);
+  return fail("GPIO backend '" + gpio.info().backend +
+              "' has real buttons; it cannot simulate presses");
+}
+
 }  // namespace fb

@@ -13,32 +13,10 @@
 #include <sstream>
 
 #include "algo/core/figure_text.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
 namespace fb {
 namespace {
-
-// The synthetic take URI: the configured source with the guide's expression and the take length
-// (keys the daemon sets are dropped from the configured URI, the rest is kept).
-std::string synthetic_take_uri(const std::string& base, const std::string& expr, int frames) {
-  std::string args = base.substr(base.find(':') + 1);
-  std::string kept;
-  std::stringstream ss(args);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item.empty() || item.rfind("expr=", 0) == 0 || item.rfind("frames=", 0) == 0 ||
-        item.rfind("motion=", 0) == 0)
-      continue;
-    kept += (kept.empty() ? "" : ",") + item;
-  }
-  return "synthetic:" + kept + (kept.empty() ? "" : ",") + "motion=headturn,expr=" + expr +
-         ",frames=" + std::to_string(frames);
-}
-
-bool is_synthetic(const std::string& uri) {
-  return uri.rfind("synthetic:", 0) == 0;
-}
 
 // 2x downsample of the colour image with the face box outlined (the kiosk preview).
 void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out) {
@@ -246,7 +224,7 @@ void Daemon::post(KioskInput input, const std::string& subject, std::int64_t ses
 }
 
 Result<void> Daemon::press(const ButtonEvent& event) {
-  return impl_->gpio->simulate_press(event);
+  return simulate_press(*impl_->gpio, event);
 }
 
 std::uint64_t Daemon::wait_status(std::uint64_t seen, std::chrono::milliseconds timeout) const {
@@ -749,25 +727,18 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   });
 
   // The camera for this take: a synthetic subject making the guide expression, or the live one.
+  // A camera that takes an expression control (the synthetic one, a module from sim/) is
+  // opened for the take with the guide's expression, a head turn and the take's length.
   std::unique_ptr<DepthCamera> take_camera;
   DepthCamera* camera = preview_camera.get();
-  if (is_synthetic(config.camera.uri) && config.camera.synthetic_imitates_guide) {
-    const std::string uri = synthetic_take_uri(config.camera.uri, guide[index].synthetic_expr, n);
-    if (fitter) {
-      // Render with the face model the fitter already holds (FaceModel is immutable after
-      // loading) instead of loading another 21 MB copy for every take.
-      const FaceModel& model = fitter->model();
-      auto options = parse_synthetic_options(uri.substr(uri.find(':') + 1), model);
-      if (!options) return options.failure();
-      options->uri = uri;
-      auto opened = make_synthetic_camera(model, *options);
-      if (!opened) return opened.failure();
-      take_camera = std::move(*opened);
-    } else {
-      auto opened = open_camera(uri);
-      if (!opened) return opened.failure();
-      take_camera = std::move(*opened);
-    }
+  if (config.camera.synthetic_imitates_guide &&
+      camera_has_control(config.camera.uri, kControlExpression)) {
+    const CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
+                                     {std::string(kControlMotion), "headturn"},
+                                     {std::string(kControlFrames), std::to_string(n)}};
+    auto opened = open_camera(config.camera.uri, controls);
+    if (!opened) return opened.failure();
+    take_camera = std::move(*opened);
     // The take renders the same unit as the preview: under the same calibration.
     auto calibrated = with_active_calibration(std::move(take_camera));
     if (!calibrated) return calibrated.failure();

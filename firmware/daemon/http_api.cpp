@@ -513,7 +513,7 @@ Result<void> Daemon::Impl::setup_http() {
     if (kind != "short" && kind != "long")
       return send_error(res, 400, "kind must be \"short\" or \"long\"");
     auto ok =
-        gpio->simulate_press({*button, kind == "long" ? PressKind::kLong : PressKind::kShort});
+        simulate_press(*gpio, {*button, kind == "long" ? PressKind::kLong : PressKind::kShort});
     if (!ok) return send_error(res, 409, ok.error().message);
     send_json(res, {{"pressed", to_string(*button)}, {"kind", kind}}, 202);
   });

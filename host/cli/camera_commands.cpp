@@ -5,6 +5,7 @@
 
 #include "algo/sensor/self_calibration.hpp"
 #include "drivers/camera/camera_backend.hpp"
+#include "drivers/camera/camera_plugin.hpp"
 #include "drivers/camera/recorder/recorder.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
@@ -17,6 +18,8 @@ namespace {
 int run_list(const ParsedOptions&) {
   std::cout << "backends in this build:\n";
   for (const auto& backend : camera_backends()) std::cout << "  " << backend.usage << "\n";
+  // Loadable modules (drivers/camera/camera_plugin.hpp), e.g. the synthetic camera.
+  for (const auto& backend : camera_plugins()) std::cout << "  " << backend.usage << "  [module]\n";
   std::cout << "\nsources available now:\n";
   const auto cameras = list_cameras();
   for (const auto& camera : cameras)

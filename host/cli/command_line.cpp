@@ -32,7 +32,9 @@ Result<double> ParsedOptions::get_double(const std::string& name) const {
   return fail("--" + name + " expects a number, got '" + text + "'");
 }
 
-Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<std::string>& args) {
+Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<std::string>& args,
+                                    std::string_view program) {
+  const std::string command = std::string(program) + " " + spec.path;
   ParsedOptions parsed;
   for (const auto& option : spec.options) {
     if (!option.default_value.empty()) parsed.defaults_[option.name] = option.default_value;
@@ -44,8 +46,8 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
       continue;
     }
     if (arg.rfind("--", 0) != 0) {
-      return fail("unexpected argument '" + arg + "' for 'facebooth " + spec.path +
-                  "'; see 'facebooth " + spec.path + " --help'");
+      return fail("unexpected argument '" + arg + "' for '" + command + "'; see '" + command +
+                  " --help'");
     }
     std::string name = arg.substr(2);
     std::optional<std::string> inline_value;
@@ -58,8 +60,8 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
       if (candidate.name == name) option = &candidate;
     }
     if (option == nullptr) {
-      return fail("unknown option '--" + name + "' for 'facebooth " + spec.path +
-                  "'; see 'facebooth " + spec.path + " --help'");
+      return fail("unknown option '--" + name + "' for '" + command + "'; see '" + command +
+                  " --help'");
     }
     if (option->value_name.empty()) {
       if (inline_value) return fail("--" + name + " is a flag and takes no value");
@@ -75,9 +77,9 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
   return parsed;
 }
 
-std::string format_help(const CommandSpec& spec) {
+std::string format_help(const CommandSpec& spec, std::string_view program) {
   std::ostringstream out;
-  out << "usage: facebooth " << spec.path << " [options]\n\n" << spec.summary << "\n";
+  out << "usage: " << program << " " << spec.path << " [options]\n\n" << spec.summary << "\n";
   if (!spec.options.empty()) out << "\noptions:\n";
   for (const auto& option : spec.options) {
     std::string left = "  --" + option.name;

@@ -5,6 +5,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "algo/core/result.hpp"
@@ -34,12 +35,15 @@ class ParsedOptions {
   bool help_requested = false;
 
  private:
-  friend Result<ParsedOptions> parse_options(const CommandSpec&, const std::vector<std::string>&);
+  friend Result<ParsedOptions> parse_options(const CommandSpec&, const std::vector<std::string>&,
+                                             std::string_view);
   std::map<std::string, std::string> values_;
   std::map<std::string, std::string> defaults_;
 };
 
-Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<std::string>& args);
-std::string format_help(const CommandSpec& spec);
+// `program` names the binary in messages and help: "facebooth" or "facebooth-lab".
+Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<std::string>& args,
+                                    std::string_view program = "facebooth");
+std::string format_help(const CommandSpec& spec, std::string_view program = "facebooth");
 
 }  // namespace fb::cli

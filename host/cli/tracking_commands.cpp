@@ -1,7 +1,6 @@
 // facebooth track: the real-time tracker run live on any camera (freenect, OpenNI2, replay,
 // synthetic): identity calibration on the first frames or the subject's stored rig, VMC over
 // OSC/UDP, Live Link Face CSV, the kiosk's SSE events, and the take recorded in a session store.
-// Also lists the tracking commands (eval track and bench track live in their own files).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,19 +16,19 @@
 #include <utility>
 #include <vector>
 
+#include "algo/core/clock.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "algo/tracking/occlusion_report.hpp"
 #include "algo/tracking/rig_view.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/live_json.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 #include "host/cli/commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/progress.hpp"
-#include "host/cli/take_runner.hpp"
-#include "host/cli/tracking_commands.hpp"
+#include "host/cli/stats.hpp"
+#include "host/cli/tracker_setup.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
 #include "storage/session_store.hpp"
@@ -37,6 +36,9 @@
 
 namespace fb::cli {
 namespace {
+
+// Noise on --landmarks truth, as on the lab's takes (sim/subject/synthetic_take.hpp).
+constexpr double kTruthLandmarkNoisePx = 1.5;
 
 // The stored rig serving the take (SessionStore::rig_for with --session, else the subject's
 // newest) as a TrackerRig over the model's fitting shapes (matched by the model's expression
@@ -124,7 +126,7 @@ RigData calibrated_rig(const FaceModel& face, std::span<const float> identity,
   return rig;
 }
 
-int run_track(const ParsedOptions& options) {
+int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   const std::string uri = options.get("camera");
   if (uri.empty())
     return report_failure({"--camera URI is required (see `facebooth camera list`)"});
@@ -136,6 +138,11 @@ int run_track(const ParsedOptions& options) {
   const std::string landmark_source = options.get("landmarks");
   if (landmark_source != "truth" && landmark_source != "none" && landmark_source != "dlib") {
     return report_failure({"--landmarks must be dlib, truth or none"});
+  }
+  if (landmark_source == "truth" && truth_landmarks_of == nullptr) {
+    return report_failure(
+        {"--landmarks truth needs the laboratory's ground truth: run it as "
+         "`facebooth-lab track` (synthetic camera), or use dlib or none"});
   }
   const std::string reacquire = options.get("reacquire");
   if (reacquire != "dlib" && reacquire != "depth") {
@@ -286,7 +293,7 @@ int run_track(const ParsedOptions& options) {
   const bool print_sse = options.flag("sse");
 
   std::mt19937_64 rng(1);
-  std::normal_distribution<float> noise(0.0f, static_cast<float>(kLandmarkNoisePx));
+  std::normal_distribution<float> noise(0.0f, static_cast<float>(kTruthLandmarkNoisePx));
   std::vector<Eigen::Vector2f> landmark_points(68);
   RgbdFrame frame;
   TrackReport report;
@@ -327,10 +334,10 @@ int run_track(const ParsedOptions& options) {
     const TrackLandmarks* landmarks = nullptr;
     TrackLandmarks truth_landmarks;
     if (landmark_source == "truth") {
-      if (const FrameTruth* truth = (*camera)->truth()) {
+      if (const auto* truth_px = truth_landmarks_of(**camera)) {
         for (int l = 0; l < 68; ++l) {
           landmark_points[static_cast<std::size_t>(l)] =
-              truth->landmarks_depth_px[static_cast<std::size_t>(l)].cast<float>() +
+              (*truth_px)[static_cast<std::size_t>(l)].cast<float>() +
               Eigen::Vector2f(noise(rng), noise(rng));
         }
         truth_landmarks.points = landmark_points;
@@ -499,10 +506,8 @@ int run_track(const ParsedOptions& options) {
 
 }  // namespace
 
-std::vector<Command> tracking_commands() {
+std::vector<Command> tracking_commands(TruthLandmarks truth_landmarks) {
   return {
-      eval_track_command(),
-      bench_track_command(),
       {{"track",
         "run the tracker live on a camera; stream VMC over OSC and/or record Live Link CSV",
         "Calibrates the identity on the first frames (hold a neutral face) with the face "
@@ -551,7 +556,7 @@ std::vector<Command> tracking_commands() {
           "dlib"},
          {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
          {"sse", "", "also print the kiosk's SSE events to stderr", ""}}},
-       run_track}};
+       [truth_landmarks](const ParsedOptions& o) { return run_track(o, truth_landmarks); }}};
 }
 
 }  // namespace fb::cli

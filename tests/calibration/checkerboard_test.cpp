@@ -9,8 +9,8 @@
 #include "algo/calibration/board_detection.hpp"
 #include "algo/calibration/checkerboard_calibrator.hpp"
 #include "drivers/camera/common/device_json.hpp"
-#include "drivers/camera/synthetic/board_scene.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/board_scene.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 
 namespace fb {
 namespace {

@@ -1,7 +1,7 @@
 // The synthetic colour image's hole fill: a disocclusion shows the far surface, a crack its own.
 #include <gtest/gtest.h>
 
-#include "drivers/camera/synthetic/color_fill.hpp"
+#include "sim/camera/color_fill.hpp"
 
 namespace fb {
 namespace {

@@ -1,4 +1,4 @@
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 
 #include <atomic>
 #include <chrono>
@@ -100,7 +100,7 @@ TEST(SyntheticCamera, UriDefaultsOpenAndStreamEndsAfterFrames) {
     EXPECT_EQ(frame.depth_device_timestamp, static_cast<std::uint32_t>(i * 2'000'000));
     EXPECT_EQ(frame.depth_mm.width, 640);
     EXPECT_EQ(frame.color.height, 480);
-    ASSERT_NE((*camera)->truth(), nullptr);
+    ASSERT_NE(frame_truth(**camera), nullptr);
   }
   auto end = (*camera)->next_frame(frame, milliseconds(10));
   ASSERT_TRUE(end.ok());
@@ -175,7 +175,7 @@ TEST(SyntheticCamera, ExpressionSpecAcceptsGuideExpressions) {
   ASSERT_TRUE((*camera)->start().ok());
   RgbdFrame frame;
   ASSERT_EQ(*(*camera)->next_frame(frame, milliseconds(0)), FrameStatus::kFrame);
-  const FrameTruth* truth = (*camera)->truth();
+  const FrameTruth* truth = frame_truth(**camera);
   ASSERT_NE(truth, nullptr);
   for (std::size_t j = 0; j < recipe->size(); ++j) {
     EXPECT_FLOAT_EQ(truth->expression_weights[j], (*recipe)[j]);

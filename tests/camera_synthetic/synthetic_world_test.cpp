@@ -1,7 +1,7 @@
-// The realistic synthetic world (drivers/camera/synthetic/synthetic_world.hpp): each option
+// The realistic synthetic world (sim/camera/synthetic_world.hpp): each option
 // changes what it should, scored against the camera's own ground truth, and the defaults leave
 // frames as they were.
-#include "drivers/camera/synthetic/synthetic_world.hpp"
+#include "sim/camera/synthetic_world.hpp"
 
 #include <Eigen/Dense>
 #include <cmath>
@@ -11,8 +11,8 @@
 #include <gtest/gtest.h>
 
 #include "algo/landmarks/landmark_detector.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
-#include "drivers/camera/synthetic/world_presets.hpp"
+#include "sim/camera/synthetic_camera.hpp"
+#include "sim/camera/world_presets.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {

@@ -21,6 +21,13 @@ CommandRun run_cli(const std::string& arguments, bool with_stderr = true) {
       with_stderr ? fb::test::Stderr::kMerged : fb::test::Stderr::kDropped);
 }
 
+// The laboratory's binary (sim/lab): every eval and bench command.
+CommandRun run_lab(const std::string& arguments, bool with_stderr = true) {
+  return fb::test::run_command(
+      std::string(FB_LAB_PATH) + " " + arguments,
+      with_stderr ? fb::test::Stderr::kMerged : fb::test::Stderr::kDropped);
+}
+
 class CliTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -44,10 +51,22 @@ int count_lines_starting_with(const std::filesystem::path& file, char first) {
 TEST_F(CliTest, HelpListsEveryCommandAndExitsZero) {
   const auto result = run_cli("--help");
   EXPECT_EQ(result.exit_code, 0);
-  for (const char* command : {"camera list", "camera record", "camera view", "bench camera"}) {
+  for (const char* command : {"camera list", "camera record", "camera view", "track", "rig"}) {
     EXPECT_NE(result.out.find(command), std::string::npos) << command;
   }
   EXPECT_EQ(run_cli("camera record --help").exit_code, 0);
+  // The product has no eval or bench command; the lab has them all.
+  EXPECT_EQ(result.out.find("eval "), std::string::npos) << result.out;
+  EXPECT_EQ(result.out.find("bench "), std::string::npos) << result.out;
+  EXPECT_EQ(run_cli("bench camera").exit_code, 2);
+  const auto lab = run_lab("--help");
+  EXPECT_EQ(lab.exit_code, 0);
+  for (const char* command :
+       {"bench camera", "eval fusion", "bench fusion", "eval fit", "bench fit", "eval track",
+        "bench track", "eval storage", "bench daemon", "eval rig", "eval model", "bench rig",
+        "eval self-calibration", "bench calibration", "eval calibration"}) {
+    EXPECT_NE(lab.out.find(command), std::string::npos) << command;
+  }
 }
 
 TEST_F(CliTest, UsageErrorsExitTwoWithAMessage) {
@@ -108,7 +127,7 @@ TEST_F(CliTest, RecordThenViewTheRecording) {
 }
 
 TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
-  const auto result = run_cli("bench camera --json --frames 5", false);
+  const auto result = run_lab("bench camera --json --frames 5", false);
   ASSERT_EQ(result.exit_code, 0);
   const auto json = nlohmann::json::parse(result.out);
   EXPECT_GT(json.at("synthetic_fps").get<double>(), 0.0);
@@ -119,7 +138,7 @@ TEST_F(CliTest, BenchCameraPrintsOneJsonObject) {
 // bench track's output contract (issue 6): every figure present, a time, and measured on
 // the frames asked for. No timing threshold: timing is a benchmark's business.
 TEST_F(CliTest, BenchTrackPrintsItsContractFields) {
-  const auto result = run_cli("bench track --json --frames 60", false);
+  const auto result = run_lab("bench track --json --frames 60", false);
   ASSERT_EQ(result.exit_code, 0) << result.out;
   const auto json = nlohmann::json::parse(result.out);
   EXPECT_EQ(json.at("frames").get<int>(), 60);
@@ -131,7 +150,7 @@ TEST_F(CliTest, BenchTrackPrintsItsContractFields) {
   // Detection and the landmark rows come on top of the depth-only work of the same frames.
   EXPECT_GT(json.at("ms_per_frame_with_landmarks").get<double>(),
             json.at("dlib_ms_per_frame").get<double>());
-  EXPECT_EQ(run_cli("bench track --frames 59").exit_code, 1);
+  EXPECT_EQ(run_lab("bench track --frames 59").exit_code, 1);
 }
 
 // eval track's clutter scenario (torso, desk, a hand beside the face: all nearer than it; a
@@ -141,7 +160,7 @@ TEST_F(CliTest, BenchTrackPrintsItsContractFields) {
 TEST_F(CliTest, EvalTrackClutterAcquiresAndReportsTheHand) {
   if (!std::filesystem::exists("/usr/share/dlib/shape_predictor_68_face_landmarks.dat"))
     GTEST_SKIP() << "needs dlib's shape predictor (Debian libdlib-data)";
-  const auto run = run_cli("eval track --scenario clutter --seeds 1 --frames 90 --json", false);
+  const auto run = run_lab("eval track --scenario clutter --seeds 1 --frames 90 --json", false);
   ASSERT_EQ(run.exit_code, 0) << run.out;
   const auto json = nlohmann::json::parse(run.out);
   EXPECT_EQ(json.at("runs_with_nearer_distractors").get<int>(), 2) << run.out;
@@ -178,14 +197,14 @@ TEST_F(CliTest, TrackSaysWhenTheFaceIsOccludedAndClearAgain) {
 // expression before the occluder plate are refused before any rendering.
 TEST_F(CliTest, EvalTrackRefusesANeutralWindowThatLeavesNoExpression) {
   for (const char* bad : {"0", "51", "x"}) {
-    const auto result = run_cli(std::string("eval track --neutral-frames ") + bad);
+    const auto result = run_lab(std::string("eval track --neutral-frames ") + bad);
     EXPECT_EQ(result.exit_code, 1) << bad;
     EXPECT_NE(result.out.find("--neutral-frames must be an integer from 1 to 50"),
               std::string::npos)
         << result.out;
     EXPECT_EQ(result.out.find("rendering"), std::string::npos) << result.out;
   }
-  const auto result = run_cli("eval track --frames 60 --neutral-frames 55");
+  const auto result = run_lab("eval track --frames 60 --neutral-frames 55");
   EXPECT_EQ(result.exit_code, 1);
   EXPECT_NE(result.out.find("at most --frames - 10"), std::string::npos) << result.out;
 }
@@ -194,12 +213,12 @@ TEST_F(CliTest, EvalTrackRefusesANeutralWindowThatLeavesNoExpression) {
 // error from the weight solve's own. Loaded, the tracker scores every frame of the 130-frame
 // take (a calibrated run spends its first 10 tracked frames calibrating).
 TEST_F(CliTest, EvalTrackOccluderTakesCanLoadTheTrueIdentity) {
-  const auto bad = run_cli("eval track --occluder-identity truth");
+  const auto bad = run_lab("eval track --occluder-identity truth");
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.out.find("--occluder-identity must be calibrated"), std::string::npos) << bad.out;
   EXPECT_EQ(bad.out.find("rendering"), std::string::npos) << bad.out;
 
-  const auto result = run_cli(
+  const auto result = run_lab(
       "eval track --json --seeds 1 --frames 60 --occluder-takes 1 --occluder-identity known",
       false);
   ASSERT_EQ(result.exit_code, 0);
@@ -244,7 +263,7 @@ TEST_F(CliTest, TrackAndEvalTrackCalibrateWithABilinearModel) {
                 .exit_code,
             0);
   const auto eval =
-      run_cli("eval track --json --seeds 1 --frames 60 --occluder-takes 1 --model " + model, false);
+      run_lab("eval track --json --seeds 1 --frames 60 --occluder-takes 1 --model " + model, false);
   ASSERT_EQ(eval.exit_code, 0) << eval.out;
   const auto json = nlohmann::json::parse(eval.out);
   EXPECT_NE(json.at("subject_model").get<std::string>().find("20 x 54 knobs"), std::string::npos)
@@ -253,7 +272,7 @@ TEST_F(CliTest, TrackAndEvalTrackCalibrateWithABilinearModel) {
   EXPECT_LE(json.at("weight_mae").get<double>(), 0.03);  // 0.0157 on this take
   EXPECT_LE(json.at("pose_error_deg").get<double>(), 0.5);
   EXPECT_LE(json.at("pose_error_mm").get<double>(), 1.0);
-  const auto known = run_cli("eval track --occluder-identity known --model " + model);
+  const auto known = run_lab("eval track --occluder-identity known --model " + model);
   EXPECT_EQ(known.exit_code, 1);
   EXPECT_NE(known.out.find("cannot be combined with --model"), std::string::npos) << known.out;
 

@@ -6,7 +6,7 @@
 #include <chrono>
 #include <vector>
 
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb::test {
@@ -31,7 +31,7 @@ inline RenderedTake render(const SyntheticOptions& options) {
     auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
     if (!status || *status != FrameStatus::kFrame) break;
     out.depth.push_back(frame.depth_mm);
-    out.truth.push_back(*(*camera)->truth());
+    out.truth.push_back(*frame_truth(**camera));
   }
   return out;
 }

@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/sensor/self_calibration.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/session_store.hpp"
 
 // After every Eigen header (httplib's <resolv.h> defines _res).

@@ -24,6 +24,10 @@ test::CommandRun facebooth(const std::string& args) {
   return test::run_command(std::string(FB_CLI_PATH) + " " + args, test::Stderr::kToLog);
 }
 
+test::CommandRun facebooth_lab(const std::string& args) {
+  return test::run_command(std::string(FB_LAB_PATH) + " " + args, test::Stderr::kToLog);
+}
+
 class StorageCli : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -139,7 +143,7 @@ TEST_F(StorageCli, ExportTakeAsLiveLinkCsvAndModelFile) {
 
 TEST_F(StorageCli, EvalStorageRefusesAScratchFolderItCannotCreate) {
   const auto r = test::run_command(
-      std::string(FB_CLI_PATH) + " eval storage --json --trials 0 --scratch /dev/null/x",
+      std::string(FB_LAB_PATH) + " eval storage --json --trials 0 --scratch /dev/null/x",
       test::Stderr::kMerged);
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_NE(r.out.find("cannot create the scratch folder /dev/null/x/facebooth-eval-storage-"),
@@ -150,8 +154,8 @@ TEST_F(StorageCli, EvalStorageRefusesAScratchFolderItCannotCreate) {
 
 TEST_F(StorageCli, EvalStorageFollowsTheOutputContract) {
   auto r =
-      facebooth("eval storage --json --trials 4 --commits 2 --frames-per-capture 2 --scratch " +
-                dir_.string());
+      facebooth_lab("eval storage --json --trials 4 --commits 2 --frames-per-capture 2 --scratch " +
+                    dir_.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   auto j = nlohmann::json::parse(r.out);
   for (const char* key :

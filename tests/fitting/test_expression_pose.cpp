@@ -7,7 +7,7 @@
 
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
-#include "host/cli/synthetic_capture.hpp"
+#include "sim/subject/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {

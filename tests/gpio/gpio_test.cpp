@@ -109,8 +109,8 @@ TEST(SimGpio, PressesArriveInOrderAcrossThreads) {
   ASSERT_TRUE(gpio) << gpio.error().message;
   EXPECT_EQ((*gpio)->info().backend, "sim");
   std::thread presser([&] {
-    ASSERT_TRUE((*gpio)->simulate_press({ButtonId::kMain, PressKind::kShort}));
-    ASSERT_TRUE((*gpio)->simulate_press({ButtonId::kMode, PressKind::kLong}));
+    ASSERT_TRUE(simulate_press(**gpio, {ButtonId::kMain, PressKind::kShort}));
+    ASSERT_TRUE(simulate_press(**gpio, {ButtonId::kMode, PressKind::kLong}));
   });
   std::vector<ButtonEvent> got;
   while (got.size() < 2) {
@@ -170,7 +170,7 @@ TEST(GpiodGpio, RealChipWhenPresent) {
   options.backend = "gpiod";
   auto gpio = open_gpio(options);
   if (!gpio) GTEST_SKIP() << gpio.error().message;
-  EXPECT_FALSE((*gpio)->simulate_press({}).ok());
+  EXPECT_FALSE(simulate_press(**gpio, {}).ok());
   auto events = (*gpio)->wait_events(std::chrono::milliseconds(20));
   EXPECT_TRUE(events);
 }

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "algo/fusion/face_fusion.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {

@@ -17,7 +17,7 @@
 
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 
 namespace fb {
 namespace {
@@ -50,7 +50,7 @@ Shot shot(int frame_index = 0) {
   Shot s;
   for (int i = 0; i <= frame_index; ++i)
     EXPECT_TRUE((*cam)->next_frame(s.frame, std::chrono::milliseconds(1000)).ok());
-  s.truth = *(*cam)->truth();
+  s.truth = *frame_truth(**cam);
   s.calibration = (*cam)->info().calibration;
   return s;
 }
@@ -157,7 +157,7 @@ TEST(Landmarks, PixelsFromTheRawFrameMatchTheLifting) {
   RgbdFrame frame;
   for (int i = 0; i < 3; ++i)
     ASSERT_TRUE((*cam)->next_frame(frame, std::chrono::milliseconds(1000)).ok());
-  const FrameTruth truth = *(*cam)->truth();
+  const FrameTruth truth = *frame_truth(**cam);
   const KinectRegistration reg((*cam)->info().calibration);
   std::vector<Eigen::Vector2d> points(truth.landmarks_color_px.begin(),
                                       truth.landmarks_color_px.end());
@@ -244,7 +244,7 @@ std::pair<ColorImage, std::array<Eigen::Vector2d, 68>> still_at(double distance_
   RgbdFrame frame;
   EXPECT_TRUE((*cam)->next_frame(frame, std::chrono::milliseconds(1000)).ok());
   std::array<Eigen::Vector2d, 68> truth{};
-  const FrameTruth t = *(*cam)->truth();
+  const FrameTruth t = *frame_truth(**cam);
   for (int l = 0; l < 68; ++l) truth[l] = t.landmarks_color_px[l];
   return {frame.color, truth};
 }
@@ -329,7 +329,7 @@ std::vector<TakeFrame> head_turn_take(int frames) {
     EXPECT_TRUE((*cam)->next_frame(f, std::chrono::milliseconds(1000)).ok());
     TakeFrame t;
     t.color = f.color;
-    for (int l = 0; l < 68; ++l) t.truth[l] = (*cam)->truth()->landmarks_color_px[l];
+    for (int l = 0; l < 68; ++l) t.truth[l] = frame_truth(**cam)->landmarks_color_px[l];
     out.push_back(std::move(t));
   }
   return out;

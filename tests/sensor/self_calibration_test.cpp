@@ -11,7 +11,7 @@
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/common/device_json.hpp"
 #include "drivers/camera/common/fakenect_dump.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/camera_replay/test_dumps.hpp"
 
@@ -141,7 +141,7 @@ TEST(CalibratedCamera, RederivesDepthUnderTheNewLaw) {
   RgbdFrame frame;
   auto got = (*wrapped)->next_frame(frame, std::chrono::milliseconds(100));
   ASSERT_TRUE(got && *got == FrameStatus::kFrame);
-  truth_source = (*wrapped)->truth();
+  truth_source = frame_truth(**wrapped);
   ASSERT_NE(truth_source, nullptr);
   double sum = 0;
   int n = 0;

@@ -7,7 +7,7 @@
 #include <cerrno>
 #include <fstream>
 
-#include "storage/crash_trials.hpp"
+#include "sim/crash/crash_trials.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/session_store.hpp"
 #include "tests/storage/test_dir.hpp"

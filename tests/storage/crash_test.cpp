@@ -1,9 +1,9 @@
-// SIGKILL crash trials (storage/crash_trials.hpp): a forked child commits captures in a loop and
+// SIGKILL crash trials (sim/crash/crash_trials.hpp): a forked child commits captures in a loop and
 // is killed at random moments; every reopen must find an intact store, complete committed
 // captures, no half-written files, and the session resuming where it stopped.
 #include <gtest/gtest.h>
 
-#include "storage/crash_trials.hpp"
+#include "sim/crash/crash_trials.hpp"
 #include "tests/storage/test_dir.hpp"
 
 namespace fb {

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <thread>
 
-#include "storage/crash_trials.hpp"
+#include "sim/crash/crash_trials.hpp"
 #include "storage/session_store.hpp"
 #include "storage/sha256.hpp"
 #include "storage/take_writer.hpp"

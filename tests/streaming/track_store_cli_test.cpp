@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/tracking/arkit.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
 #include "storage/export/synthetic_subject.hpp"
@@ -28,6 +28,11 @@ namespace fs = std::filesystem;
 // stdout only; stderr goes to the test log.
 test::CommandRun facebooth(const std::string& args) {
   return test::run_command(std::string(FB_CLI_PATH) + " " + args, test::Stderr::kToLog);
+}
+
+// facebooth-lab track: the same command, with --landmarks truth (the lab's ground truth).
+test::CommandRun facebooth_lab(const std::string& args) {
+  return test::run_command(std::string(FB_LAB_PATH) + " " + args, test::Stderr::kToLog);
 }
 
 class TrackStoreCli : public ::testing::Test {
@@ -48,8 +53,8 @@ TEST_F(TrackStoreCli, TrackStoreExportMatchesTheTrackedValues) {
   const fs::path store_dir = dir_ / "store";
   const fs::path live_csv = dir_ / "live.csv";
   constexpr int kFrames = 45;
-  auto r = facebooth("track --camera synthetic:frames=45,seed=3 --landmarks truth --store " +
-                     store_dir.string() + " --csv " + live_csv.string());
+  auto r = facebooth_lab("track --camera synthetic:frames=45,seed=3 --landmarks truth --store " +
+                         store_dir.string() + " --csv " + live_csv.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_TRUE(j["take"].is_number_integer()) << r.out;

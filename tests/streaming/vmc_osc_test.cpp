@@ -18,8 +18,8 @@
 #include <gtest/gtest.h>
 
 #include "algo/tracking/face_tracker.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/test_face_model.hpp"
 
@@ -163,7 +163,7 @@ TEST(VmcOsc, OscdumpReceivesTheTakeValues) {
     ASSERT_TRUE(status.ok());
     if (*status != FrameStatus::kFrame) break;
     if (!identity_set) {
-      ASSERT_TRUE((*tracker)->set_identity((*camera)->truth()->identity_coeffs).ok());
+      ASSERT_TRUE((*tracker)->set_identity(frame_truth(**camera)->identity_coeffs).ok());
       identity_set = true;
     }
     (*tracker)->track(frame.depth_mm, frame.depth_host_time_s, nullptr, report);

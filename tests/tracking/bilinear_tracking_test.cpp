@@ -10,7 +10,7 @@
 
 #include "algo/bilinear/bootstrap.hpp"
 #include "algo/bilinear/tensor_decomposition.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {

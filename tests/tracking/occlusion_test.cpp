@@ -11,7 +11,7 @@
 
 #include "algo/tracking/face_tracker.hpp"
 #include "algo/tracking/occlusion_report.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "tests/common/synthetic_take.hpp"
 #include "tests/common/test_face_model.hpp"
 

@@ -10,7 +10,7 @@
 
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -37,7 +37,7 @@ Frames render(const FaceModel& model, const SyntheticOptions& options) {
     auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
     if (!status || *status != FrameStatus::kFrame) break;
     out.frames.push_back(frame);
-    out.truth.push_back(*(*camera)->truth());
+    out.truth.push_back(*frame_truth(**camera));
   }
   return out;
 }

@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include "algo/tracking/face_tracker.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
-#include "drivers/camera/synthetic/world_presets.hpp"
+#include "sim/camera/synthetic_camera.hpp"
+#include "sim/camera/world_presets.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {
@@ -48,7 +48,7 @@ NeutralFigures track_neutral(const char* part, std::uint64_t seed, const Tracker
   for (int f = 0;; ++f) {
     auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(100));
     if (!status || *status != FrameStatus::kFrame) break;
-    const FrameTruth truth = *(*camera)->truth();
+    const FrameTruth truth = *frame_truth(**camera);
     for (int l = 0; l < 68; ++l)
       points[l] =
           truth.landmarks_depth_px[l].cast<float>() + Eigen::Vector2f(noise(rng), noise(rng));

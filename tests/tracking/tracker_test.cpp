@@ -14,7 +14,7 @@
 
 #include "algo/tracking/arkit.hpp"
 #include "algo/tracking/rig_view.hpp"
-#include "drivers/camera/synthetic/synthetic_camera.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/allocation_counter.hpp"
 #include "tests/common/synthetic_take.hpp"

@@ -41,11 +41,11 @@ class CalibratedCamera : public DepthCamera {
   Result<void> start() override { return inner_->start(); }
   void stop() override { inner_->stop(); }
   Result<FrameStatus> next_frame(RgbdFrame& frame, std::chrono::milliseconds timeout) override;
-  const FrameTruth* truth() const override { return inner_->truth(); }
 
   // Replaces the calibration from the next frame on (e.g. after self-calibration).
   void set_calibration(const KinectCalibration& calibration);
   DepthCamera& inner() { return *inner_; }
+  const DepthCamera& inner() const { return *inner_; }
 
  private:
   CalibratedCamera(std::unique_ptr<DepthCamera> inner, const KinectCalibration& calibration);

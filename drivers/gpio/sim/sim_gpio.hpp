@@ -11,7 +11,7 @@
 
 namespace fb {
 
-class SimGpio : public Gpio {
+class SimGpio : public Gpio, public ButtonSimulator {
  public:
   explicit SimGpio(const GpioOptions& options);
 

@@ -1,0 +1,66 @@
+# The link graph at configure time: what a target links, transitively, and the rule that the
+# product links nothing from the laboratory (sim/).
+
+# Every CMake target `target` links, directly or through other targets (imported ones are
+# listed but not followed; generator expressions are skipped).
+function(fb_link_closure target out)
+  set(seen "")
+  set(todo ${target})
+  while(todo)
+    list(POP_FRONT todo t)
+    if(NOT TARGET ${t} OR t IN_LIST seen)
+      continue()
+    endif()
+    list(APPEND seen ${t})
+    get_target_property(imported ${t} IMPORTED)
+    if(imported)
+      continue()
+    endif()
+    get_target_property(type ${t} TYPE)
+    set(deps "")
+    if(NOT type STREQUAL "INTERFACE_LIBRARY")
+      get_target_property(direct ${t} LINK_LIBRARIES)
+      if(direct)
+        list(APPEND deps ${direct})
+      endif()
+    endif()
+    get_target_property(iface ${t} INTERFACE_LINK_LIBRARIES)
+    if(iface)
+      list(APPEND deps ${iface})
+    endif()
+    foreach(d IN LISTS deps)
+      if(NOT d MATCHES "^\\$<" AND TARGET ${d})
+        list(APPEND todo ${d})
+      endif()
+    endforeach()
+  endwhile()
+  list(REMOVE_ITEM seen ${target})
+  set(${out} ${seen} PARENT_SCOPE)
+endfunction()
+
+# The product: the two binaries a user runs and the libraries they are made of. None may link
+# a target defined under sim/; tests/linkmap checks the generated link commands as well.
+set(FB_PRODUCT_TARGETS facebooth faceboothd fb_daemon fb_cli fb_camera fb_storage fb_export
+  fb_session_store)
+
+function(fb_check_product_links)
+  foreach(product IN LISTS FB_PRODUCT_TARGETS)
+    if(NOT TARGET ${product})
+      continue()
+    endif()
+    fb_link_closure(${product} closure)
+    foreach(t IN LISTS closure)
+      get_target_property(imported ${t} IMPORTED)
+      if(imported)
+        continue()
+      endif()
+      get_target_property(dir ${t} SOURCE_DIR)
+      if(dir MATCHES "^${PROJECT_SOURCE_DIR}/sim(/|$)")
+        message(FATAL_ERROR "${product} links ${t} from ${dir}: the product must link nothing "
+          "from sim/ (the laboratory). Reach lab code through a camera module "
+          "(drivers/camera/camera_plugin.hpp) or move the command to facebooth-lab (sim/lab).")
+      endif()
+    endforeach()
+  endforeach()
+  message(STATUS "facebooth: link check passed: ${FB_PRODUCT_TARGETS} link nothing from sim/")
+endfunction()

@@ -1,0 +1,25 @@
+// Camera controls, as libcamera has them: named values an application sets on a camera instead
+// of editing its URI. A backend lists the controls it accepts (CameraBackend::controls); they
+// are applied when the camera is opened (open_camera(uri, controls)) and override what the URI
+// says. The synthetic camera (sim/camera) takes `expression`, `motion` and `frames`, which is how
+// faceboothd asks it for a take of the guide's expression.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fb {
+
+struct CameraControl {
+  std::string name;   // e.g. "expression"
+  std::string value;  // e.g. "jawOpen:0.6+mouthSmile_L"
+};
+using CameraControls = std::vector<CameraControl>;
+
+// Control names of the synthetic camera (sim/camera/synthetic_camera.hpp documents the values).
+inline constexpr std::string_view kControlExpression = "expression";  // `expr=` syntax
+inline constexpr std::string_view kControlMotion = "motion";          // headturn | static
+inline constexpr std::string_view kControlFrames = "frames";          // take length
+
+}  // namespace fb

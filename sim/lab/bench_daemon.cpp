@@ -1,0 +1,439 @@
+// facebooth bench daemon: starts a real faceboothd (synthetic camera, simulated buttons), measures
+// start-to-ready and resident memory, then runs a session while a second process hammers the
+// HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on stdout,
+// progress on stderr.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "algo/core/clock.hpp"
+#include "algo/core/result.hpp"
+#include "sim/lab/lab_commands.hpp"
+
+// httplib last: its <resolv.h> defines `_res`, which breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace fb::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+fs::path find_daemon(const std::string& given) {
+  if (!given.empty()) return given;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  // Build tree: build/host/cli/facebooth -> build/firmware/daemon/faceboothd; installed: bin/.
+  for (const fs::path& p : {self.parent_path() / "../../firmware/daemon/faceboothd",
+                            self.parent_path() / "faceboothd", fs::path("/usr/bin/faceboothd")})
+    if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
+  return {};
+}
+
+// Binds `fd` to a free loopback port; returns the port, or -1.
+int bind_loopback(int fd) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  if (fd >= 0 && ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+    return ntohs(a.sin_port);
+  return -1;
+}
+
+int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int port = bind_loopback(fd);
+  if (fd >= 0) ::close(fd);
+  return port;
+}
+
+double rss_mb(pid_t pid, const char* field) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(field, 0) == 0) return std::stod(line.substr(std::strlen(field))) / 1024.0;
+  return 0;
+}
+
+// A child process that is killed and reaped when this goes out of scope.
+class Child {
+ public:
+  explicit Child(pid_t pid = -1) : pid_(pid) {}
+  ~Child() { kill(SIGKILL); }
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+  pid_t pid() const { return pid_; }
+  // Sends `sig` and waits for the exit; returns the exit status (-1 if none).
+  int kill(int sig) {
+    if (pid_ <= 0) return -1;
+    ::kill(pid_, sig);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return status;
+  }
+
+ private:
+  pid_t pid_;
+};
+
+// The load generator: a second process with `threads` keep-alive clients requesting status,
+// sessions and the preview picture until killed. Writes its request count to `count_file`.
+[[noreturn]] void run_load(int port, int threads, const fs::path& count_file) {
+  std::atomic<long long> requests{0};
+  std::vector<std::thread> workers;
+  for (int t = 0; t < threads; ++t)
+    workers.emplace_back([&, t] {
+      httplib::Client c("127.0.0.1", port);
+      c.set_keep_alive(true);
+      const char* paths[] = {"/api/status", "/api/sessions", "/api/preview.bmp", "/"};
+      for (long long i = t;; ++i) {
+        if (c.Get(paths[i % 4])) ++requests;
+        if (i % 200 == 0) std::ofstream(count_file) << requests.load();
+      }
+    });
+  for (auto& w : workers) w.join();
+  std::_Exit(0);
+}
+
+// Tracking mode after the session: the daemon tracks the session's subject and streams VMC to
+// a UDP socket here on loopback.
+struct TrackingRun {
+  double seconds = 0;
+  long long frames = 0, datagrams_sent = 0, datagrams_received = 0, detections = 0;
+  double latency_median_ms = 0, latency_p95_ms = 0, track_ms_median = 0, rss_peak = 0;
+  std::string state, identity, reacquire;
+};
+
+struct SessionRun {
+  double start_to_ready_ms = 0, daemon_ready_ms = 0, landmark_load_ms = 0;
+  double rss_idle = 0, rss_peak = 0, rss_end = 0;
+  long long frames_dropped = 0, frames_total = 0, captures = 0, load_requests = 0;
+  double session_s = 0, export_wait_ms = 0, stop_ms = 0;
+  bool clean_exit = false;
+  std::optional<TrackingRun> tracking;
+};
+
+// A UDP socket on a free loopback port that counts the datagrams it receives.
+class UdpCounter {
+ public:
+  UdpCounter() {
+    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+    port_ = bind_loopback(fd_);
+    if (port_ > 0) {
+      // A receive timeout, so the reader sees stop_ without relying on shutdown() waking it.
+      timeval timeout{0, 200000};
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+      reader_ = std::thread([this] {
+        char buffer[2048];
+        while (!stop_)
+          if (::recv(fd_, buffer, sizeof buffer, 0) > 0) ++received_;
+      });
+    }
+  }
+  ~UdpCounter() {
+    stop_ = true;
+    if (fd_ >= 0) ::shutdown(fd_, SHUT_RDWR);
+    if (reader_.joinable()) reader_.join();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  UdpCounter(const UdpCounter&) = delete;
+  UdpCounter& operator=(const UdpCounter&) = delete;
+  int port() const { return port_; }
+  long long received() const { return received_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = -1;
+  std::atomic<bool> stop_{false};
+  std::atomic<long long> received_{0};
+  std::thread reader_;
+};
+
+// One daemon from start to SIGTERM: a session of the configured captures, with `load_threads`
+// HTTP clients in a second process (0 = no load). SIGTERM is sent once the session's end-of-
+// session export has been written (stop_ms: the stop of a daemon at rest), or with
+// `stop_during_export` as soon as the session is complete, while that export runs.
+Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& dir, int port,
+                                      int load_threads, bool stop_during_export,
+                                      int track_seconds = 0, const UdpCounter* vmc = nullptr) {
+  SessionRun out;
+  fs::remove_all(dir / "data");
+  const auto t0 = Clock::now();
+  const pid_t pid = ::fork();
+  if (pid < 0) return fail("fork failed");
+  if (pid == 0) {
+    const std::string log = (dir / "faceboothd.log").string();
+    std::freopen(log.c_str(), "w", stderr);
+    ::execl(daemon.c_str(), daemon.c_str(), "--config", (dir / "faceboothd.toml").c_str(), nullptr);
+    std::_Exit(127);
+  }
+  Child daemon_proc(pid);
+  httplib::Client http("127.0.0.1", port);
+  http.set_read_timeout(10, 0);
+  auto status = [&]() -> json {
+    auto r = http.Get("/api/status");
+    return r && r->status == 200 ? json::parse(r->body, nullptr, false) : json();
+  };
+  out.start_to_ready_ms = -1;
+  for (int i = 0; i < 3000; ++i) {
+    auto s = status();
+    if (!s.is_null() && s.value("ready", false)) {
+      out.start_to_ready_ms = ms_since(t0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  if (out.start_to_ready_ms < 0)
+    return fail("faceboothd never became ready; see " + (dir / "faceboothd.log").string());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  out.rss_idle = rss_mb(pid, "VmRSS:");
+  // The daemon loads the landmark model before it reports ready; say so only if it did.
+  const json ready_status = status();
+  out.landmark_load_ms =
+      ready_status.is_null() ? 0.0 : ready_status["stages"].value("landmark_model_load_ms", 0.0);
+
+  std::cerr << "bench daemon: ready in " << out.start_to_ready_ms << " ms; "
+            << (load_threads > 0 ? "loading the API with " + std::to_string(load_threads) +
+                                       " clients while running the session"
+                                 : std::string("running the session without HTTP load"))
+            << "\n";
+  pid_t load_pid = -1;
+  if (load_threads > 0) {
+    load_pid = ::fork();
+    if (load_pid == 0) run_load(port, load_threads, dir / "load-count");
+  }
+  Child load(load_pid);
+  const auto session_t0 = Clock::now();
+  http.Post("/api/session/start", R"({"subject": "bench"})", "application/json");
+  std::string acted;
+  json last;
+  while (true) {
+    last = status();
+    if (last.is_null()) return fail("faceboothd stopped answering");
+    const std::string state = last["state"];
+    const std::string key = state + std::to_string(last["capture_index"].get<int>()) +
+                            std::to_string(last["attempts"].get<int>());
+    if (state == "error") return fail("faceboothd: " + last.value("error", "?"));
+    if (state == "complete") break;
+    if ((state == "guide" || state == "retry") && key != acted) {
+      if (state == "retry" && last["attempts"].get<int>() >= 3)
+        return fail("a capture failed QA three times");
+      http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
+      acted = key;
+    }
+    if (ms_since(session_t0) > 600000) return fail("session took over 10 minutes");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  out.session_s = ms_since(session_t0) / 1000.0;
+  // "complete" is published before the session's export folder is written.
+  const auto export_t0 = Clock::now();
+  while (!stop_during_export && !last.contains("last_export") && ms_since(export_t0) < 60000) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    last = status();
+    if (last.is_null()) return fail("faceboothd stopped answering");
+  }
+  out.export_wait_ms = ms_since(export_t0);
+  out.rss_peak = rss_mb(pid, "VmHWM:");
+  out.rss_end = rss_mb(pid, "VmRSS:");
+  if (load_threads > 0) {
+    load.kill(SIGKILL);
+    std::ifstream(dir / "load-count") >> out.load_requests;
+  }
+  out.frames_dropped = last["frames_dropped"];
+  out.frames_total = last["frames_total"];
+  out.captures = last["done_count"];
+  out.daemon_ready_ms = last.value("start_to_ready_ms", 0.0);
+
+  if (track_seconds > 0 && vmc != nullptr) {
+    std::cerr << "bench daemon: tracking mode for " << track_seconds << " s\n";
+    TrackingRun t;
+    const long long received_before = vmc->received();
+    http.Post("/api/mode", R"({"mode": "tracking"})", "application/json");
+    const auto track_t0 = Clock::now();
+    std::this_thread::sleep_for(std::chrono::seconds(track_seconds));
+    const json s = status();
+    if (s.is_null()) return fail("faceboothd stopped answering in tracking mode");
+    const json& tr = s["tracking"];
+    t.seconds = ms_since(track_t0) / 1000.0;
+    t.frames = tr.value("frames", 0LL);
+    t.datagrams_sent = tr.value("vmc_datagrams", 0LL);
+    t.latency_median_ms = tr["latency_ms"].value("median", 0.0);
+    t.latency_p95_ms = tr["latency_ms"].value("p95", 0.0);
+    t.track_ms_median = tr.value("track_ms_median", 0.0);
+    t.state = tr.value("state", "");
+    t.identity = tr.value("identity", "");
+    t.reacquire = tr.value("reacquire", "");
+    t.detections = tr.value("detections", 0LL);
+    t.rss_peak = rss_mb(pid, "VmHWM:");
+    http.Post("/api/mode", R"({"mode": "capture"})", "application/json");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    t.datagrams_received = vmc->received() - received_before;
+    out.tracking = t;
+  }
+
+  const auto stop_t0 = Clock::now();
+  const int exit_status = daemon_proc.kill(SIGTERM);
+  out.stop_ms = ms_since(stop_t0);
+  out.clean_exit = WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0;
+  return out;
+}
+
+int bench_daemon(const ParsedOptions& o) {
+  const fs::path daemon = find_daemon(o.get("daemon"));
+  if (daemon.empty())
+    return report_failure({"faceboothd not found next to facebooth or in /usr/bin; pass --daemon"});
+  auto captures = o.get_int("captures");
+  auto frames = o.get_int("frames");
+  auto threads = o.get_int("load-threads");
+  auto track_seconds = o.get_int("track-seconds");
+  if (!captures || !frames || !threads || !track_seconds)
+    return report_failure({"bad numeric option"});
+  if (*track_seconds < 0 || *track_seconds > 600)
+    return report_failure({"--track-seconds must be 0..600"});
+  if (*captures < 1 || *captures > 20) return report_failure({"--captures must be 1..20"});
+  if (*threads < 1) return report_failure({"--load-threads must be at least 1"});
+
+  const fs::path dir =
+      fs::temp_directory_path() / ("facebooth-bench-daemon-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  struct Cleanup {
+    fs::path dir;
+    ~Cleanup() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  } cleanup{dir};
+
+  // The first N guide expressions keep the bench short; takes are real time (paced at 30 fps).
+  {
+    std::ifstream in(fs::path(FB_DATA_DIR) / "guide_expressions.json");
+    json guide = json::parse(in, nullptr, false);
+    if (guide.is_discarded()) return report_failure({"cannot read data/guide_expressions.json"});
+    guide["expressions"] = json(
+        std::vector<json>(guide["expressions"].begin(), guide["expressions"].begin() + *captures));
+    std::ofstream(dir / "guide.json") << guide.dump();
+  }
+  const int port = free_port();
+  UdpCounter vmc;
+  if (vmc.port() <= 0) return report_failure({"cannot open a UDP socket on loopback"});
+  std::ofstream(dir / "faceboothd.toml")
+      << "[camera]\nuri = \"synthetic:seed=7\"\ncapture_frames = " << *frames
+      << "\nrealtime = true\npreview_fps = 5.0\n[storage]\ndata_dir = \"" << (dir / "data").string()
+      << "\"\n[http]\nport = " << port << "\n[session]\nguide_file = \""
+      << (dir / "guide.json").string() << "\"\n[streaming]\nvmc_target = \"127.0.0.1:" << vmc.port()
+      << "\"\n";
+
+  // The same session twice: without load (the frames the frame loop drops by itself on this
+  // machine: the synthetic camera renders on that thread; SIGTERM while the end-of-session
+  // export runs) and under load (the figures; SIGTERM at rest).
+  std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (no load)\n";
+  auto quiet = run_daemon_session(daemon, dir, port, 0, /*stop_during_export=*/true);
+  if (!quiet) return report_failure(quiet.error());
+  std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (under load)\n";
+  auto loaded = run_daemon_session(daemon, dir, port, static_cast<int>(*threads), false,
+                                   static_cast<int>(*track_seconds), &vmc);
+  if (!loaded) return report_failure(loaded.error());
+  const SessionRun& r = *loaded;
+
+  json out = {{"start_to_ready_ms", r.start_to_ready_ms},
+              {"daemon_reported_ready_ms", r.daemon_ready_ms},
+              // Peak resident memory over start-up and the session (VmHWM), landmark model
+              // and face model loaded: what the 256 MB budget is about.
+              {"rss_mb", r.rss_peak},
+              {"rss_peak_mb", r.rss_peak},
+              {"rss_peak_mb_without_load", quiet->rss_peak},
+              {"rss_idle_mb", r.rss_idle},
+              {"rss_end_mb", r.rss_end},
+              {"rss_budget_mb", 256},
+              {"landmark_model_loaded", r.landmark_load_ms > 0},
+              {"landmark_model_load_ms", r.landmark_load_ms},
+              {"frames_dropped_under_load", r.frames_dropped},
+              {"frames_total", r.frames_total},
+              {"frames_dropped_without_load", quiet->frames_dropped},
+              {"frames_total_without_load", quiet->frames_total},
+              {"frames_dropped_note",
+               "a take is paced at the camera's 30 fps; a frame is dropped when the frame loop "
+               "(synthetic rendering of the frame + fusion, one thread) falls a period behind. "
+               "The load's own effect is the difference to the run without load"},
+              {"captures", r.captures},
+              {"frames_per_capture", *frames},
+              {"session_s", r.session_s},
+              {"session_s_without_load", quiet->session_s},
+              {"export_wait_ms", r.export_wait_ms},
+              {"load_clients", *threads},
+              {"load_requests", r.load_requests},
+              {"load_requests_per_s", r.load_requests / r.session_s},
+              {"stop_ms", r.stop_ms},
+              {"stop_ms_during_export", quiet->stop_ms},
+              {"clean_exit", r.clean_exit && quiet->clean_exit}};
+  if (r.tracking) {
+    const TrackingRun& t = *r.tracking;
+    out["tracking"] = {
+        {"seconds", t.seconds},
+        {"frames", t.frames},
+        {"fps", t.seconds > 0 ? t.frames / t.seconds : 0.0},
+        {"state", t.state},
+        {"identity", t.identity},
+        {"reacquire", t.reacquire},
+        {"detections", t.detections},
+        {"latency_ms_median", t.latency_median_ms},
+        {"latency_ms_p95", t.latency_p95_ms},
+        {"track_ms_median", t.track_ms_median},
+        {"vmc_datagrams_sent", t.datagrams_sent},
+        {"vmc_datagrams_received", t.datagrams_received},
+        {"rss_peak_mb", t.rss_peak},
+        {"note",
+         "the daemon's tracking mode on the session's subject, depth only, VMC to a UDP socket "
+         "on loopback; latency: from the frame leaving the camera driver (the synthetic camera "
+         "renders it on the frame loop first) to its VMC datagrams sent, median and p95 over "
+         "the last 300 frames; track_ms: the tracker's own share"}};
+  }
+  std::cout << out.dump(2) << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+std::vector<Command> daemon_bench_commands() {
+  return {{{"bench daemon",
+            "faceboothd start-to-ready, memory, frames dropped under HTTP load, tracking latency",
+            "Starts faceboothd (synthetic camera, simulated buttons, real-time takes) in a scratch "
+            "directory, runs a session through its HTTP API while a second process loads the API "
+            "from several keep-alive clients, then stops it with SIGTERM. rss_mb is the peak "
+            "resident memory (VmHWM) with the dlib landmark model and the face model loaded, "
+            "takes fused, landmarked, fitted and stored (budget 256 MB); rss_idle_mb is after "
+            "start-up, rss_end_mb after the session. The session runs twice, first without "
+            "load: frames_dropped_without_load is what the frame loop drops by itself. Then "
+            "(--track-seconds) the daemon tracks the session's subject in tracking mode, "
+            "streaming VMC to a UDP socket of this process: tracking.latency_ms_median / _p95 "
+            "from the frame leaving the camera driver to its datagrams sent, the datagrams "
+            "received, the peak memory while tracking.",
+            {{"json", "", "print the JSON result (always on; for symmetry with other benches)", ""},
+             {"daemon", "PATH", "the faceboothd binary", ""},
+             {"captures", "N", "guide expressions to capture (1-20)", "5"},
+             {"frames", "N", "frames per take (90 = 3 s at 30 fps)", "90"},
+             {"load-threads", "N", "concurrent HTTP clients of the load process", "4"},
+             {"track-seconds", "N",
+              "then track the session's subject in tracking mode for N s (0 = skip)", "15"}}},
+           &bench_daemon}};
+}
+
+}  // namespace fb::cli

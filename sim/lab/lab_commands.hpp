@@ -1,0 +1,22 @@
+// The command groups of facebooth-lab (sim/lab/main.cpp): every eval and bench command. They
+// score the product's algorithms against the laboratory's ground truth (sim/) and time them.
+#pragma once
+
+#include <vector>
+
+#include "host/cli/commands.hpp"
+
+namespace fb::cli {
+
+std::vector<Command> bench_camera_commands();           // bench camera
+std::vector<Command> fusion_commands();                 // eval fusion, bench fusion
+std::vector<Command> fit_commands();                    // eval fit, bench fit
+Command eval_track_command();                           // track_eval.cpp
+Command bench_track_command();                          // track_bench.cpp
+std::vector<Command> storage_eval_commands();           // eval storage
+std::vector<Command> daemon_bench_commands();           // bench daemon
+std::vector<Command> rig_eval_commands();               // eval rig, eval model, bench rig
+std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration
+std::vector<Command> calibration_eval_commands();       // eval calibration
+
+}  // namespace fb::cli

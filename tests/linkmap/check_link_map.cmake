@@ -1,0 +1,21 @@
+# cmake -DBUILD_FILE=build.ninja -DTARGETS=a;b -P check_link_map.cmake
+# Finds each target's link statement in build.ninja and fails if any input is under sim/ (an
+# object of a sim/ target or a library built there, e.g. sim/libfb_sim_camera.a).
+file(STRINGS "${BUILD_FILE}" lines REGEX "^build ")
+set(checked 0)
+foreach(target IN LISTS TARGETS)
+  set(found FALSE)
+  foreach(line IN LISTS lines)
+    if(line MATCHES "^build ${target}: CXX_EXECUTABLE_LINKER__")
+      set(found TRUE)
+      math(EXPR checked "${checked} + 1")
+      if(line MATCHES "(^| )sim/" OR line MATCHES "CMakeFiles/fb_sim_" OR line MATCHES "libfb_sim_")
+        message(FATAL_ERROR "${target} links the laboratory: ${line}")
+      endif()
+    endif()
+  endforeach()
+  if(NOT found)
+    message(FATAL_ERROR "no link statement for ${target} in ${BUILD_FILE}")
+  endif()
+endforeach()
+message(STATUS "checked ${checked} link statements: nothing from sim/")

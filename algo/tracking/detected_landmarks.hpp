@@ -23,7 +23,7 @@
 
 namespace fb {
 
-// dlib's error per image axis, px rms over the interior points: `facebooth eval track --landmarks
+// dlib's error per image axis, px rms over the interior points: `facebooth-lab eval track --landmarks
 // dlib` measures 2.52 on the synthetic colour render (dlib_landmark_error_px, 5 seeds). The
 // tracker weighs its points by it (TrackLandmarks::noise_px) against the 1.5 px its landmark
 // weights are set for.

@@ -1,7 +1,7 @@
 // The tracker's options, one group per room (depth smoother, subject rig, rigid ICP, occlusion
 // mask, weight solver, loss test, calibrator, acquisition). Comments say why an option exists;
 // the figures that chose each value are in docs/tuning.md. The names are the `--set KEY=V`
-// keys of `eval track` / `bench track` (host/cli/take_runner.cpp).
+// keys of `eval track` / `bench track` (sim/scoring/take_runner.cpp).
 #pragma once
 
 #include "algo/tracking/pose_filter.hpp"

@@ -1,5 +1,5 @@
 // facebooth-bench-open3d FRAMES_FILE: Open3D 0.16's CPU TSDF pipeline on the same frames and face
-// box as `facebooth bench fusion`, timed per stage. One JSON object on stdout.
+// box as `facebooth-lab bench fusion`, timed per stage. One JSON object on stdout.
 //
 // Per frame (as Open3D's own t::pipelines::slam::Model does it): point-to-plane odometry of the
 // frame against the model ray-cast at the previous pose (3 scales, 10/5/3 iterations),
@@ -62,7 +62,7 @@ struct Header {
 
 int main(int argc, char** argv) {
   if (argc != 2) {
-    std::cerr << "usage: facebooth-bench-open3d FRAMES_FILE  (written by `facebooth bench "
+    std::cerr << "usage: facebooth-bench-open3d FRAMES_FILE  (written by `facebooth-lab bench "
                  "fusion`)\n";
     return 2;
   }

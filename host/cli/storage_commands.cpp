@@ -376,9 +376,6 @@ int run_store_info(const ParsedOptions& options) {
   return kExitOk;
 }
 
-// ---------------------------------------------------------------------------------------------
-// facebooth eval storage
-
 }  // namespace
 
 std::vector<Command> storage_commands() {

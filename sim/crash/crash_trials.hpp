@@ -1,7 +1,7 @@
 // Crash trials for the session store: a forked child writes captures in a loop and is killed
 // with SIGKILL at random moments; after every kill the parent reopens the store and checks that
 // it is intact, that every committed capture is complete and that the session resumes where it
-// stopped. Used by the storage tests and by `facebooth eval storage`.
+// stopped. Used by the storage tests and by `facebooth-lab eval storage`.
 #pragma once
 
 #include <cstdint>

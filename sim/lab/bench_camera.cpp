@@ -1,4 +1,4 @@
-// facebooth bench camera: frames per second of the synthetic and replay backends.
+// facebooth-lab bench camera: frames per second of the synthetic and replay backends.
 // One JSON object on stdout, human-readable progress on stderr (the contract every
 // `bench`/`eval` command follows).
 #include <chrono>

@@ -1,4 +1,4 @@
-// facebooth bench daemon: starts a real faceboothd (synthetic camera, simulated buttons), measures
+// facebooth-lab bench daemon: starts a real faceboothd (synthetic camera, simulated buttons), measures
 // start-to-ready and resident memory, then runs a session while a second process hammers the
 // HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on stdout,
 // progress on stderr.

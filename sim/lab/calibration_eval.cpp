@@ -1,4 +1,4 @@
-// facebooth eval calibration: per-unit calibration scored against the truth of seeded
+// facebooth-lab eval calibration: per-unit calibration scored against the truth of seeded
 // decalibrated synthetic units (unit seeds 1..N, random_unit_correction). One JSON object on
 // stdout, progress on stderr. Each part (the checkerboard path, then self-calibration) fills its
 // own fields of the same object. Figures: docs/calibration.md.

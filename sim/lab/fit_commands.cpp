@@ -135,7 +135,7 @@ Result<void> write_png(const std::filesystem::path& path, const cv::Mat& image) 
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth eval fit
+// facebooth-lab eval fit
 
 Result<std::vector<int>> parse_expression_list(const std::string& text, const GuideSet& guide) {
   std::vector<int> out;
@@ -658,7 +658,7 @@ int run_eval_fit(const ParsedOptions& options) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth bench fit
+// facebooth-lab bench fit
 
 int run_bench_fit(const ParsedOptions& options) {
   auto seed = options.get_int("seed");

@@ -1,4 +1,4 @@
-// facebooth eval fusion | bench fusion: the face-box KinectFusion (algo/fusion) scored against
+// facebooth-lab eval fusion | bench fusion: the face-box KinectFusion (algo/fusion) scored against
 // the synthetic camera's ground truth, run on the real dump, and timed against Open3D on the same
 // frames. One JSON object on stdout, progress on stderr.
 #include <sys/resource.h>
@@ -516,7 +516,7 @@ Result<std::filesystem::path> dump_directory(const std::filesystem::path& source
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth eval fusion
+// facebooth-lab eval fusion
 
 std::string synthetic_uri(const std::string& base, int seed, long long frames) {
   std::string uri = base.empty() ? "synthetic:motion=headturn" : base;
@@ -753,7 +753,7 @@ int run_eval_fusion(const ParsedOptions& options) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth bench fusion
+// facebooth-lab bench fusion
 
 struct Timing {
   StageTimes cpu;   // mean per timed frame, calling thread's CPU time

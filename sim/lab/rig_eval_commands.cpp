@@ -41,7 +41,7 @@ namespace fb::cli {
 namespace {
 
 // ---------------------------------------------------------------------------------------------
-// facebooth eval rig
+// facebooth-lab eval rig
 
 // A synthetic subject's true personal rig (eval rig --truth): its neutral face(identity) and
 // expression shapes, amplitude_j * basis_j, where basis is the model's generic deltas (linear,
@@ -349,7 +349,7 @@ int run_eval_rig(const ParsedOptions& options) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth eval model
+// facebooth-lab eval model
 
 struct KnobCell {
   int id_knobs = 0, exp_knobs = 0;
@@ -673,7 +673,7 @@ int run_eval_model(const ParsedOptions& options) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// facebooth bench rig
+// facebooth-lab bench rig
 
 int run_bench_rig(const ParsedOptions& options) {
   auto seed = options.get_int("seed");

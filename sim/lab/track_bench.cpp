@@ -1,4 +1,4 @@
-// facebooth bench track: the tracker's per-frame cost on one core (ICP + weight solve, depth
+// facebooth-lab bench track: the tracker's per-frame cost on one core (ICP + weight solve, depth
 // only, with landmark rows, and with dlib detection on the colour image) and the latency from
 // frame arrival to the VMC datagrams leaving through a real loopback UDP socket. The take is
 // rendered up front (synthetic_take.hpp). One JSON object on stdout, progress on stderr.

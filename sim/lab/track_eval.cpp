@@ -1,4 +1,4 @@
-// facebooth eval track: the real-time tracker (algo/tracking) scored against the ground truth
+// facebooth-lab eval track: the real-time tracker (algo/tracking) scored against the ground truth
 // of synthetic takes (synthetic_take.hpp): blendshape weights and head pose with landmarks and
 // depth only, the same takes with the true identity loaded, and occluder takes whose plate
 // passes in front of the face, each against a plate-free control. Landmarks come from the

@@ -1,6 +1,6 @@
 // Face fitting against rendered ground truth: the model with a known identity, expression and
 // pose is rasterised into a depth map (noise-free, so the tests are fast and deterministic; the
-// sensor + fusion path is scored by `facebooth eval fit`), with exact landmarks.
+// sensor + fusion path is scored by `facebooth-lab eval fit`), with exact landmarks.
 #include <gtest/gtest.h>
 
 #include <random>

@@ -122,7 +122,7 @@ SequenceStats run_head_turn(unsigned seed, int frames, bool noise = true,
 TEST(Fusion, HeadTurnPoseAndDepthAccuracy) {
   // The ellipsoid head has far fewer features than a face (rotation about the skull centre is
   // weakly constrained), so its camera-centre error is looser than the 1 mm, which
-  // `facebooth eval fusion` measures on the face model.
+  // `facebooth-lab eval fusion` measures on the face model.
   for (unsigned seed : {1u, 2u}) {
     const SequenceStats s = run_head_turn(seed, 90);
     EXPECT_EQ(s.lost, 0);

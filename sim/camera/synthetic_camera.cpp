@@ -207,24 +207,29 @@ Result<std::vector<float>> parse_expression_spec(std::string_view spec, const Fa
   return weights;
 }
 
-Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
-                                                 const FaceModel& model,
-                                                 const CameraControls& controls) {
-  auto values = parse_key_values(arguments);
-  if (!values) {
-    return fail("synthetic: " + values.error().message + "; " + std::string(kAccepted));
-  }
-  // Controls override the URI's keys of the same meaning (camera_controls.hpp).
+// Controls override the URI's keys of the same meaning (camera_controls.hpp).
+Result<void> apply_controls(const CameraControls& controls,
+                            std::map<std::string, std::string>& values) {
   for (const auto& control : controls) {
     if (control.name == kControlExpression) {
-      (*values)["expr"] = control.value;
+      values["expr"] = control.value;
     } else if (control.name == kControlMotion || control.name == kControlFrames) {
-      (*values)[control.name] = control.value;
+      values[control.name] = control.value;
     } else {
       return fail("synthetic: unknown control '" + control.name + "'; expected " +
                   std::string(kSyntheticControls));
     }
   }
+  return success();
+}
+
+Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments, const FaceModel& model,
+                                                 const CameraControls& controls) {
+  auto values = parse_key_values(arguments);
+  if (!values) {
+    return fail("synthetic: " + values.error().message + "; " + std::string(kAccepted));
+  }
+  if (auto ok = apply_controls(controls, *values); !ok) return ok.failure();
   SyntheticOptions options;
   bool random_identity = true;
   bool expressive = false;
@@ -993,7 +998,9 @@ std::vector<CameraListing> list_synthetic() {
 }  // namespace
 
 CameraBackend synthetic_camera_backend() {
-  return {"synthetic", &open_synthetic, &list_synthetic,
+  return {"synthetic",
+          &open_synthetic,
+          &list_synthetic,
           "synthetic:[seed=N,expr=NAME[:W]+...,motion=headturn|static,frames=N,distance=MM,"
           "noise=on|off,background=MM|off,identity=random|neutral,unit=SEED,reg_dx=PX,reg_dy=PX,"
           "reg_rot=DEG,depth_scale=S,calibrated=0|1,world=realistic|identity|texture|hair|clutter|"
@@ -1002,7 +1009,8 @@ CameraBackend synthetic_camera_backend() {
           "hand_pass=on|off|START,offset_x=PX,offset_y=PX,block_noise=RAW,block_px=N,speckle=RATE]"
           "  rendered face with ground truth; synthetic:target=checkerboard,board=9x6:25mm[,...]"
           "  a calibration board",
-          kSyntheticControls, &open_synthetic_with_controls};
+          kSyntheticControls,
+          &open_synthetic_with_controls};
 }
 
 }  // namespace fb

@@ -1,5 +1,6 @@
-// facebooth-lab eval rig | eval model | bench rig: the rigging (algo/rigging) and the bilinear
-// model (algo/bilinear) scored on synthetic subjects with known personal rigs
+// facebooth-lab eval rig | eval model: the rigging (algo/rigging) and the bilinear
+// model (algo/bilinear) scored on synthetic subjects with known personal rigs; bench rig is in
+// rig_bench.cpp
 // (algo/rigging, FaceWarehouse 3.2.3) and the bilinear model (algo/bilinear, 3.3 and 4.1-4.4).
 // JSON on stdout, progress on stderr.
 #include <algorithm>
@@ -9,12 +10,10 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <numeric>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
-#include <sstream>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -34,8 +33,6 @@
 #include "sim/subject/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
-#include "storage/export/facewarehouse.hpp"
-#include "storage/session_store.hpp"
 
 namespace fb::cli {
 namespace {
@@ -672,72 +669,6 @@ int run_eval_model(const ParsedOptions& options) {
   return kExitOk;
 }
 
-// ---------------------------------------------------------------------------------------------
-// facebooth-lab bench rig
-
-int run_bench_rig(const ParsedOptions& options) {
-  auto seed = options.get_int("seed");
-  auto repeats = options.get_int("repeats");
-  auto identities = options.get_int("identities");
-  if (!seed || !repeats || *repeats < 1 || !identities || *identities < 2)
-    return report_failure({"--seed N, --repeats >= 1, --identities >= 2"});
-  auto model = load_face_model();
-  if (!model) return report_failure(model.error());
-  auto guide = load_guide(*model, options.get("guide"));
-  if (!guide) return report_failure(guide.error());
-  RigOptions ro;
-  ro.weight_vertices = model->fitting_vertices;
-  const auto identity = identity_draw(static_cast<std::uint64_t>(*seed), model->identity_count);
-  std::vector<std::vector<float>> generic, examples, weights;
-  RigInput input = generic_rig_input(*model, generic);
-  for (const auto& ge : guide->expressions) {
-    auto w = guide_weights(ge, *model);
-    if (!w) return report_failure(w.error());
-    w->resize(static_cast<std::size_t>(model->fitting_expression_count));
-    examples.push_back(face(*model, identity, *w));
-    weights.push_back(*w);
-  }
-  for (const auto& e : examples) input.examples.emplace_back(e);
-  input.example_weights = weights;
-  Samples rig_s, build_s, serialize_s, parse_s;
-  for (long long r = 0; r < *repeats; ++r) {
-    std::cerr << "bench rig: repeat " << r + 1 << "/" << *repeats << "\n";
-    const auto t0 = Clock::now();
-    auto rig = rig_subject(input, ro);
-    if (!rig) return report_failure(rig.error());
-    rig_s.add(seconds_since(t0));
-    auto built = build_from_face_model(*model, static_cast<int>(*identities), 1, 50, 25);
-    if (!built) return report_failure(built.error());
-    build_s.add(built->build_s);
-    const auto t1 = Clock::now();
-    const auto bytes = serialize_bilinear_model(built->model);
-    serialize_s.add(seconds_since(t1));
-    const auto t2 = Clock::now();
-    auto parsed = parse_bilinear_model(bytes);
-    if (!parsed) return report_failure(parsed.error());
-    parse_s.add(seconds_since(t2));
-  }
-  nlohmann::json out;
-  out["rig_s"] = rig_s.min();
-  out["model_build_s"] = build_s.min();
-  out["model_serialize_s"] = serialize_s.min();
-  out["model_parse_s"] = parse_s.min();
-  out["threads"] = ro.threads;
-  out["definition"] =
-      "best of --repeats, wall clock. rig_s: one subject, 20 examples, 53 blendshapes over "
-      "11248 vertices, " +
-      std::to_string(ro.rounds) + " rounds (" + std::to_string(ro.threads) +
-      " threads for the per-triangle solves). model_build_s: bootstrap tensor from the face model "
-      "(" +
-      std::to_string(*identities) +
-      " identities x 54 expressions, factored), N-mode SVD, "
-      "truncation to 50 x 25 and the dense core; serialisation and parsing are separate figures, "
-      "writing the file is not timed";
-  out["targets"] = {{"rig_s", 10}, {"model_build_s", 60}};
-  std::cout << out.dump(2) << std::endl;
-  return kExitOk;
-}
-
 }  // namespace
 
 std::vector<Command> rig_eval_commands() {
@@ -795,15 +726,6 @@ std::vector<Command> rig_eval_commands() {
          guide_opt,
          json_opt}},
        run_eval_model},
-      {{"bench rig",
-        "time rigging one subject and building the bootstrap model (JSON on stdout)",
-        "",
-        {{"seed", "N", "synthetic subject", "1"},
-         {"repeats", "N", "best of N", "3"},
-         {"identities", "N", "identities of the timed model build", "150"},
-         guide_opt,
-         json_opt}},
-       run_bench_rig},
   };
 }
 

@@ -1,7 +1,7 @@
-// facebooth-lab bench daemon: starts a real faceboothd (synthetic camera, simulated buttons), measures
-// start-to-ready and resident memory, then runs a session while a second process hammers the
-// HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on stdout,
-// progress on stderr.
+// facebooth-lab bench daemon: starts a real faceboothd (synthetic camera, simulated buttons),
+// measures start-to-ready and resident memory, then runs a session while a second process hammers
+// the HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on
+// stdout, progress on stderr.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -37,8 +37,8 @@ fs::path find_daemon(const std::string& given) {
   if (!given.empty()) return given;
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  // Build tree: build/host/cli/facebooth -> build/firmware/daemon/faceboothd; installed: bin/.
-  for (const fs::path& p : {self.parent_path() / "../../firmware/daemon/faceboothd",
+  // Build tree: build/sim/facebooth-lab -> build/firmware/daemon/faceboothd; installed: bin/.
+  for (const fs::path& p : {self.parent_path() / "../firmware/daemon/faceboothd",
                             self.parent_path() / "faceboothd", fs::path("/usr/bin/faceboothd")})
     if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
   return {};
@@ -298,7 +298,9 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
 int bench_daemon(const ParsedOptions& o) {
   const fs::path daemon = find_daemon(o.get("daemon"));
   if (daemon.empty())
-    return report_failure({"faceboothd not found next to facebooth or in /usr/bin; pass --daemon"});
+    return report_failure(
+        {"faceboothd not found in the build tree, next to facebooth-lab or in /usr/bin; pass "
+         "--daemon"});
   auto captures = o.get_int("captures");
   auto frames = o.get_int("frames");
   auto threads = o.get_int("load-threads");

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "algo/core/figure_text.hpp"
+#include "drivers/camera/common/device_json.hpp"
 #include "drivers/camera/synthetic/synthetic_camera.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
@@ -896,6 +897,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   pending_view.depth_mm = std::move(view.depth_mm);
   pending_view.normals = std::move(view.normals);
   consistency.confidence(pending_view.confidence);
+  commit.calibration_json = to_device_json(info.calibration);
   commit.qa_scores = {{"coverage", qa.coverage},
                       {"residual_mm", qa.residual_mm},
                       {"fused_fraction", qa.fused_fraction},

@@ -30,6 +30,8 @@ std::vector<Command> rig_commands();
 std::vector<Command> self_calibration_commands();
 std::vector<Command> camera_calibrate_commands();  // camera_calibrate.cpp
 std::vector<Command> calibration_eval_commands();  // calibration_eval.cpp
+std::vector<Command> texture_commands();           // texture_commands.cpp
+std::vector<Command> texture_eval_commands();      // texture_eval.cpp
 
 // Prints "facebooth: <message>" to stderr and returns kExitFailure.
 int report_failure(const Error& error);

@@ -19,7 +19,8 @@ std::vector<Command> all_commands() {
   for (auto group :
        {camera_commands(), bench_commands(), fusion_commands(), fit_commands(), tracking_commands(),
         storage_commands(), daemon_commands(), rig_commands(), self_calibration_commands(),
-        camera_calibrate_commands(), calibration_eval_commands()}) {
+        camera_calibrate_commands(), calibration_eval_commands(), texture_commands(),
+        texture_eval_commands()}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return commands;

@@ -266,8 +266,9 @@ Result<std::vector<SessionInfo>> SessionStore::sessions() const {
       sql::prepare(impl_->db.get(),
                    "SELECT s.id, s.subject_id, s.created_at, s.state, s.folder, "
                    "(SELECT count(*) FROM captures c WHERE c.session_id=s.id), "
-                   "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done') "
-                   "FROM sessions s ORDER BY s.id");
+                   "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done'), " +
+                       std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
+                       " FROM sessions s ORDER BY s.id");
   if (!stmt) return stmt.failure();
   std::vector<SessionInfo> out;
   for (;;) {
@@ -282,9 +283,20 @@ Result<std::vector<SessionInfo>> SessionStore::sessions() const {
     s.folder = impl_->root / stmt->text(4);
     s.capture_count = stmt->int32(5);
     s.done_count = stmt->int32(6);
+    s.calibration_json = stmt->text(7);
     out.push_back(std::move(s));
   }
   return out;
+}
+
+Result<void> SessionStore::set_session_calibration(SessionId session,
+                                                  const std::string& device_json) {
+  if (auto r = impl_->require_writer(); !r) return r.failure();
+  if (auto folder = impl_->session_folder(session); !folder) return folder.failure();
+  auto stmt = sql::prepare(impl_->db.get(), "UPDATE sessions SET calibration_json=? WHERE id=?");
+  if (!stmt) return stmt.failure();
+  stmt->bind_all(device_json, session);
+  return stmt->run();
 }
 
 // --- captures

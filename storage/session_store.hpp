@@ -28,7 +28,7 @@
 
 namespace fb {
 
-inline constexpr int kSessionStoreSchemaVersion = 3;
+inline constexpr int kSessionStoreSchemaVersion = 4;
 inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
 
 using SubjectId = std::int64_t;
@@ -37,6 +37,7 @@ using MeshId = std::int64_t;
 using RigId = std::int64_t;
 using ModelId = std::int64_t;
 using TakeId = std::int64_t;
+using TextureId = std::int64_t;
 
 enum class CaptureState {
   kPending,    // not started
@@ -83,6 +84,9 @@ struct SessionInfo {
   int capture_count = 0;
   int done_count = 0;
   std::filesystem::path folder;  // absolute path of the session's data folder
+  // The unit calibration its frames were taken with (device.json text); empty when the device
+  // did not record one (stores before schema v4): the host then assumes the defaults.
+  std::string calibration_json;
 };
 
 struct CaptureInfo {
@@ -122,6 +126,19 @@ struct CaptureData {
   DepthImage fused_depth;
   std::vector<Landmark> landmarks;  // the operator's correction when present, else automatic
   LandmarkSource landmark_source = LandmarkSource::kAutomatic;
+};
+
+// A texture atlas in the face model's UV layout (PNG): the session's subject texture
+// (capture_index empty) or one capture's expression texture.
+struct TextureInfo {
+  TextureId id = 0;
+  SessionId session = 0;
+  std::optional<int> capture_index;
+  int width = 0;
+  int height = 0;
+  std::string params_json;  // how it was built (views, coverage), free JSON
+  std::int64_t bytes = 0;
+  std::string created_at;
 };
 
 struct MeshInfo {
@@ -236,11 +253,21 @@ class SessionStore {
   Result<void> set_operator_landmarks(SessionId session, int index,
                                       const std::vector<Landmark>& landmarks);
 
+  // Records the unit calibration (device.json text) the session's frames are taken with.
+  Result<void> set_session_calibration(SessionId session, const std::string& device_json);
+
   // --- meshes, rigs, models, takes
   Result<MeshId> add_mesh(SessionId session, std::optional<int> capture_index, MeshRole role,
                           const std::string& name, const MeshData& mesh);
   Result<std::vector<MeshInfo>> meshes(SessionId session) const;
   Result<MeshData> read_mesh(MeshId id) const;
+
+  // Texture atlases (PNG bytes); textures() lists a session's oldest first.
+  Result<TextureId> add_texture(SessionId session, std::optional<int> capture_index, int width,
+                                int height, std::span<const std::uint8_t> png,
+                                const std::string& params_json);
+  Result<std::vector<TextureInfo>> textures(SessionId session) const;
+  Result<std::vector<std::uint8_t>> read_texture(TextureId id) const;
 
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first

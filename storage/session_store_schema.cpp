@@ -110,6 +110,22 @@ UPDATE takes SET time_source='last_column',
   shape_names_json=json_remove(shape_names_json, '$[#-1]')
   WHERE )sql" +
           std::string(kHostTimestampColumn) + ";",
+      // v4: the subject's texture atlases (per session, and per capture for FaceWarehouse's
+      // per-expression textures), and the unit calibration a session's frames were taken with
+      // (device.json text), which the host needs to map depth to colour.
+      R"sql(
+ALTER TABLE sessions ADD COLUMN calibration_json TEXT;
+CREATE TABLE textures(
+  id INTEGER PRIMARY KEY,
+  session_id INTEGER NOT NULL REFERENCES sessions(id),
+  capture_idx INTEGER,
+  width INTEGER NOT NULL CHECK(width > 0),
+  height INTEGER NOT NULL CHECK(height > 0),
+  params_json TEXT NOT NULL DEFAULT '{}',
+  file_id INTEGER NOT NULL REFERENCES files(id),
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
+CREATE INDEX textures_by_session ON textures(session_id);
+)sql",
   };
   return list;
 }

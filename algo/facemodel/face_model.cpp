@@ -646,6 +646,20 @@ Result<std::vector<std::byte>> serialize_face_model(const FaceModel& m) {
   return out;
 }
 
+int FaceModel::uv_tiles() const {
+  float max_u = 0.0f;
+  for (const std::uint32_t i : triangle_uvs)
+    if (2 * static_cast<std::size_t>(i) < uvs.size()) max_u = std::max(max_u, uvs[2 * i]);
+  return std::max(1, static_cast<int>(std::ceil(max_u - 1e-6f)));
+}
+
+std::vector<float> FaceModel::atlas_uvs() const {
+  std::vector<float> out = uvs;
+  const auto tiles = static_cast<float>(uv_tiles());
+  for (std::size_t i = 0; i < out.size(); i += 2) out[i] /= tiles;
+  return out;
+}
+
 int FaceModel::expression_index(std::string_view name) const {
   for (std::size_t j = 0; j < expression_names.size(); ++j) {
     if (expression_names[j] == name) return static_cast<int>(j);

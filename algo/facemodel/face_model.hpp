@@ -48,6 +48,12 @@ struct FaceModel {
   std::vector<std::uint32_t> triangle_uvs;
 
   int triangle_count() const { return static_cast<int>(triangles.size() / 3); }
+  // The UV layout spans `uv_tiles()` unit squares side by side (UDIM tiles 1001, 1002, ...:
+  // the source puts the face in the first and the back of the head in the second).
+  // atlas_uvs() maps them into one [0, 1] square, u divided by the tile count: the layout of a
+  // texture atlas uv_tiles() times as wide as high, which exports and textures share.
+  int uv_tiles() const;
+  std::vector<float> atlas_uvs() const;
   // Index of an expression by name, or -1.
   int expression_index(std::string_view name) const;
 

@@ -350,6 +350,30 @@ bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& 
   return color_x >= 0.0 && color_x < kWidth;
 }
 
+bool KinectRegistration::depth_to_color_interpolated(double x, double y, double mm,
+                                                     double& color_x, double& color_y) const {
+  if (!(mm > 0.0 && mm < 65535.0) || !(x > -1.0 && y > -1.0 && x < kWidth && y < kHeight))
+    return false;
+  const auto z = static_cast<std::uint16_t>(mm + 0.5);
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double fx = x - x0, fy = y - y0;
+  double sx = 0.0, sy = 0.0, weight = 0.0;
+  for (int dy = 0; dy <= 1; ++dy) {
+    for (int dx = 0; dx <= 1; ++dx) {
+      double cx = 0.0, cy = 0.0;
+      if (!depth_to_color(x0 + dx, y0 + dy, z, cx, cy)) continue;
+      const double w = (dx ? fx : 1.0 - fx) * (dy ? fy : 1.0 - fy) + 1e-9;
+      sx += w * cx;
+      sy += w * cy;
+      weight += w;
+    }
+  }
+  if (weight <= 0.0) return false;
+  color_x = sx / weight;
+  color_y = sy / weight;
+  return true;
+}
+
 bool KinectRegistration::rectified_position(int x, int y, double& color_x, double& color_y) const {
   if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) return false;
   const std::size_t index = static_cast<std::size_t>(y) * kWidth + x;

@@ -118,6 +118,10 @@ class KinectRegistration {
   // libfreenect's table); the colour pixel (floor(color_x), floor(color_y)) is the one
   // register_depth_to_color() writes.
   bool depth_to_color(int x, int y, std::uint16_t mm, double& color_x, double& color_y) const;
+  // depth_to_color() at a sub-pixel depth position: the four neighbouring pixels' colour
+  // positions (at `mm` rounded) blended bilinearly. False where none of them maps.
+  bool depth_to_color_interpolated(double x, double y, double mm, double& color_x,
+                                   double& color_y) const;
   // The parts of depth_to_color(): the rectified colour position of a depth pixel before the
   // parallax (with the unit's correction) and the parallax along x at depth `mm`. False as
   // depth_to_color() when the pixel has no table entry.

@@ -22,9 +22,11 @@ struct CameraBackend {
   std::string_view usage;  // one line for --help, e.g. "replay:DIR  fakenect dump directory"
   // Controls the backend accepts at open (camera_controls.hpp), comma-separated; empty = none.
   std::string_view controls = {};
-  // Opens with controls; null when the backend has none (then `open` is used).
+  // Opens with controls and lent resources; null when the backend takes neither (then `open`
+  // is used, and lent resources are not needed).
   Result<std::unique_ptr<DepthCamera>> (*open_with_controls)(
-      std::string_view arguments, const CameraControls& controls) = nullptr;
+      std::string_view arguments, const CameraControls& controls,
+      const CameraResources& resources) = nullptr;
 };
 
 // Generated: every backend built into this binary.

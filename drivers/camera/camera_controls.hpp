@@ -17,6 +17,16 @@ struct CameraControl {
 };
 using CameraControls = std::vector<CameraControl>;
 
+struct FaceModel;  // algo/facemodel/face_model.hpp
+
+// What the application lends a camera at open, as libcamera's pipeline hands its IPA module the
+// tuning data: a rendering camera uses the caller's face model instead of loading its own copy
+// (21 MB; faceboothd lends its fitter's for every take). Must outlive the camera. Backends
+// that need none ignore it.
+struct CameraResources {
+  const FaceModel* face_model = nullptr;
+};
+
 // Control names of the synthetic camera (sim/camera/synthetic_camera.hpp documents the values).
 inline constexpr std::string_view kControlExpression = "expression";  // `expr=` syntax
 inline constexpr std::string_view kControlMotion = "motion";          // headturn | static

@@ -38,11 +38,13 @@ bool accepts(const CameraBackend& backend, std::string_view control) {
 }  // namespace
 
 Result<std::unique_ptr<DepthCamera>> open_camera(std::string_view uri,
-                                                 const CameraControls& controls) {
+                                                 const CameraControls& controls,
+                                                 const CameraResources& resources) {
   std::string arguments;
   auto backend = find_backend(uri, arguments);
   if (!backend) return backend.failure();
-  if (controls.empty()) return backend->open(arguments);
+  if (controls.empty() && (resources.face_model == nullptr || !backend->open_with_controls))
+    return backend->open(arguments);
   for (const auto& control : controls) {
     if (!accepts(*backend, control.name)) {
       return fail("camera backend '" + std::string(backend->name) + "' has no control '" +
@@ -51,7 +53,7 @@ Result<std::unique_ptr<DepthCamera>> open_camera(std::string_view uri,
                                              : "; it has: " + std::string(backend->controls)));
     }
   }
-  return backend->open_with_controls(arguments, controls);
+  return backend->open_with_controls(arguments, controls, resources);
 }
 
 bool camera_has_control(std::string_view uri, std::string_view control) {

@@ -61,10 +61,11 @@ struct CameraListing {
 // Opens a camera from a URI such as `replay:PATH`, `freenect:0`, `openni2:PATH.oni`,
 // `openni2:` (first live device) or, through a loadable module (camera_plugin.hpp),
 // `synthetic:seed=3,expr=mouthSmile_L`. `controls` (camera_controls.hpp) override the URI; a
-// control the backend does not take is an error. The error for an unknown backend lists those
-// there are.
+// control the backend does not take is an error. `resources` are lent to a backend that uses
+// them (a face model to render with). The error for an unknown backend lists those there are.
 Result<std::unique_ptr<DepthCamera>> open_camera(std::string_view uri,
-                                                 const CameraControls& controls = {});
+                                                 const CameraControls& controls = {},
+                                                 const CameraResources& resources = {});
 
 // Whether the backend of `uri` takes `control` (false when the backend is unknown).
 bool camera_has_control(std::string_view uri, std::string_view control);

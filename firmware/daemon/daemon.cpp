@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "algo/core/figure_text.hpp"
+#include "drivers/camera/common/device_json.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
 
 namespace fb {
@@ -736,7 +737,11 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
     const CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
                                      {std::string(kControlMotion), "headturn"},
                                      {std::string(kControlFrames), std::to_string(n)}};
-    auto opened = open_camera(config.camera.uri, controls);
+    // Rendered with the face model the fitter already holds (FaceModel is immutable after
+    // loading) instead of the module loading another 21 MB copy for every take.
+    CameraResources lent;
+    if (fitter) lent.face_model = &fitter->model();
+    auto opened = open_camera(config.camera.uri, controls, lent);
     if (!opened) return opened.failure();
     take_camera = std::move(*opened);
     // The take renders the same unit as the preview: under the same calibration.
@@ -867,6 +872,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   pending_view.depth_mm = std::move(view.depth_mm);
   pending_view.normals = std::move(view.normals);
   consistency.confidence(pending_view.confidence);
+  commit.calibration_json = to_device_json(info.calibration);
   commit.qa_scores = {{"coverage", qa.coverage},
                       {"residual_mm", qa.residual_mm},
                       {"fused_fraction", qa.fused_fraction},

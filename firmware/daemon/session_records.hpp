@@ -53,6 +53,7 @@ struct CaptureCommit {
   DepthImage fused_depth;
   std::map<std::string, double> qa_scores;
   std::vector<Landmark> landmarks;  // automatic landmarks (colour px + lifted 3D), may be empty
+  std::string calibration_json;     // the take camera's unit calibration (device.json text)
 };
 
 // A fitted mesh of a capture (the quick fit); the newest one of a capture wins.

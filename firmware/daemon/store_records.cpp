@@ -175,6 +175,9 @@ Result<void> StoreRecords::commit_capture(std::int64_t session, int index, Captu
   input.fused_depth = std::move(commit.fused_depth);
   input.qa_scores = std::move(commit.qa_scores);
   input.landmarks = std::move(commit.landmarks);
+  // The host maps these frames' depth to colour (texture, refit) with the unit's calibration.
+  if (!commit.calibration_json.empty())
+    if (auto r = store_.set_session_calibration(session, commit.calibration_json); !r) return r;
   return store_.commit_capture(session, index, input);
 }
 

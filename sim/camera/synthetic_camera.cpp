@@ -462,25 +462,11 @@ RigidPose SyntheticCamera::State::pose_at(std::uint64_t index) const {
 }
 
 Eigen::Vector2d SyntheticCamera::State::color_position(const Eigen::Vector2d& px, double z) const {
-  const auto& registration = sensor.registration();
-  const auto mm = static_cast<std::uint16_t>(std::clamp(std::lround(z), 0L, 65535L));
-  const int x0 = static_cast<int>(std::floor(px.x())), y0 = static_cast<int>(std::floor(px.y()));
-  const double fx = px.x() - x0, fy = px.y() - y0;
-  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-  double weight = 0.0;
-  for (int dy = 0; dy <= 1; ++dy) {
-    for (int dx = 0; dx <= 1; ++dx) {
-      double cx = 0.0, cy = 0.0;
-      if (!registration.depth_to_color(x0 + dx, y0 + dy, mm, cx, cy)) continue;
-      const double w = (dx ? fx : 1.0 - fx) * (dy ? fy : 1.0 - fy) + 1e-9;
-      sum += w * Eigen::Vector2d(cx, cy);
-      weight += w;
-    }
-  }
-  if (weight <= 0.0) {
+  Eigen::Vector2d out;
+  if (!sensor.registration().depth_to_color_interpolated(px.x(), px.y(), std::round(z), out.x(),
+                                                         out.y()))
     return Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
-  }
-  return sum / weight;
+  return out;
 }
 
 Eigen::Vector3f SyntheticCamera::State::head_albedo(std::int32_t t, float b1, float b2) const {
@@ -624,6 +610,10 @@ const SensorFrame& SyntheticCamera::sensor_frame() const {
 std::span<const MaterialPixel> SyntheticCamera::material_pixels() const {
   return state_->material;
 }
+Eigen::Vector3f SyntheticCamera::surface_albedo(int t, float b1, float b2) const {
+  return state_->head_albedo(t, b1, b2);
+}
+
 std::span<const Eigen::Vector3f> SyntheticCamera::model_vertices() const {
   return state_->model_vertices;
 }
@@ -968,26 +958,32 @@ Result<std::unique_ptr<SyntheticCamera>> make_synthetic_camera(const SyntheticOp
 
 namespace {
 
-Result<std::unique_ptr<DepthCamera>> open_synthetic_with_controls(std::string_view arguments,
-                                                                  const CameraControls& controls) {
+Result<std::unique_ptr<DepthCamera>> open_synthetic_with_controls(
+    std::string_view arguments, const CameraControls& controls, const CameraResources& resources) {
   if (is_board_target(arguments)) {
     if (!controls.empty()) return fail("synthetic: a calibration board takes no controls");
     return open_board_camera(arguments);  // board_scene.hpp
   }
-  auto model = load_face_model();
-  if (!model) {
-    return fail("synthetic: cannot load the face model: " + model.error().message);
+  // The caller's face model when it lends one (the camera copies what it needs), else our own.
+  std::optional<FaceModel> loaded;
+  if (resources.face_model == nullptr) {
+    auto model = load_face_model();
+    if (!model) {
+      return fail("synthetic: cannot load the face model: " + model.error().message);
+    }
+    loaded = std::move(*model);
   }
-  auto options = parse_synthetic_options(arguments, *model, controls);
+  const FaceModel& model = resources.face_model != nullptr ? *resources.face_model : *loaded;
+  auto options = parse_synthetic_options(arguments, model, controls);
   if (!options) return options.failure();
   options->uri = "synthetic:" + std::string(arguments);
-  auto camera = make_synthetic_camera(*model, *options);
+  auto camera = make_synthetic_camera(model, *options);
   if (!camera) return camera.failure();
   return std::unique_ptr<DepthCamera>(std::move(*camera));
 }
 
 Result<std::unique_ptr<DepthCamera>> open_synthetic(std::string_view arguments) {
-  return open_synthetic_with_controls(arguments, {});
+  return open_synthetic_with_controls(arguments, {}, {});
 }
 
 std::vector<CameraListing> list_synthetic() {

@@ -151,6 +151,10 @@ class SyntheticCamera : public DepthCamera, public GroundTruthCamera {
   // Rest-pose (no expression track) mesh in model coordinates, incl. hole caps, and its triangles.
   std::span<const Eigen::Vector3f> model_vertices() const;
   std::span<const std::uint32_t> model_triangles() const;
+  // The surface colour (linear 0..1 RGB, before lighting) the colour image shows at a point of
+  // triangle `t` of model_triangles() (barycentric weights of its 2nd and 3rd corner): the
+  // texture an atlas built from the frames should recover (eval texture).
+  Eigen::Vector3f surface_albedo(int t, float b1, float b2) const;
 
   struct State;
 

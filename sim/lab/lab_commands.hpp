@@ -19,5 +19,6 @@ std::vector<Command> rig_eval_commands();               // eval rig, eval model
 Command bench_rig_command();                            // rig_bench.cpp
 std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration
 std::vector<Command> calibration_eval_commands();       // eval calibration
+std::vector<Command> texture_eval_commands();           // eval texture
 
 }  // namespace fb::cli

@@ -16,7 +16,7 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
                         const std::vector<float>& weights, std::uint64_t seed, int frames,
                         bool keep_colors, std::span<const float> personal_expression_basis,
                         std::string_view world, std::uint64_t world_seed, UnitCalibration unit,
-                        LandmarkDetector* face_detector) {
+                        LandmarkDetector* face_detector, bool keep_frames) {
   SyntheticOptions so;
   so.personal_expression_basis.assign(personal_expression_basis.begin(),
                                       personal_expression_basis.end());
@@ -93,7 +93,9 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
       consistency.add(frame.depth_mm, fusion.model_view().levels[0].depth,
                       relative_pose(first, r.world_from_camera), fusion.face_box());
     if (keep_colors) c.colors.push_back(frame.color);
+    if (keep_frames) c.frames.push_back(frame);
   }
+  if (keep_frames) c.camera = std::shared_ptr<const SyntheticCamera>(std::move(*camera));
   if (!started) return fail("no frames");
   c.fusion_ms = ms_since(t0);
   c.fused = fusion.render(first);

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <random>
 #include <span>
 #include <string>
@@ -23,6 +24,7 @@
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
 #include "host/cli/guide_files.hpp"
+#include "sim/camera/synthetic_camera.hpp"
 #include "sim/subject/unit_calibration.hpp"
 
 namespace fb::cli {
@@ -46,6 +48,10 @@ struct Capture {
   std::string box_source;  // "dlib" (detected on frame 0's colour image) or "fixed"
   std::string box_note;    // why the fixed box was used, when it was
   double fusion_ms = 0;
+  // With keep_frames: every frame as delivered, and the camera that rendered them (its
+  // painted skin is the truth of eval texture).
+  std::vector<RgbdFrame> frames;
+  std::shared_ptr<const SyntheticCamera> camera;
 };
 
 // `personal_expression_basis`: the subject's own expression shapes (SyntheticOptions), or empty
@@ -60,7 +66,7 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
                         bool keep_colors, std::span<const float> personal_expression_basis = {},
                         std::string_view world = {}, std::uint64_t world_seed = 0,
                         UnitCalibration unit = UnitCalibration::kSelfCalibrated,
-                        LandmarkDetector* face_detector = nullptr);
+                        LandmarkDetector* face_detector = nullptr, bool keep_frames = false);
 
 // A fit's model frame -> the capture's true model frame: truth_pose^-1 * the fit's
 // camera_from_model (both of frame 0). Fits are scored against the truth through it.

@@ -1,8 +1,11 @@
 #include "storage/export/export_session.hpp"
 
+#include <map>
+
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <map>
 
 #include "storage/export/export_folder.hpp"
 #include "storage/export/facewarehouse.hpp"
@@ -73,6 +76,22 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     content.rig = std::move(*rig);
   }
 
+  // The newest subject texture (and per capture the newest expression texture).
+  auto textures = store.textures(session);
+  if (!textures) return textures.failure();
+  std::map<int, TextureId> capture_texture;
+  std::optional<TextureId> subject_texture;
+  for (const auto& t : *textures) {
+    if (t.capture_index) capture_texture[*t.capture_index] = t.id;
+    else subject_texture = t.id;
+  }
+  if (subject_texture) {
+    auto png = store.read_texture(*subject_texture);
+    if (!png) return png.failure();
+    content.texture_png = std::move(*png);
+    content.source["texture"] = std::to_string(*subject_texture);
+  }
+
   auto captures = store.captures(session);
   if (!captures) return captures.failure();
   for (const auto& c : *captures) {
@@ -94,6 +113,15 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
       if (!data->frames.empty()) color = std::move(data->frames.front().color);
       landmarks = std::move(data->landmarks);
     }
+    std::vector<std::uint8_t> texture;
+    if (auto t = capture_texture.find(c.index); t != capture_texture.end()) {
+      auto png = store.read_texture(t->second);
+      if (!png) return png.failure();
+      texture = std::move(*png);
+    } else if (c.index == 0) {
+      texture = content.texture_png;  // the subject texture is the neutral's
+    }
+    content.pose_textures.push_back(std::move(texture));
     content.pose_colors.push_back(std::move(color));
     content.pose_landmarks.push_back(std::move(landmarks));
   }
@@ -116,7 +144,7 @@ ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t s
 
 void use_face_model_uvs(ExportContent& content, const FaceModel& model) {
   if (model.uvs.empty() || model.triangles != content.rig.triangles) return;
-  content.uvs.uvs = model.uvs;
+  content.uvs.uvs = model.atlas_uvs();  // one [0, 1] square: the texture atlas's layout
   content.uvs.triangle_uvs = model.triangle_uvs;
 }
 
@@ -211,7 +239,16 @@ void describe_facewarehouse(const RigData& rig, const ExportContent& c, ExportMa
   manifest.details["layout"] =
       "Tester_N/Blendshape/shape_0..K.obj + shape.bs (int32 nShapes,nVerts,nFaces; float32 "
       "(nShapes+1) x nVerts x 3, neutral first, little-endian); Tester_N/TrainingPose/"
-      "pose_i.obj (+ .png colour, .land landmarks); Tester_N/Blendshape/shape_names.txt";
+      "pose_i.obj (+ .png colour, .land landmarks, and with a texture .mtl + _texture.png, "
+      "the OBJ then carrying vt/vn); Tester_N/Blendshape/shape_names.txt";
+  int textured = 0;
+  for (const auto& t : c.pose_textures) textured += !t.empty();
+  manifest.details["textures"] =
+      textured > 0 ? std::to_string(textured) +
+                         " training poses carry their own texture (facebooth texture "
+                         "--expressions: the capture's colour frames in the face model's UV "
+                         "layout, lighting divided out)"
+                   : std::string("none (build them with facebooth texture --expressions)");
   manifest.details["topology"] =
       (ict_skin ? std::string("the ICT FaceKit skin (face, back of head and neck; eyes, mouth "
                               "socket and teeth left out): ")
@@ -281,6 +318,8 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
       tester.poses = c.poses;
       tester.pose_colors = c.pose_colors;
       tester.pose_landmarks = c.pose_landmarks;
+      tester.pose_textures = c.pose_textures;
+      tester.uvs = &c.uvs;
       if (auto r = write_facewarehouse_tester(*folder, tester); !r) return r.failure();
       describe_facewarehouse(rig, c, manifest);
       break;

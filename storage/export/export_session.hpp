@@ -34,9 +34,12 @@ struct ExportContent {
   std::vector<std::vector<Landmark>> pose_landmarks;
   std::map<std::string, std::string> source;  // goes into the manifest
   MeshUvs uvs;  // the face model's UV layout when the rig has its topology (else empty)
-  // The subject's colour texture in that layout, PNG (empty: none; building it from the
-  // session's colour frames is issue 37 item 3). glTF: baseColorTexture; OBJ: face.png + map_Kd.
+  // The subject's colour texture in that layout, PNG (empty: none; `facebooth texture` builds
+  // it from the session's colour frames). glTF: baseColorTexture; OBJ: face.png + map_Kd.
   std::vector<std::uint8_t> texture_png;
+  // Per pose (same order as poses): that expression's own texture, PNG, or empty
+  // (FaceWarehouse's TrainingPose/pose_i_texture.png).
+  std::vector<std::vector<std::uint8_t>> pose_textures;
 };
 
 // Attaches the face model's UV layout when the content's rig has the model's triangles (a rig

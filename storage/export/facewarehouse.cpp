@@ -81,7 +81,23 @@ Result<void> write_facewarehouse_tester(ExportFolder& folder, const FaceWarehous
   if (auto r = folder.write_text(base + "Blendshape/shape_names.txt", names); !r) return r;
   for (std::size_t i = 0; i < t.poses.size(); ++i) {
     const std::string stem = base + "TrainingPose/pose_" + std::to_string(i);
-    if (auto r = folder.write_text(stem + ".obj", encode_obj(t.poses[i], comment)); !r) return r;
+    const bool textured = i < t.pose_textures.size() && !t.pose_textures[i].empty() &&
+                          t.uvs != nullptr && t.uvs->fits(t.poses[i].triangles);
+    ObjExtras extras;
+    if (textured) {
+      const std::string leaf = "pose_" + std::to_string(i);
+      extras = {t.uvs, true, leaf + ".mtl", "skin"};
+      if (auto r = folder.write_text(stem + ".mtl", "newmtl skin\nKa 0 0 0\nKd 1 1 1\nKs 0.05 0.05 "
+                                                    "0.05\nNs 20\nd 1\nillum 2\nmap_Kd " +
+                                                        leaf + "_texture.png\n");
+          !r)
+        return r;
+      if (auto r = folder.write_file(stem + "_texture.png", t.pose_textures[i]); !r) return r;
+    }
+    if (auto r = folder.write_text(stem + ".obj",
+                                   encode_obj(t.poses[i], comment, textured ? &extras : nullptr));
+        !r)
+      return r;
     if (i < t.pose_colors.size() && !t.pose_colors[i].empty()) {
       auto png = encode_png(t.pose_colors[i]);
       if (!png) return png.failure();

@@ -5,6 +5,7 @@
 //                                                   all little-endian
 //   Tester_N/TrainingPose/pose_0.obj .. pose_19.obj  the fitted expressions
 //   Tester_N/TrainingPose/pose_i.png, pose_i.land    colour frame and 2D landmarks, when known
+//   Tester_N/TrainingPose/pose_i.mtl, pose_i_texture.png  the expression's texture, when built
 // facebooth adds Tester_N/Blendshape/shape_names.txt (one name per blendshape, K lines), which
 // FaceWarehouse readers ignore and the importer uses when present.
 #pragma once
@@ -18,6 +19,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "storage/export/export_folder.hpp"
+#include "storage/export/mesh_geometry.hpp"
 #include "storage/stored_data.hpp"
 
 namespace fb {
@@ -32,6 +34,10 @@ struct FaceWarehouseTester {
   std::vector<MeshData> poses;                        // TrainingPose/pose_i.obj
   std::vector<ColorImage> pose_colors;                // optional, same order as poses
   std::vector<std::vector<Landmark>> pose_landmarks;  // optional, same order as poses
+  // Optional per-pose texture (PNG in the layout of `uvs`): pose_i.obj then carries the UVs and
+  // normals and uses pose_i.mtl, whose map_Kd is pose_i_texture.png.
+  std::vector<std::vector<std::uint8_t>> pose_textures;
+  const MeshUvs* uvs = nullptr;
 };
 
 // Writes Tester_N into an export being assembled.

@@ -6,6 +6,8 @@
 #include <span>
 #include <vector>
 
+#include "algo/core/mesh_normals.hpp"
+
 namespace fb {
 
 // The face model's UV layout for a mesh with its topology (FaceModel::uvs / triangle_uvs):
@@ -18,10 +20,7 @@ struct MeshUvs {
   bool fits(std::span<const std::uint32_t> triangles) const;
 };
 
-// Area-weighted vertex normals (unit length; (0, 0, 1) for a vertex no triangle with area uses),
-// 3 floats per vertex. Winding is counter-clockwise seen from outside.
-std::vector<float> vertex_normals(std::span<const float> positions,
-                                  std::span<const std::uint32_t> triangles);
+// vertex_normals(): algo/core/mesh_normals.hpp.
 
 // One output vertex per distinct (vertex, UV) corner pair, in order of first use.
 struct SplitMesh {

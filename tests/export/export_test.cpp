@@ -24,6 +24,7 @@
 #include "storage/export/mesh_geometry.hpp"
 #include "storage/export/png_file.hpp"
 #include "storage/export/synthetic_subject.hpp"
+#include "tests/common/gltf_validator.hpp"
 #include "tests/common/run_command.hpp"
 
 namespace fb {
@@ -46,7 +47,7 @@ class Export : public ::testing::Test {
     ASSERT_TRUE(subject) << subject.error().message;
     subject_ = std::make_unique<SyntheticSubject>(std::move(*subject));
     expression_count_ = model->expression_count;
-    uvs_.uvs = model->uvs;
+    uvs_.uvs = model->atlas_uvs();  // what use_face_model_uvs() exports
     uvs_.triangle_uvs = model->triangle_uvs;
   }
   static void TearDownTestSuite() { subject_.reset(); }
@@ -134,25 +135,8 @@ Glb read_glb(const fs::path& path) {
   return glb;
 }
 
-// The Khronos validator's report on a .glb (node + tools/node_modules/gltf-validator), or a
-// reason to skip.
 std::optional<nlohmann::json> validate(const fs::path& glb, std::string& skip) {
-  if (std::string(FB_NODE_PATH).empty()) {
-    skip = "node is not installed (scripts/install-deps installs it)";
-    return std::nullopt;
-  }
-  if (!fs::exists(FB_GLTF_VALIDATOR_MODULE)) {
-    skip = "the Khronos glTF validator is missing from " FB_GLTF_VALIDATOR_MODULE
-           ": run scripts/install-deps (npm ci --prefix tools)";
-    return std::nullopt;
-  }
-  const auto validated = run(std::string(FB_NODE_PATH) + " " + FB_GLTF_VALIDATE_SCRIPT + " " +
-                             FB_GLTF_VALIDATOR_MODULE + " " + glb.string());
-  EXPECT_EQ(validated.exit_code, 0) << validated.out;
-  auto report = nlohmann::json::parse(validated.out, nullptr, false);
-  EXPECT_FALSE(report.is_discarded()) << validated.out;
-  if (validated.exit_code != 0 || report.is_discarded()) return std::nullopt;
-  return report;
+  return test::validate_gltf(glb, skip);
 }
 
 TEST_F(Export, SyntheticSubjectIsTheRigAtKnownWeights) {
@@ -465,7 +449,7 @@ TEST_F(Export, GlbHasArkitTargetsNormalsUvsAndPassesTheKhronosValidator) {
   EXPECT_EQ(info["maxUVs"], 1);
   EXPECT_EQ(info["hasMorphTargets"], true);
   EXPECT_EQ(info["materialCount"], 1);
-  EXPECT_EQ(info["hasTextures"], false);  // the subject's texture is issue 37 item 3
+  EXPECT_EQ(info["hasTextures"], false);  // no texture given: the plain skin material
   EXPECT_EQ(info["totalVertexCount"], vertices);
 
   if (std::string(FB_ASSIMP_PATH).empty()) GTEST_SKIP() << "assimp (assimp-utils) is not installed";
@@ -510,7 +494,7 @@ TEST_F(Export, ArkitRigIsTheStreamsMappingApplied) {
   EXPECT_NE(refused.error().message.find("--names model"), std::string::npos);
 }
 
-// Where the subject's texture (issue 37 item 3, not built yet) will go: a PNG in the UV layout
+// A texture in the UV layout (what `facebooth texture` stores, tests/texture has the real one)
 // becomes the glTF material's baseColorTexture (the validator then reports hasTextures) and the
 // OBJ's face.png + map_Kd, which assimp loads with the mesh.
 TEST_F(Export, ATextureInTheUvLayoutReachesGltfAndObjMtl) {

@@ -380,9 +380,9 @@ TEST(SessionStore, TakesFromBeforeSchemaV3ReadAfterMigration) {
     ASSERT_TRUE(dev) << dev.error().message;
     EXPECT_NEAR(dev->times_s[2], 2.0 / 30.0, 1e-12);
   }
-  auto store = SessionStore::open(dir.path());  // the writer migrates v2 -> v3
+  auto store = SessionStore::open(dir.path());  // the writer migrates v2 -> the newest
   ASSERT_TRUE(store) << store.error().message;
-  EXPECT_EQ(store->schema_version(), 3);
+  EXPECT_EQ(store->schema_version(), kSessionStoreSchemaVersion);
   EXPECT_EQ(store->orphans_removed(), 0);  // the old files are referenced, so kept
   auto listed = store->takes(subject);
   ASSERT_TRUE(listed);
@@ -416,6 +416,54 @@ TEST(SessionStore, TakesFromBeforeSchemaV3ReadAfterMigration) {
 
 // Which rig serves a session: the newest built from it, else the subject's newest (from another
 // session or none); a subject without rigs has none.
+// Schema v4: a session's texture atlases (subject and per capture) and the unit calibration its
+// frames were taken with survive a reopen and the integrity check; a v3 store gains both.
+TEST(SessionStore, TexturesAndSessionCalibrationRoundTrip) {
+  test::ScratchDir dir;
+  SessionId session = 0;
+  {
+    StoreOptions v3;
+    v3.migrate_to = 3;
+    auto store = SessionStore::open(dir.path(), v3);
+    ASSERT_TRUE(store);
+    session = *store->create_session(*store->add_subject("s"), guide(2));
+    ASSERT_TRUE(capture(*store, session, 0));
+    const std::vector<std::uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 1, 2};
+    auto refused = store->add_texture(session, std::nullopt, 4, 4, png, "{}");
+    ASSERT_FALSE(refused);  // schema v3 has no textures table
+    EXPECT_NE(refused.error().message.find("migrate"), std::string::npos);
+  }
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store) << store.error().message;
+  EXPECT_EQ(store->session(session)->calibration_json, "");  // recorded by nothing yet
+  ASSERT_TRUE(store->set_session_calibration(session, R"({"unit": 1})"));
+  const std::vector<std::uint8_t> subject_png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 7};
+  const std::vector<std::uint8_t> capture_png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 8, 9};
+  auto a = store->add_texture(session, std::nullopt, 512, 512, subject_png, R"({"views": 15})");
+  auto b = store->add_texture(session, 1, 256, 256, capture_png, "{}");
+  ASSERT_TRUE(a && b);
+  EXPECT_FALSE(store->add_texture(session, 1, 256, 256, std::vector<std::uint8_t>{1, 2, 3}, "{}"));
+  EXPECT_FALSE(store->add_texture(99, 1, 256, 256, capture_png, "{}"));
+  store = SessionStore::open(dir.path());  // reopen: nothing is an orphan
+  ASSERT_TRUE(store);
+  EXPECT_EQ(store->orphans_removed(), 0);
+  EXPECT_EQ(store->session(session)->calibration_json, R"({"unit": 1})");
+  auto listed = store->textures(session);
+  ASSERT_TRUE(listed);
+  ASSERT_EQ(listed->size(), 2u);
+  EXPECT_FALSE(listed->at(0).capture_index);
+  EXPECT_EQ(listed->at(0).width, 512);
+  EXPECT_EQ(listed->at(0).params_json, R"({"views": 15})");
+  EXPECT_EQ(listed->at(1).capture_index, 1);
+  EXPECT_EQ(listed->at(1).bytes, static_cast<std::int64_t>(capture_png.size()));
+  EXPECT_EQ(*store->read_texture(*a), subject_png);
+  EXPECT_EQ(*store->read_texture(*b), capture_png);
+  EXPECT_FALSE(store->read_texture(12345));
+  auto report = store->verify();
+  ASSERT_TRUE(report);
+  EXPECT_TRUE(report->ok()) << report->problems.size();
+}
+
 TEST(SessionStore, RigForPrefersTheSessionsOwnRig) {
   test::ScratchDir dir;
   auto store = SessionStore::open(dir.path());

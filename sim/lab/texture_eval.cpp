@@ -1,0 +1,405 @@
+// `facebooth-lab eval texture`: the subject texture against the synthetic camera's painted skin.
+// Per subject: a textured head turn is captured and fused, the neutral fitted from dlib's points
+// on frame 0 (as on the device), the texture built from the take exactly as `facebooth
+// texture` builds it, and compared texel by texel with the surface colour the renderer used.
+#include <chrono>
+#include <fstream>
+#include <iostream>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+#include "algo/core/clock.hpp"
+#include "algo/fitting/face_fit.hpp"
+#include "algo/render/rasterizer.hpp"
+#include "algo/texture/take_texture.hpp"
+#include "host/cli/progress.hpp"
+#include "sim/lab/lab_commands.hpp"
+#include "sim/scoring/take_runner.hpp"
+#include "sim/subject/synthetic_capture.hpp"
+#include "storage/asset_files.hpp"
+#include "storage/export/png_file.hpp"
+
+namespace fb::cli {
+
+namespace {
+
+Eigen::Vector3f sample(const ColorImage& atlas, float u, float v) {
+  const float x = std::clamp(u * atlas.width - 0.5f, 0.0f, atlas.width - 1.0f);
+  const float y = std::clamp((1.0f - v) * atlas.height - 0.5f, 0.0f, atlas.height - 1.0f);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, atlas.width - 1), y1 = std::min(y0 + 1, atlas.height - 1);
+  const float ax = x - x0, ay = y - y0;
+  auto at = [&](int a, int b) {
+    const Rgb8 c = atlas.at(a, b);
+    return Eigen::Vector3f(c.r, c.g, c.b);
+  };
+  return (1 - ay) * ((1 - ax) * at(x0, y0) + ax * at(x1, y0)) +
+         ay * ((1 - ax) * at(x0, y1) + ax * at(x1, y1));
+}
+
+// A UV of the atlas layout (FaceModel::atlas_uvs()).
+Eigen::Vector2f uv_of(std::span<const float> uvs, std::uint32_t uv) {
+  return {uvs[2 * uv], uvs[2 * uv + 1]};
+}
+
+// The visible face the score is over: triangles of the model's mean face inside the jaw line
+// (landmarks 0-16) closed over the brows raised by 25 mm (the forehead), facing forward
+// (normal z > 0.3): not the scalp, the ears, the neck or under the chin, which a frontal head
+// turn sees at grazing angles or not at all.
+std::vector<bool> visible_face_triangles(const FaceModel& m) {
+  auto at = [&](std::uint32_t v) {
+    return Eigen::Vector3f(m.neutral[3 * v], m.neutral[3 * v + 1], m.neutral[3 * v + 2]);
+  };
+  std::vector<Eigen::Vector2f> polygon;
+  for (int l = 0; l <= 16; ++l) polygon.push_back(at(m.landmark_vertices[l]).head<2>());
+  for (int l = 26; l >= 17; --l)
+    polygon.push_back(at(m.landmark_vertices[l]).head<2>() + Eigen::Vector2f(0.0f, 25.0f));
+  auto inside = [&](const Eigen::Vector2f& q) {
+    bool in = false;
+    for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+      const auto& a = polygon[i];
+      const auto& b = polygon[j];
+      if ((a.y() > q.y()) != (b.y() > q.y()) &&
+          q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x())
+        in = !in;
+    }
+    return in;
+  };
+  const std::vector<float> normals = vertex_normals(m.neutral, m.triangles);
+  std::vector<bool> vertex_in(static_cast<std::size_t>(m.vertex_count), false);
+  for (int v = 0; v < m.face_vertex_count; ++v)
+    vertex_in[v] = normals[3 * v + 2] > 0.3f && inside(at(static_cast<std::uint32_t>(v)).head<2>());
+  std::vector<bool> out(m.triangles.size() / 3, false);
+  for (std::size_t t = 0; t < out.size(); ++t)
+    out[t] = vertex_in[m.triangles[3 * t]] && vertex_in[m.triangles[3 * t + 1]] &&
+             vertex_in[m.triangles[3 * t + 2]];
+  return out;
+}
+
+struct AtlasScore {
+  double psnr_db = 0.0;
+  Eigen::Vector3d gain = Eigen::Vector3d::Ones();
+  int texels = 0;
+  double seam_error = 0.0;  // mean |difference| across UV seams, 8-bit levels
+  int seam_samples = 0;
+  int seam_edges = 0;
+  int seam_samples_observed = 0;  // both sides seen by a frame (the rest are filled)
+};
+
+// PSNR over the observed face texels after one least-squares gain per channel (the camera's
+// exposure and white balance make absolute albedo unobservable).
+AtlasScore score_atlas(const FaceModel& model, std::span<const float> uvs,
+                       const std::vector<bool>& face, const TexelMap& map,
+                       const TextureAtlas& atlas, const SyntheticCamera& truth) {
+  AtlasScore s;
+  std::vector<Eigen::Vector3d> want, got;
+  Eigen::Vector3d xy = Eigen::Vector3d::Zero(), xx = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < map.triangle.size(); ++i) {
+    if (map.triangle[i] < 0 || !(atlas.weight.pixels[i] > 0.0f) || atlas.clipped.pixels[i])
+      continue;
+    if (!face[static_cast<std::size_t>(map.triangle[i])]) continue;
+    want.push_back(
+        255.0 *
+        truth.surface_albedo(map.triangle[i], map.bary[i][1], map.bary[i][2]).cast<double>());
+    const Rgb8 c = atlas.image.pixels[i];
+    got.emplace_back(c.r, c.g, c.b);
+    xy += got.back().cwiseProduct(want.back());
+    xx += got.back().cwiseProduct(got.back());
+  }
+  s.texels = static_cast<int>(want.size());
+  if (want.empty()) return s;
+  s.gain = xy.cwiseQuotient(xx.cwiseMax(1e-9));
+  double se = 0.0;
+  for (std::size_t k = 0; k < want.size(); ++k)
+    se += (got[k].cwiseProduct(s.gain) - want[k]).squaredNorm() / 3.0;
+  s.psnr_db = 10.0 * std::log10(255.0 * 255.0 / std::max(se / want.size(), 1e-9));
+  // Seams: an edge shared by two triangles whose corners have different UVs; the atlas
+  // must show the same colour on both sides.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, std::pair<std::size_t, int>> first;
+  double diff = 0.0;
+  for (std::size_t t = 0; t < model.triangles.size() / 3; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = model.triangles[3 * t + k], b = model.triangles[3 * t + (k + 1) % 3];
+      const auto key = std::minmax(a, b);
+      auto [it, inserted] = first.try_emplace({key.first, key.second}, t, k);
+      if (inserted) continue;
+      const auto [t2, k2] = it->second;
+      // Corner UVs of the edge's two vertices in either triangle, in (a, b) order.
+      auto corner_uv = [&](std::size_t tri, std::uint32_t v) {
+        for (int c = 0; c < 3; ++c)
+          if (model.triangles[3 * tri + c] == v) return model.triangle_uvs[3 * tri + c];
+        return model.triangle_uvs[3 * tri];
+      };
+      const auto a1 = corner_uv(t, a), b1 = corner_uv(t, b);
+      const auto a2 = corner_uv(t2, a), b2 = corner_uv(t2, b);
+      if (a1 == a2 && b1 == b2) continue;  // not a seam
+      ++s.seam_edges;
+      for (float f = 0.1f; f < 0.95f; f += 0.2f) {
+        const Eigen::Vector2f p = (1 - f) * uv_of(uvs, a1) + f * uv_of(uvs, b1);
+        const Eigen::Vector2f q = (1 - f) * uv_of(uvs, a2) + f * uv_of(uvs, b2);
+        auto seen = [&](const Eigen::Vector2f& uv) {
+          const int x = std::clamp(static_cast<int>(uv.x() * map.width), 0, map.width - 1);
+          const int y =
+              std::clamp(static_cast<int>((1.0f - uv.y()) * map.height), 0, map.height - 1);
+          return atlas.weight.at(x, y) > 0.0f;
+        };
+        const bool observed = seen(p) && seen(q);
+        diff += (sample(atlas.image, p.x(), p.y()) - sample(atlas.image, q.x(), q.y()))
+                    .cwiseAbs()
+                    .mean();
+        ++s.seam_samples;
+        s.seam_samples_observed += observed;
+      }
+    }
+  }
+  s.seam_error = s.seam_samples ? diff / s.seam_samples : 0.0;
+  return s;
+}
+
+// The textured avatar drawn by the project's rasterizer from a camera pose, lit by a soft key
+// light (the atlas is de-lit), on grey.
+ColorImage render_avatar(const FaceModel& model, std::span<const float> uvs,
+                         std::span<const float> vertices, const RigidPose& camera_from_model,
+                         const ColorImage& atlas, const PinholeIntrinsics& k) {
+  std::vector<Eigen::Vector3f> posed(vertices.size() / 3);
+  const std::vector<float> normals = vertex_normals(vertices, model.triangles);
+  const Eigen::Matrix3f r = camera_from_model.rotation.toRotationMatrix().cast<float>();
+  for (std::size_t v = 0; v < posed.size(); ++v)
+    posed[v] = r * Eigen::Vector3f(vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]) +
+               camera_from_model.translation.cast<float>();
+  RasterBuffers raster;
+  raster.reset(k.width, k.height);
+  ColorImage out;
+  out.resize(k.width, k.height);
+  std::fill(out.pixels.begin(), out.pixels.end(), Rgb8{96, 96, 96});
+  if (!rasterize(k, posed, model.triangles, {}, raster)) return out;
+  const Eigen::Vector3f light = Eigen::Vector3f(-0.3f, -0.4f, -1.0f).normalized();
+  for (int y = 0; y < k.height; ++y) {
+    for (int x = 0; x < k.width; ++x) {
+      const std::size_t i = raster.index(x, y);
+      const std::int32_t t = raster.triangle[i];
+      if (t == kNoTriangle) continue;
+      const float b[3] = {1.0f - raster.bary1[i] - raster.bary2[i], raster.bary1[i],
+                          raster.bary2[i]};
+      Eigen::Vector2f uv = Eigen::Vector2f::Zero();
+      Eigen::Vector3f n = Eigen::Vector3f::Zero();
+      for (int c = 0; c < 3; ++c) {
+        uv += b[c] * uv_of(uvs, model.triangle_uvs[3 * t + c]);
+        const auto v = model.triangles[3 * t + c];
+        n += b[c] * Eigen::Vector3f(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
+      }
+      const float shade = 0.45f + 0.6f * std::max(0.0f, (r * n.normalized()).dot(light));
+      const Eigen::Vector3f c = (sample(atlas, uv.x(), uv.y()) * shade).cwiseMin(255.0f);
+      out.at(x, y) = Rgb8{static_cast<std::uint8_t>(c.x()), static_cast<std::uint8_t>(c.y()),
+                          static_cast<std::uint8_t>(c.z())};
+    }
+  }
+  return out;
+}
+
+// A square crop of `image` centred on `centre`, `side` px, scaled to `out_side`.
+ColorImage crop(const ColorImage& image, const Eigen::Vector2d& centre, int side, int out_side) {
+  ColorImage out;
+  out.resize(out_side, out_side);
+  for (int y = 0; y < out_side; ++y)
+    for (int x = 0; x < out_side; ++x) {
+      const int sx = static_cast<int>(centre.x() - side / 2.0 + (x + 0.5) * side / out_side);
+      const int sy = static_cast<int>(centre.y() - side / 2.0 + (y + 0.5) * side / out_side);
+      out.at(x, y) = image.contains(sx, sy) ? image.at(sx, sy) : Rgb8{0, 0, 0};
+    }
+  return out;
+}
+
+Result<void> write_picture(const std::string& path, const std::vector<ColorImage>& panels) {
+  ColorImage sheet;
+  const int side = panels.front().height;
+  sheet.resize(side * static_cast<int>(panels.size()), side);
+  for (std::size_t p = 0; p < panels.size(); ++p)
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x)
+        sheet.at(static_cast<int>(p) * side + x, y) = panels[p].at(x, y);
+  auto png = encode_png(sheet);
+  if (!png) return png.failure();
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(png->data()), static_cast<std::streamsize>(png->size()));
+  if (!f) return fail("could not write " + path + "; check the folder exists and is writable");
+  return success();
+}
+
+int run_eval_texture(const ParsedOptions& options) {
+  auto subjects = options.get_int("subjects");
+  auto first = options.get_int("first-seed");
+  auto frames = options.get_int("frames");
+  auto size = options.get_int("size");
+  auto views = options.get_int("views");
+  for (const auto* r : {&subjects, &first, &frames, &size, &views})
+    if (!*r) return report_failure(r->error());
+  if (*subjects < 1 || *frames < 2) return report_failure({"--subjects >= 1 and --frames >= 2"});
+  auto model = load_face_model();
+  if (!model) return report_failure(model.error());
+  const std::vector<float> atlas_uvs = model->atlas_uvs();
+  auto map = make_texel_map(atlas_uvs, model->triangle_uvs,
+                            static_cast<int>(*size) * model->uv_tiles(), static_cast<int>(*size));
+  if (!map) return report_failure(map.error());
+  const bool dlib = options.get("landmarks") == "dlib";
+  if (!dlib && options.get("landmarks") != "truth")
+    return report_failure({"--landmarks is dlib or truth"});
+  std::optional<LandmarkDetector> detector;
+  if (dlib) {
+    auto d = load_landmark_detector(options.get("shape-predictor"));
+    if (!d) return report_failure(d.error());
+    detector.emplace(std::move(*d));
+  }
+  const std::string world = options.get("world");
+  const std::vector<bool> face = visible_face_triangles(*model);
+  nlohmann::json runs = nlohmann::json::array();
+  double psnr_sum = 0, psnr_min = 1e9, seam_sum = 0, seconds_sum = 0, seconds_max = 0, seen = 0;
+  Progress progress("eval texture", *subjects);
+  for (long long s = 0; s < *subjects; ++s) {
+    const auto seed = static_cast<std::uint64_t>(*first + s);
+    const std::vector<float> identity = identity_draw(seed, model->identity_count);
+    const std::vector<float> neutral(static_cast<std::size_t>(model->expression_count), 0.0f);
+    auto cap = capture(*model, identity, neutral, seed, static_cast<int>(*frames), false, {}, world,
+                       seed, UnitCalibration::kCalibrated, detector ? &*detector : nullptr, true);
+    if (!cap)
+      return report_failure({"subject " + std::to_string(seed) + ": " + cap.error().message});
+    std::vector<Eigen::Vector2d> points = cap->truth_color_px;
+    if (detector) {
+      detector->reset_tracking();
+      auto found = detector->detect(cap->color);
+      if (!found)
+        return report_failure(
+            {"subject " + std::to_string(seed) + ": dlib: " + found.error().message});
+      points.assign(found->points.begin(), found->points.end());
+    }
+    auto target = make_fit_target(*cap, points, false);
+    if (!target) return report_failure(target.error());
+    auto fit = fit_neutral(*model, *target);
+    if (!fit) return report_failure(fit.error());
+    std::vector<Eigen::Vector3d> model_points, camera_points;
+    for (int l = 17; l < 68; ++l) {
+      const auto& lm = target->landmarks[static_cast<std::size_t>(l)];
+      if (!lm.valid || !lm.point) continue;
+      const auto v = model->landmark_vertices[static_cast<std::size_t>(l)];
+      model_points.emplace_back(fit->vertices[3 * v], fit->vertices[3 * v + 1],
+                                fit->vertices[3 * v + 2]);
+      camera_points.push_back(*lm.point);
+    }
+    TakeTextureInput in;
+    in.vertices = fit->vertices;
+    in.triangles = model->triangles;
+    in.region_vertices = model->face_vertex_count;
+    in.frames = cap->frames;
+    in.landmarks_model = model_points;
+    in.landmarks_camera = camera_points;
+    const KinectRegistration registration(cap->calibration);
+    const auto t0 = Clock::now();
+    TakeTextureOptions topt;
+    topt.max_views = static_cast<int>(*views);
+    topt.texture.delight = !options.flag("no-delight");
+    auto tex = texture_from_take(*map, in, registration, topt);
+    const double seconds = seconds_since(t0);
+    if (!tex)
+      return report_failure({"subject " + std::to_string(seed) + ": " + tex.error().message});
+    const AtlasScore score = score_atlas(*model, atlas_uvs, face, *map, tex->atlas, *cap->camera);
+    const double observed = static_cast<double>(tex->atlas.report.observed_texels) /
+                            std::max(1, tex->atlas.report.covered_texels);
+    runs.push_back({{"seed", seed},
+                    {"texture_psnr_db", score.psnr_db},
+                    {"texture_seam_error", score.seam_error},
+                    {"seam_samples", score.seam_samples},
+                    {"seam_edges", score.seam_edges},
+                    {"seam_samples_observed", score.seam_samples_observed},
+                    {"face_texels_scored", score.texels},
+                    {"gain", {score.gain.x(), score.gain.y(), score.gain.z()}},
+                    {"observed_fraction", observed},
+                    {"frames_aligned", tex->frames_aligned},
+                    {"views", tex->views.size()},
+                    {"fit_rms_to_depth_mm", fit->rms_to_depth_mm},
+                    {"texture_s", seconds}});
+    psnr_sum += score.psnr_db;
+    psnr_min = std::min(psnr_min, score.psnr_db);
+    seam_sum += score.seam_error;
+    seconds_sum += seconds;
+    seconds_max = std::max(seconds_max, seconds);
+    seen += observed;
+    const std::string png = options.get("png");
+    if (s == 0 && !png.empty()) {
+      const auto& k = cap->intrinsics;
+      Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+      for (const auto& p : points) centre += p / 68.0;
+      RigidPose turned = tex->poses.front();
+      const Eigen::Vector3d pivot = turned.apply(Eigen::Vector3d::Zero());
+      turned.rotation = Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()) * turned.rotation;
+      turned.translation = pivot;
+      const ColorImage front =
+          render_avatar(*model, atlas_uvs, fit->vertices, tex->poses.front(), tex->atlas.image, k);
+      const ColorImage side =
+          render_avatar(*model, atlas_uvs, fit->vertices, turned, tex->atlas.image, k);
+      const Eigen::Vector2d rendered_centre = k.project(tex->poses.front().apply(
+          Eigen::Vector3d(fit->vertices[3 * model->landmark_vertices[30]],
+                          fit->vertices[3 * model->landmark_vertices[30] + 1],
+                          fit->vertices[3 * model->landmark_vertices[30] + 2])));
+      const Eigen::Vector2d side_centre = k.project(
+          turned.apply(Eigen::Vector3d(fit->vertices[3 * model->landmark_vertices[30]],
+                                       fit->vertices[3 * model->landmark_vertices[30] + 1],
+                                       fit->vertices[3 * model->landmark_vertices[30] + 2])));
+      const int crop_px = 220, out_px = 320;
+      if (auto ok = write_picture(png, {crop(cap->color, centre, crop_px, out_px),
+                                        crop(front, rendered_centre, crop_px, out_px),
+                                        crop(side, side_centre, crop_px, out_px)});
+          !ok)
+        return report_failure(ok.error());
+    }
+    progress.update(s + 1);
+  }
+  const double n = static_cast<double>(*subjects);
+  nlohmann::json out = {
+      {"subjects", *subjects},
+      {"world", world},
+      {"landmarks", dlib ? "dlib on frame 0 (as the device)" : "truth"},
+      {"atlas_size", *size},
+      {"texture_psnr_db", psnr_sum / n},
+      {"texture_psnr_db_min", psnr_min},
+      {"texture_seam_error", seam_sum / n},
+      {"observed_fraction", seen / n},
+      {"texture_s", seconds_sum / n},
+      {"texture_s_max", seconds_max},
+      {"budget", {{"texture_psnr_db", ">= 30"}, {"texture_s", "<= 3 (one core)"}}},
+      {"scoring",
+       "PSNR over the visible face (inside the jaw line, up to 25 mm above the brows, facing "
+       "forward; observed, not over-exposed in every view) against the renderer's surface colour, "
+       "after one "
+       "least-squares gain per channel (exposure is unobservable); seam error: mean absolute "
+       "8-bit difference of the atlas across UV seams of the face, both sides observed"},
+      {"runs", runs}};
+  std::cout << out.dump(2) << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+std::vector<Command> texture_eval_commands() {
+  return {{{"eval texture",
+            "the subject texture against the synthetic camera's painted skin (JSON)",
+            "Per subject a textured synthetic head turn (world preset --world), fused; the "
+            "neutral is fitted from --landmarks on frame 0 and textured as `facebooth texture` "
+            "does. texture_s: the texture step alone (alignment to every frame + atlas), one "
+            "thread. --png writes the first subject's colour frame next to its textured avatar "
+            "drawn by the project's rasterizer, frontal and turned.",
+            {{"subjects", "N", "synthetic subjects", "3"},
+             {"first-seed", "N", "seed of the first subject", "1"},
+             {"frames", "N", "frames per head turn", "90"},
+             {"size", "PX", "atlas height (its width: one square per UV tile)", "1024"},
+             {"views", "N", "frames blended (spread over the take)", "15"},
+             {"no-delight", "", "keep the frames' shading in the atlas (for comparison)", ""},
+             {"world", "PRESET", "synthetic world preset (world_presets.hpp)", "texture"},
+             {"landmarks", "dlib|truth", "the fit's landmarks on frame 0", "dlib"},
+             {"shape-predictor", "FILE", "dlib's 68-point model", ""},
+             {"png", "FILE", "picture: colour frame | avatar | avatar turned", ""},
+             {"json", "", "JSON report on stdout (the only output format)", ""}}},
+           run_eval_texture}};
+}
+
+}  // namespace fb::cli

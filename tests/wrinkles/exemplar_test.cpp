@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/wrinkles/exemplar.hpp"
+#include "algo/wrinkles/salient_regions.hpp"
 
 namespace fb {
 namespace {
@@ -66,6 +67,36 @@ TEST(Exemplar, RotationTurnsStripesAndGradientsFollow) {
   EXPECT_LT(ty, 0.01 * tx);  // turned a quarter: along x only
   const FloatImage same = resample(stripes, 0.5);
   EXPECT_EQ(same.width, 51);
+}
+
+// A face-like patch: two forehead grooves, a groove at the mouth, and pores. The forehead lines
+// form one region (grown by the margin); the mouth's line is dropped for its landmarks, the
+// pores for their length.
+TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
+  auto groove = [](double d, double sigma) {
+    return -0.3 * std::exp(-0.5 * d * d / (sigma * sigma));
+  };
+  const auto height = make(200, 160, [&](int x, int y) {
+    double z = 0.0;
+    if (x >= 40 && x < 160) z += groove(y - 40, 1.5) + groove(y - 50, 1.5);
+    if (x >= 80 && x < 120) z += groove(y - 130, 1.5);
+    if ((x * 7 + y * 13) % 97 == 0) z += 0.05;  // pores: single-pixel bumps
+    return z;
+  });
+  const FloatImage lum = shade_relief(height, 0.25);
+  std::array<Eigen::Vector2d, 68> landmarks;
+  for (int i = 0; i < 68; ++i) landmarks[static_cast<std::size_t>(i)] = {100.0, 300.0};  // far away
+  for (int i = 48; i < 68; ++i)  // the lips along the mouth line
+    landmarks[static_cast<std::size_t>(i)] = {80.0 + 2.0 * (i - 48), 130.0};
+  const SalientRegions r = salient_regions(lum, landmarks);
+  ASSERT_EQ(r.regions.size(), 1u);
+  const PixelRectI& f = r.regions.front();
+  EXPECT_TRUE(f.contains(45, 40) && f.contains(155, 50));  // both lines, end to end
+  EXPECT_LE(f.y, 40 - 5);                                  // grown by the 5 px margin
+  EXPECT_LT(f.y + f.height, 70);                           // not down to the mouth
+  for (const auto& l : r.lines) EXPECT_GE(l.length(), 12);
+  // Without landmarks the mouth's line is a region of its own.
+  EXPECT_EQ(salient_regions(lum, std::nullopt).regions.size(), 2u);
 }
 
 TEST(Exemplar, TheShippedSetIsWhatTheConverterMakesFromTheScan) {

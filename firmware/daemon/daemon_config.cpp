@@ -3,10 +3,12 @@
 #include <toml++/toml.h>
 
 #include <charconv>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <utility>
 
 namespace fb {
 namespace {
@@ -47,9 +49,19 @@ class Reader {
     if constexpr (std::is_same_v<T, bool>) {
       if (auto v = node->value<bool>()) return void(out = *v);
     } else if constexpr (std::is_integral_v<T>) {
-      if (node->is_integer()) return void(out = static_cast<T>(*node->value<std::int64_t>()));
+      if (node->is_integer()) {
+        // Checked before narrowing: port = 4294967376 must not become port 80.
+        const std::int64_t v = *node->value<std::int64_t>();
+        if (std::in_range<T>(v)) return void(out = static_cast<T>(v));
+        return error(current_ + "." + std::string(key) + " = " + std::to_string(v) +
+                     " is out of range");
+      }
     } else if constexpr (std::is_floating_point_v<T>) {
-      if (auto v = node->value<double>()) return void(out = *v);
+      if (auto v = node->value<double>()) {
+        // TOML has nan and inf; no threshold or rate means anything as either.
+        if (std::isfinite(*v)) return void(out = *v);
+        return error(current_ + "." + std::string(key) + " must be a finite number");
+      }
     } else if constexpr (std::is_same_v<T, std::filesystem::path>) {
       if (auto v = node->value<std::string>()) return void(out = *v);
     } else {

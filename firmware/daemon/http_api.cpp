@@ -327,19 +327,17 @@ Result<void> Daemon::Impl::setup_http() {
     res.set_header("Cache-Control", "no-store");
     res.set_content(bmp, "image/bmp");
   });
-  srv.Post(R"(/api/sessions/(\d{1,12})/captures/(\d{1,3})/landmarks)", [this](
-                                                                           const httplib::Request&
-                                                                               req,
-                                                                           httplib::Response& res) {
-    auto id = id_param(req, 1);
-    auto index = id_param(req, 2);
-    if (!id || !index) return send_error(res, 400, "bad id");
-    auto corrections = parse_landmark_corrections(req.body);
-    if (!corrections) return send_error(res, 400, corrections.error().message);
-    auto r = correct_landmarks(*id, static_cast<int>(*index), *corrections);
-    if (!r) return send_error(res, 409, r.error().message);
-    send_json(res, *r);
-  });
+  srv.Post(R"(/api/sessions/(\d{1,12})/captures/(\d{1,3})/landmarks)",
+           [this](const httplib::Request& req, httplib::Response& res) {
+             auto id = id_param(req, 1);
+             auto index = id_param(req, 2);
+             if (!id || !index) return send_error(res, 400, "bad id");
+             auto corrections = parse_landmark_corrections(req.body);
+             if (!corrections) return send_error(res, 400, corrections.error().message);
+             auto r = correct_landmarks(*id, static_cast<int>(*index), *corrections);
+             if (!r) return send_error(res, 409, r.error().message);
+             send_json(res, *r);
+           });
   // --- tracking mode's live weights: the latest frame, and as Server-Sent Events.
   srv.Get("/api/tracking/live", [this](const httplib::Request&, httplib::Response& res) {
     std::string body;
@@ -450,8 +448,8 @@ Result<void> Daemon::Impl::setup_http() {
     if (!request) return send_error(res, 400, request.error().message);
     const auto button = parse_button(request->button);
     if (!button) return send_error(res, 400, "button must be \"main\" or \"mode\"");
-    auto ok = gpio->simulate_press(
-        {*button, request->long_press ? PressKind::kLong : PressKind::kShort});
+    auto ok =
+        gpio->simulate_press({*button, request->long_press ? PressKind::kLong : PressKind::kShort});
     if (!ok) return send_error(res, 409, ok.error().message);
     send_json(res,
               {{"pressed", to_string(*button)}, {"kind", request->long_press ? "long" : "short"}},

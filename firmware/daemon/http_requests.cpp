@@ -28,8 +28,9 @@ std::optional<std::string> string_member(const json& body, const char* key,
 
 // An integer member within [lo, hi] (checked before narrowing, so 2^32 + 20 is not 20).
 std::optional<int> int_member(const json& value, int lo, int hi) {
-  if (value.is_number_unsigned()) {
+  if (value.is_number_unsigned()) {  // nlohmann keeps non-negative integers unsigned
     const auto v = value.get<std::uint64_t>();
+    if (lo > 0 && v < static_cast<std::uint64_t>(lo)) return std::nullopt;
     if (v > static_cast<std::uint64_t>(hi)) return std::nullopt;
     return static_cast<int>(v);
   }

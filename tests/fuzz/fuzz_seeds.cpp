@@ -173,7 +173,8 @@ void store_files(Corpus c) {
 }
 
 void http(Corpus c) {
-  c.add('\0', R"({"corrections": [{"index": 3, "u": 120.5, "v": 88}, {"index": 67, "u": 1, "v": 2}]})");
+  c.add('\0',
+        R"({"corrections": [{"index": 3, "u": 120.5, "v": 88}, {"index": 67, "u": 1, "v": 2}]})");
   c.add('\1', R"({"subject": "Ada"})");
   c.add('\1', "");
   c.add('\2', R"({"mode": "tracking"})");

@@ -24,9 +24,8 @@ void rig_upload(std::string_view input) {
     names = std::string(input.substr(0, n));
     input.remove_prefix(n);
   }
-  auto rig = fb::decode_shape_bs(
-      std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(input.data()),
-                                    input.size()));
+  auto rig = fb::decode_shape_bs(std::span<const std::uint8_t>(
+      reinterpret_cast<const std::uint8_t*>(input.data()), input.size()));
   if (!rig) return;
   if (fb::check_rig_upload(*rig, 4, names, {"jawOpen", "mouthSmile_L"}))
     fb::fuzz::require(static_cast<int>(rig->shape_names.size()) == rig->shape_count(),

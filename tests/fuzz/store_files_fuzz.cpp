@@ -80,7 +80,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       fb::TakeData take;
       take.info.shape_names = {"jawOpen", "mouthSmile_L"};
       take.info.frame_count = declared_frames(file);
-      const char* source = data[0] % 6 == 4 ? "file" : (data[0] & 0x80 ? "last_column" : "frame_rate");
+      const char* source =
+          data[0] % 6 == 4 ? "file" : (data[0] & 0x80 ? "last_column" : "frame_rate");
       if (decode_take(file, source, take)) {
         fb::fuzz::require(take.values.size() == std::size_t(take.info.frame_count) *
                                                     std::size_t(take.info.stride()) &&

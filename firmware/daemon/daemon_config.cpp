@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <set>
@@ -108,7 +109,30 @@ std::string shortest_float(double v) {
   return text;
 }
 
-// toml++ prints floats with max_digits10 digits; everything else is printed by toml++.
+// A TOML basic string. toml++ prints a string with a newline as a multi-line literal ('''...),
+// whose first newline the reader drops, so "\n..." did not read back the same.
+std::string basic_string(std::string_view text) {
+  std::string out = "\"";
+  for (const char ch : text) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (ch == '\n') {
+      out += "\\n";
+    } else if (u < 0x20 || u == 0x7f) {
+      char escape[8];
+      std::snprintf(escape, sizeof escape, "\\u%04X", u);
+      out += escape;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+// toml++ prints floats with max_digits10 digits and strings as above; everything else is printed
+// by toml++.
 std::string print_sections(const toml::table& root) {
   std::ostringstream out;
   bool first = true;
@@ -119,6 +143,8 @@ std::string print_sections(const toml::table& root) {
       out << key.str() << " = ";
       if (const auto* f = node.as_floating_point())
         out << shortest_float(f->get());
+      else if (const auto* text = node.as_string())
+        out << basic_string(text->get());
       else
         node.visit([&](const auto& value) { out << value; });
       out << "\n";

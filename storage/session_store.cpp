@@ -514,40 +514,16 @@ Result<CaptureData> SessionStore::read_capture(SessionId session, int index,
   VerifiedReader in(file->path);
   if (!in.is_open()) return fail("cannot open " + file->path.string());
   const std::string bad = "the frame file of capture " + std::to_string(index) + " is malformed";
-  // Decodes the sequence; on a short or inconsistent file the checksum decides whether it is
-  // damaged (changed after the commit) or malformed (written wrong).
-  auto decode = [&]() -> Result<void> {
-    char magic[8];
-    std::uint32_t count = 0, reserved = 0;
-    if (!in.read(magic, 8) || std::memcmp(magic, kSeqMagic, 8) != 0 || !in.read(&count, 4) ||
-        !in.read(&reserved, 4))
-      return fail(bad);
-    if (static_cast<int>(count) != c->frame_count) return fail(bad + " (frame count differs)");
-    const std::size_t keep = std::min<std::size_t>(count, options.max_frames);
-    out.frames.resize(keep);
-    auto source = [&](void* data, std::size_t size) { return in.read(data, size); };
-    for (std::uint32_t i = 0; i < count; ++i) {
-      frame_record::Header h{};
-      if (!in.read(&h, sizeof h) || !frame_record::plausible(h)) return fail(bad);
-      const std::uint64_t n = frame_record::pixel_bytes(h);
-      if (in.position() > file->bytes || n > file->bytes - in.position()) return fail(bad);
-      const bool decoded = i < keep ? frame_record::read_pixels(h, out.frames[i], source)
-                                    : in.skip(static_cast<std::size_t>(n));
-      if (!decoded) return fail(bad);
-    }
-    if (in.position() != file->bytes) return fail(bad + " (trailing bytes)");
-    return success();
-  };
-  auto decoded = decode();
+  // On a short or inconsistent file the checksum decides whether it is damaged (changed after
+  // the commit) or malformed (written wrong).
+  auto decoded =
+      decode_frame_sequence(in, file->bytes, c->frame_count, options.max_frames, out.frames, bad);
   if (!in.matches(file->bytes, file->sha256)) return fail(Impl::damaged(*file));
   if (!decoded) return decoded.failure();
   if (fused_file) {
     auto fused = impl_->load_file(*fused_file);
     if (!fused) return fused.failure();
-    ByteReader r(*fused);
-    std::int32_t w = 0, h = 0;
-    if (!r.magic(kDepthMagic) || !r.get(w) || !r.get(h) || !read_image(r, w, h, out.fused_depth) ||
-        !r.at_end()) {
+    if (!decode_fused_depth(*fused, out.fused_depth)) {
       return fail("the fused depth file of capture " + std::to_string(index) + " is malformed");
     }
   }

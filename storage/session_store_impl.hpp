@@ -18,6 +18,7 @@
 #include <system_error>
 #include <vector>
 
+#include "storage/data_codec.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/session_store.hpp"
 #include "storage/sha256.hpp"
@@ -48,60 +49,6 @@ inline constexpr int kOldestReadableSchema = 2;
 // Each migration moves the schema from version (index) to version (index + 1)
 // (session_store_schema.cpp).
 const std::vector<std::string>& migrations();
-
-// --- little binary helpers for the data files (all little-endian, see the static_assert)
-
-class ByteWriter {
- public:
-  template <class T>
-  void put(T v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
-    bytes.insert(bytes.end(), p, p + sizeof(T));
-  }
-  template <class T>
-  void put_span(std::span<const T> v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(v.data());
-    bytes.insert(bytes.end(), p, p + v.size_bytes());
-  }
-  void put_magic(const char (&magic)[9]) {
-    // resize + memcpy, not insert: GCC 12 warns (-Wstringop-overflow) on an insert it inlines
-    // into an empty vector.
-    const std::size_t at = bytes.size();
-    bytes.resize(at + 8);
-    std::memcpy(bytes.data() + at, magic, 8);
-  }
-  std::vector<std::uint8_t> bytes;
-};
-
-class ByteReader {
- public:
-  ByteReader(std::span<const std::uint8_t> bytes, std::size_t pos = 0) : bytes_(bytes), pos_(pos) {}
-  template <class T>
-  bool get(T& v) {
-    if (bytes_.size() - pos_ < sizeof(T) || pos_ > bytes_.size()) return false;
-    std::memcpy(&v, bytes_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return true;
-  }
-  template <class T>
-  bool get_array(std::vector<T>& out, std::size_t count) {
-    if (count > (bytes_.size() - pos_) / sizeof(T)) return false;
-    out.resize(count);
-    std::memcpy(out.data(), bytes_.data() + pos_, count * sizeof(T));
-    pos_ += count * sizeof(T);
-    return true;
-  }
-  bool magic(const char (&m)[9]) {
-    if (bytes_.size() - pos_ < 8 || std::memcmp(bytes_.data() + pos_, m, 8) != 0) return false;
-    pos_ += 8;
-    return true;
-  }
-  bool at_end() const { return pos_ == bytes_.size(); }
-
- private:
-  std::span<const std::uint8_t> bytes_;
-  std::size_t pos_;
-};
 
 // Reads a data file front to back in one pass, hashing everything it reads, so that a caller
 // can decode part of a large file into place and still check the whole file's SHA-256.
@@ -140,23 +87,6 @@ class VerifiedReader {
   Sha256 sha_;
   std::uint64_t position_ = 0;
 };
-
-inline constexpr char kSeqMagic[9] = "FBSEQ001";
-inline constexpr char kDepthMagic[9] = "FBDEP001";
-inline constexpr char kMeshMagic[9] = "FBMSH001";
-inline constexpr char kRigMagic[9] = "FBRIG001";
-inline constexpr char kTakeMagicV1[9] = "FBTAK001";  // pose + weights, no times (before v3)
-inline constexpr char kTakeMagic[9] = "FBTAK002";    // times (f64), then pose + weights (f32)
-
-template <class Pixel>
-bool read_image(ByteReader& reader, int w, int h, Image<Pixel>& out) {
-  if (w < 0 || h < 0 || w > 16384 || h > 16384) return false;
-  std::vector<std::uint8_t> raw;
-  if (!reader.get_array(raw, static_cast<std::size_t>(w) * h * sizeof(Pixel))) return false;
-  out.resize(w, h);
-  if (!raw.empty()) std::memcpy(out.pixels.data(), raw.data(), raw.size());
-  return true;
-}
 
 // Row and file helpers (session_store.cpp).
 std::string landmarks_to_json(const std::vector<Landmark>& points);

@@ -91,12 +91,8 @@ Result<MeshData> SessionStore::read_mesh(MeshId id) const {
   if (!*row) return fail("there is no mesh " + std::to_string(id) + " in this store");
   auto bytes = impl_->load_file(stmt->int64(0));
   if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t nv = 0, nt = 0;
   MeshData mesh;
-  if (!r.magic(kMeshMagic) || !r.get(nv) || !r.get(nt) ||
-      !r.get_array(mesh.positions, std::size_t{3} * nv) ||
-      !r.get_array(mesh.triangles, std::size_t{3} * nt) || !r.at_end()) {
+  if (!decode_mesh(*bytes, mesh)) {
     return fail("the file of mesh " + std::to_string(id) + " is malformed");
   }
   return mesh;
@@ -202,18 +198,8 @@ Result<RigData> SessionStore::read_rig(RigId id) const {
   rig.shape_names = names_from_json(stmt->text(1));
   auto bytes = impl_->load_file(stmt->int64(0));
   if (!bytes) return bytes.failure();
-  ByteReader r(*bytes);
-  std::uint32_t nv = 0, nt = 0, ns = 0;
-  const Failure bad = fail("the file of rig " + std::to_string(id) + " is malformed");
-  if (!r.magic(kRigMagic) || !r.get(nv) || !r.get(nt) || !r.get(ns) ||
-      ns != rig.shape_names.size() || !r.get_array(rig.neutral, std::size_t{3} * nv)) {
-    return bad;
-  }
-  rig.shapes.resize(ns);
-  for (auto& s : rig.shapes) {
-    if (!r.get_array(s, std::size_t{3} * nv)) return bad;
-  }
-  if (!r.get_array(rig.triangles, std::size_t{3} * nt) || !r.at_end()) return bad;
+  if (!decode_rig(*bytes, rig))
+    return fail("the file of rig " + std::to_string(id) + " is malformed");
   return rig;
 }
 
@@ -335,36 +321,6 @@ TakeInfo take_from_row(sql::Statement& stmt) {
   t.frame_count = stmt.int32(5);
   t.created_at = stmt.text(6);
   return t;
-}
-
-// Decodes a take file into `take` (whose info is set). FBTAK002 holds the times; an FBTAK001
-// file from before schema v3 has none ('frame_rate': frame / fps) or has them as its last
-// column ('last_column', the host's "timestamp_s" pseudo-shape).
-bool decode_take(std::span<const std::uint8_t> bytes, const std::string& time_source,
-                 TakeData& take) {
-  ByteReader r(bytes);
-  std::uint32_t frames = 0, stride = 0;
-  const auto want = static_cast<std::uint32_t>(take.info.stride());
-  if (time_source == "file") {
-    return r.magic(kTakeMagic) && r.get(frames) && r.get(stride) && stride == want &&
-           static_cast<int>(frames) == take.info.frame_count && r.get_array(take.times_s, frames) &&
-           r.get_array(take.values, std::size_t{frames} * stride) && r.at_end();
-  }
-  const bool last_column = time_source == "last_column";
-  std::vector<float> stored;
-  if (!r.magic(kTakeMagicV1) || !r.get(frames) || !r.get(stride) ||
-      stride != want + (last_column ? 1 : 0) || static_cast<int>(frames) != take.info.frame_count ||
-      !r.get_array(stored, std::size_t{frames} * stride) || !r.at_end())
-    return false;
-  take.times_s.resize(frames);
-  take.values.clear();
-  take.values.reserve(std::size_t{frames} * want);
-  for (std::uint32_t f = 0; f < frames; ++f) {
-    const float* row = stored.data() + std::size_t{f} * stride;
-    take.values.insert(take.values.end(), row, row + want);
-    take.times_s[f] = last_column ? row[want] : f / take.info.fps;
-  }
-  return true;
 }
 
 }  // namespace

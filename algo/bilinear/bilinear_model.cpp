@@ -149,7 +149,15 @@ Result<BilinearModel> parse_bilinear_model(std::span<const std::byte> bytes) {
   if (h.landmark_count != 68 || h.face_vertex_count > h.vertex_count ||
       h.id_knobs > h.identity_count || h.exp_knobs > h.expression_count)
     return fail("bilinear model: inconsistent header counts" + rebuild_hint());
-  const std::uint64_t core = 3ull * h.vertex_count * h.id_knobs * h.exp_knobs;
+  // Each count is below 2^26, so the core's 3 V Kid Kexp floats can pass 2^64 and wrap into a
+  // size that matches the file; no file that size exists, so bound it by the file first.
+  const std::uint64_t core_per_vertex = 3ull * h.id_knobs * h.exp_knobs;  // < 2^54
+  if (core_per_vertex * h.vertex_count / h.vertex_count != core_per_vertex ||
+      core_per_vertex * h.vertex_count > bytes.size() / 4)
+    return fail("bilinear model: the header's core (" + std::to_string(h.vertex_count) +
+                " vertices x " + std::to_string(h.id_knobs) + " x " + std::to_string(h.exp_knobs) +
+                " knobs) is larger than the file" + rebuild_hint());
+  const std::uint64_t core = core_per_vertex * h.vertex_count;
   const std::uint64_t expected =
       kHeaderSize +
       4 * (core + std::uint64_t{h.identity_count} * h.id_knobs +

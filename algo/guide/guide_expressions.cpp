@@ -20,9 +20,12 @@ Result<GuideSet> parse_guide_expressions(std::string_view json_text) {
   } catch (const nlohmann::json::exception& e) {
     return fail(std::string("guide expressions: not valid JSON: ") + e.what());
   }
-  if (!doc.is_object() || doc.value("format", "") != "facebooth-guide-expressions")
+  // find(), not value(): value() throws when the member has another type ("format": 1).
+  const auto format = doc.is_object() ? doc.find("format") : doc.end();
+  if (format == doc.end() || *format != "facebooth-guide-expressions")
     return fail("guide expressions: missing \"format\": \"facebooth-guide-expressions\"");
-  if (doc.value("version", 0) != 1)
+  const auto version = doc.find("version");
+  if (version == doc.end() || *version != 1)
     return fail("guide expressions: unsupported version (this build reads version 1)");
   if (!doc.contains("expressions") || !doc["expressions"].is_array())
     return fail("guide expressions: \"expressions\" must be an array");
@@ -31,7 +34,11 @@ Result<GuideSet> parse_guide_expressions(std::string_view json_text) {
   try {
     for (const auto& e : doc["expressions"]) {
       GuideExpression g;
-      g.id = e.at("id").get<int>();
+      const auto& id = e.at("id");
+      // Checked before narrowing to int: an id of 2^32 must not read as 0.
+      if (!id.is_number_integer() || id < 0 || id > 1000)
+        return fail("guide expressions: an id must be an integer in 0..1000");
+      g.id = id.get<int>();
       g.name = e.at("name").get<std::string>();
       g.label = e.value("label", g.name);
       if (g.name.empty()) return fail("guide expressions: an expression has an empty name");

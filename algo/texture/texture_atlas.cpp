@@ -73,8 +73,11 @@ class ViewSampler {
     if (x < 0 || y < 0 || x >= raster_.width || y >= raster_.height) return false;
     if (!(p.z() <= raster_.depth[raster_.index(x, y)] + options_.visibility_mm)) return false;
     if (view_->depth != nullptr && view_->depth->contains(x, y)) {
+      // The sensor must see this surface there: something nearer is an occluder (a hand),
+      // something farther or nothing means the true silhouette is not where the mesh's is
+      // (the colour there is the wall), as at the grazing edges of the head.
       const float measured = view_->depth->at(x, y);
-      if (measured > 0.0f && measured < p.z() - options_.occluder_mm) return false;
+      if (!(std::abs(measured - p.z()) <= options_.occluder_mm)) return false;
     }
     double cx = 0.0, cy = 0.0;
     if (!registration_.depth_to_color_interpolated(px.x(), px.y(), p.z(), cx, cy)) return false;

@@ -2,7 +2,8 @@
 // frames (FaceWarehouse captures colour with every expression; so does the booth):
 //  1. every texel's surface point is posed into each chosen frame (the mesh aligned to that
 //     frame, mesh_alignment.hpp), tested for visibility (the mesh's own z-buffer in the depth
-//     camera, and the measured depth: a hand in front hides it) and mapped into the colour image
+//     camera, and the measured depth: a hand in front hides it, the wall behind means the mesh's
+//     silhouette is off) and mapped into the colour image
 //     through the unit's registration;
 //  2. the frames' lighting is estimated and divided out (per frame and channel, shading =
 //     l . [1, n] with the fitted mesh's normals, alternating with the albedo), so a texel seen
@@ -43,7 +44,7 @@ struct TextureView {
 struct TextureOptions {
   float min_facing = 0.2f;     // cos of the view angle below which a view is not used
   float visibility_mm = 5.0f;  // a texel this far behind the mesh's own z-buffer is hidden
-  float occluder_mm = 20.0f;   // measured depth this far in front of the texel: hidden
+  float occluder_mm = 20.0f;   // measured depth this far from the texel (or none): not seen
   float clip_level = 250.0f;   // a sample with a channel this bright is clipped
   float weight_power = 2.0f;   // a view's weight: ((cos - min_facing) / (1 - min_facing))^power
   bool delight = true;

@@ -3,10 +3,13 @@
 #include <toml++/toml.h>
 
 #include <charconv>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <utility>
 
 namespace fb {
 namespace {
@@ -47,9 +50,19 @@ class Reader {
     if constexpr (std::is_same_v<T, bool>) {
       if (auto v = node->value<bool>()) return void(out = *v);
     } else if constexpr (std::is_integral_v<T>) {
-      if (node->is_integer()) return void(out = static_cast<T>(*node->value<std::int64_t>()));
+      if (node->is_integer()) {
+        // Checked before narrowing: port = 4294967376 must not become port 80.
+        const std::int64_t v = *node->value<std::int64_t>();
+        if (std::in_range<T>(v)) return void(out = static_cast<T>(v));
+        return error(current_ + "." + std::string(key) + " = " + std::to_string(v) +
+                     " is out of range");
+      }
     } else if constexpr (std::is_floating_point_v<T>) {
-      if (auto v = node->value<double>()) return void(out = *v);
+      if (auto v = node->value<double>()) {
+        // TOML has nan and inf; no threshold or rate means anything as either.
+        if (std::isfinite(*v)) return void(out = *v);
+        return error(current_ + "." + std::string(key) + " must be a finite number");
+      }
     } else if constexpr (std::is_same_v<T, std::filesystem::path>) {
       if (auto v = node->value<std::string>()) return void(out = *v);
     } else {
@@ -96,7 +109,30 @@ std::string shortest_float(double v) {
   return text;
 }
 
-// toml++ prints floats with max_digits10 digits; everything else is printed by toml++.
+// A TOML basic string. toml++ prints a string with a newline as a multi-line literal ('''...),
+// whose first newline the reader drops, so "\n..." did not read back the same.
+std::string basic_string(std::string_view text) {
+  std::string out = "\"";
+  for (const char ch : text) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (ch == '\n') {
+      out += "\\n";
+    } else if (u < 0x20 || u == 0x7f) {
+      char escape[8];
+      std::snprintf(escape, sizeof escape, "\\u%04X", u);
+      out += escape;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+// toml++ prints floats with max_digits10 digits and strings as above; everything else is printed
+// by toml++.
 std::string print_sections(const toml::table& root) {
   std::ostringstream out;
   bool first = true;
@@ -107,6 +143,8 @@ std::string print_sections(const toml::table& root) {
       out << key.str() << " = ";
       if (const auto* f = node.as_floating_point())
         out << shortest_float(f->get());
+      else if (const auto* text = node.as_string())
+        out << basic_string(text->get());
       else
         node.visit([&](const auto& value) { out << value; });
       out << "\n";

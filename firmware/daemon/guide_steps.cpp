@@ -17,7 +17,12 @@ Result<std::vector<GuideStep>> parse_guide_steps(std::string_view json_text) {
       return fail("guide expressions: entry " + std::to_string(steps.size()) + " has no name");
     GuideStep step;
     step.name = e["name"].get<std::string>();
-    step.label = e.value("label", step.name);
+    step.label = step.name;
+    if (e.contains("label")) {  // not value(): it throws when the label is not a string
+      if (!e["label"].is_string())
+        return fail("guide expressions: " + step.name + ".label is not a string");
+      step.label = e["label"].get<std::string>();
+    }
     std::string spec;
     if (e.contains("weights") && e["weights"].is_object()) {
       for (const auto& [shape, weight] : e["weights"].items()) {

@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "firmware/daemon/daemon_impl.hpp"
+#include "firmware/daemon/http_requests.hpp"
 #include "firmware/kiosk/kiosk_assets.hpp"
 #include "storage/export/facewarehouse.hpp"
 
@@ -39,12 +39,7 @@ void send_error(httplib::Response& res, int status, const std::string& message) 
 }
 
 Result<std::int64_t> id_param(const httplib::Request& req, std::size_t i) {
-  // Routes match (\d{1,12}) so this only guards against overflow.
-  try {
-    return static_cast<std::int64_t>(std::stoll(req.matches[i].str()));
-  } catch (const std::exception&) {
-    return fail("bad id");
-  }
+  return parse_path_id(req.matches[i].str());
 }
 
 json session_json(const RecordSession& s) {
@@ -66,12 +61,6 @@ json capture_json(const RecordCapture& c) {
           {"qa", c.qa_scores},
           {"frame_count", c.frame_count},
           {"completed_at", c.completed_at}};
-}
-
-json parse_body(const httplib::Request& req) {
-  if (req.body.empty()) return json::object();
-  json j = json::parse(req.body, nullptr, false);
-  return j.is_object() ? j : json(nullptr);
 }
 
 }  // namespace
@@ -307,35 +296,12 @@ Result<void> Daemon::Impl::setup_http() {
     auto rig = decode_shape_bs(std::span<const std::uint8_t>(
         reinterpret_cast<const std::uint8_t*>(req.body.data()), req.body.size()));
     if (!rig) return send_error(res, 400, "not a FaceWarehouse shape.bs: " + rig.error().message);
-    if (rig->vertex_count() != model.vertex_count)
-      return send_error(res, 422,
-                        "the rig has " + std::to_string(rig->vertex_count()) +
-                            " vertices; the face model has " + std::to_string(model.vertex_count));
-    if (rig->shape_count() < 1 || rig->shape_count() > 256)
-      return send_error(res, 422, "a rig needs 1..256 blendshapes");
-    auto sane = [](const std::vector<float>& v) {
-      return std::all_of(v.begin(), v.end(),
-                         [](float x) { return std::isfinite(x) && std::abs(x) < 2000.f; });
-    };
-    if (!sane(rig->neutral) || !std::all_of(rig->shapes.begin(), rig->shapes.end(), sane))
-      return send_error(res, 422, "the rig has non-finite or out-of-range coordinates");
+    const auto names = req.has_param("names")
+                           ? std::optional<std::string>(req.get_param_value("names"))
+                           : std::nullopt;
+    if (auto ok = check_rig_upload(*rig, model.vertex_count, names, model.expression_names); !ok)
+      return send_error(res, 422, ok.error().message);
     rig->triangles = model.triangles;
-    rig->shape_names.clear();
-    if (req.has_param("names")) {
-      std::stringstream ss(req.get_param_value("names"));
-      std::string name;
-      while (std::getline(ss, name, ','))
-        if (!name.empty() && name.size() <= 64) rig->shape_names.push_back(name);
-      if (static_cast<int>(rig->shape_names.size()) != rig->shape_count())
-        return send_error(res, 422,
-                          "names= lists " + std::to_string(rig->shape_names.size()) +
-                              " names for " + std::to_string(rig->shape_count()) + " shapes");
-    } else {
-      for (int k = 0; k < rig->shape_count(); ++k)
-        rig->shape_names.push_back(k < model.expression_count
-                                       ? model.expression_names[static_cast<std::size_t>(k)]
-                                       : "shape" + std::to_string(k));
-    }
     std::lock_guard lock(records_mutex);
     auto s = records->session(*id);
     if (!s) return send_error(res, 404, s.error().message);
@@ -361,30 +327,17 @@ Result<void> Daemon::Impl::setup_http() {
     res.set_header("Cache-Control", "no-store");
     res.set_content(bmp, "image/bmp");
   });
-  srv.Post(R"(/api/sessions/(\d{1,12})/captures/(\d{1,3})/landmarks)", [this](
-                                                                           const httplib::Request&
-                                                                               req,
-                                                                           httplib::Response& res) {
-    auto id = id_param(req, 1);
-    auto index = id_param(req, 2);
-    if (!id || !index) return send_error(res, 400, "bad id");
-    json body = parse_body(req);
-    if (body.is_null() || !body.contains("corrections") || !body["corrections"].is_array() ||
-        body["corrections"].empty() || body["corrections"].size() > 68)
-      return send_error(res, 400,
-                        "body must be {\"corrections\": [{\"index\": 0..67, \"u\": px, "
-                        "\"v\": px}, ...]} with 1..68 entries");
-    std::vector<ColorCorrection> corrections;
-    for (const auto& c : body["corrections"]) {
-      if (!c.is_object() || !c.contains("index") || !c["index"].is_number_integer() ||
-          !c.contains("u") || !c["u"].is_number() || !c.contains("v") || !c["v"].is_number())
-        return send_error(res, 400, "each correction needs integer index, numbers u, v");
-      corrections.push_back({c["index"].get<int>(), c["u"].get<double>(), c["v"].get<double>()});
-    }
-    auto r = correct_landmarks(*id, static_cast<int>(*index), corrections);
-    if (!r) return send_error(res, 409, r.error().message);
-    send_json(res, *r);
-  });
+  srv.Post(R"(/api/sessions/(\d{1,12})/captures/(\d{1,3})/landmarks)",
+           [this](const httplib::Request& req, httplib::Response& res) {
+             auto id = id_param(req, 1);
+             auto index = id_param(req, 2);
+             if (!id || !index) return send_error(res, 400, "bad id");
+             auto corrections = parse_landmark_corrections(req.body);
+             if (!corrections) return send_error(res, 400, corrections.error().message);
+             auto r = correct_landmarks(*id, static_cast<int>(*index), *corrections);
+             if (!r) return send_error(res, 409, r.error().message);
+             send_json(res, *r);
+           });
   // --- tracking mode's live weights: the latest frame, and as Server-Sent Events.
   srv.Get("/api/tracking/live", [this](const httplib::Request&, httplib::Response& res) {
     std::string body;
@@ -435,13 +388,11 @@ Result<void> Daemon::Impl::setup_http() {
   // --- controls: the page's buttons and the simulated GPIO
   auto control = [this](const char* path, KioskInput input) {
     http->Post(path, [this, input](const httplib::Request& req, httplib::Response& res) {
-      json body = parse_body(req);
-      if (body.is_null()) return send_error(res, 400, "body must be a JSON object");
-      std::string subject = body.value("subject", "");
-      if (subject.size() > 120) return send_error(res, 400, "subject name too long");
+      auto subject = parse_control_request(req.body);
+      if (!subject) return send_error(res, 400, subject.error().message);
       {
         std::lock_guard lock(queue_mutex);
-        queue.push_back({input, subject, 0});
+        queue.push_back({input, *subject, 0});
       }
       queue_cv.notify_all();
       send_json(res, {{"accepted", to_string(input)}}, 202);
@@ -463,12 +414,9 @@ Result<void> Daemon::Impl::setup_http() {
              send_json(res, {{"accepted", "resume"}, {"session", *id}}, 202);
            });
   srv.Post("/api/mode", [this](const httplib::Request& req, httplib::Response& res) {
-    json body = parse_body(req);
-    if (body.is_null() || !body.contains("mode") || !body["mode"].is_string())
-      return send_error(res, 400, "body must be {\"mode\": \"tracking\"|\"capture\"}");
-    const std::string mode = body["mode"];
-    if (mode != "tracking" && mode != "capture")
-      return send_error(res, 400, "mode must be \"tracking\" or \"capture\"");
+    auto want_tracking = parse_mode_request(req.body);
+    if (!want_tracking) return send_error(res, 400, want_tracking.error().message);
+    const std::string mode = *want_tracking ? "tracking" : "capture";
     bool tracking;
     {
       std::lock_guard lock(status_mutex);
@@ -488,34 +436,24 @@ Result<void> Daemon::Impl::setup_http() {
   });
   srv.Post(
       "/api/camera/self-calibrate", [this](const httplib::Request& req, httplib::Response& res) {
-        json body = parse_body(req);
-        if (body.is_null()) return send_error(res, 400, "body must be a JSON object (or empty)");
-        int frames = config.camera.self_calibrate_frames;
-        if (body.contains("frames")) {
-          if (!body["frames"].is_number_integer() || body["frames"].get<int>() < 10 ||
-              body["frames"].get<int>() > 300)
-            return send_error(
-                res, 400,
-                "frames must be an integer in 10..300 (default " + std::to_string(frames) + ")");
-          frames = body["frames"].get<int>();
-        }
-        auto report = request_self_calibration(frames);
+        auto frames = parse_self_calibrate_request(req.body, config.camera.self_calibrate_frames);
+        if (!frames) return send_error(res, 400, frames.error().message);
+        auto report = request_self_calibration(*frames);
         if (!report) return send_error(res, 409, report.error().message);
         // 422: the estimate was not good enough to use; the report says why and what to do.
         send_json(res, *report, (*report)["applied"].get<bool>() ? 200 : 422);
       });
   srv.Post("/api/sim/button", [this](const httplib::Request& req, httplib::Response& res) {
-    json body = parse_body(req);
-    if (body.is_null()) return send_error(res, 400, "body must be a JSON object");
-    auto button = parse_button(body.value("button", "main"));
+    auto request = parse_button_request(req.body);
+    if (!request) return send_error(res, 400, request.error().message);
+    const auto button = parse_button(request->button);
     if (!button) return send_error(res, 400, "button must be \"main\" or \"mode\"");
-    const std::string kind = body.value("kind", "short");
-    if (kind != "short" && kind != "long")
-      return send_error(res, 400, "kind must be \"short\" or \"long\"");
     auto ok =
-        simulate_press(*gpio, {*button, kind == "long" ? PressKind::kLong : PressKind::kShort});
+        simulate_press(*gpio, {*button, request->long_press ? PressKind::kLong : PressKind::kShort});
     if (!ok) return send_error(res, 409, ok.error().message);
-    send_json(res, {{"pressed", to_string(*button)}, {"kind", kind}}, 202);
+    send_json(res,
+              {{"pressed", to_string(*button)}, {"kind", request->long_press ? "long" : "short"}},
+              202);
   });
 
   // Bind now, so a busy port is a start-up error and not a silent background failure.

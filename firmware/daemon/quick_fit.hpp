@@ -27,6 +27,7 @@
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/sensor/kinect_calibration.hpp"
 #include "firmware/daemon/guide_steps.hpp"
+#include "firmware/daemon/http_requests.hpp"  // ColorCorrection
 #include "storage/stored_data.hpp"
 
 namespace fb {
@@ -61,12 +62,6 @@ struct QuickFitResult {
 
   // The landmarks as the store keeps them (colour px, plus the lifted 3D point when there is one).
   std::vector<Landmark> stored_landmarks(const PinholeIntrinsics& depth) const;
-};
-
-// A correction from the kiosk: landmark `index` dragged to `u, v` (colour image px).
-struct ColorCorrection {
-  int index = 0;
-  double u = 0, v = 0;
 };
 
 class QuickFitter {

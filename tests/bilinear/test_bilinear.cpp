@@ -4,6 +4,7 @@
 // on a small bootstrap model (30 identities) from the face model.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
 
 #include <Eigen/Geometry>
@@ -11,6 +12,7 @@
 #include "algo/bilinear/bootstrap.hpp"
 #include "algo/bilinear/image_fit.hpp"
 #include "algo/bilinear/tensor_decomposition.hpp"
+#include "algo/facemodel/face_model_format.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -165,6 +167,29 @@ TEST(ModelFile, RoundTripAndBadFiles) {
   ASSERT_FALSE(mg.ok());
   EXPECT_NE(mg.error().message.find("magic"), std::string::npos);
   EXPECT_NE(mg.error().message.find("facebooth model build"), std::string::npos);
+}
+
+// Found by review while writing bilinear_model_fuzz: each count may be up to 2^26, so the core's
+// 3 V Kid Kexp floats passed 2^64 and the size check compared a wrapped number with the file.
+TEST(ModelFile, CoreLargerThanTheFileIsRefusedBeforeItsSizeCanWrap) {
+  BilinearModel m;
+  m.vertex_count = 4;
+  m.face_vertex_count = 4;
+  m.id_knobs = m.exp_knobs = m.identity_count = m.expression_count = 1;
+  m.core.assign(12, 1.0f);
+  m.identity_factors = m.expression_factors = m.identity_spectrum = m.expression_spectrum = {1};
+  m.expression_names = {"neutral"};
+  m.triangles = {0, 1, 2};
+  auto bytes = serialize_bilinear_model(m);
+  ASSERT_TRUE(parse_bilinear_model(bytes).ok());
+  auto put = [&](std::size_t at, std::uint32_t v) { std::memcpy(bytes.data() + at, &v, 4); };
+  put(24, 1u << 25);                                          // vertices
+  for (std::size_t at : {32, 36, 40, 44}) put(at, 1u << 20);  // knobs and counts
+  const std::uint32_t crc = fbfm::crc32(std::span<const std::byte>(bytes).subspan(16));
+  std::memcpy(bytes.data() + 12, &crc, 4);
+  auto r = parse_bilinear_model(bytes);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("larger than the file"), std::string::npos) << r.error().message;
 }
 
 struct Truth {

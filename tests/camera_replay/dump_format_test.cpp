@@ -5,6 +5,7 @@
 #include "drivers/camera/common/fakenect_dump.hpp"
 #include "drivers/camera/replay/replay_camera.hpp"
 #include "tests/camera_replay/test_dumps.hpp"
+#include "tests/fuzz/regression_input.hpp"
 
 namespace fb {
 namespace {
@@ -37,6 +38,20 @@ TEST(DumpFileName, RejectsGarbage) {
     ASSERT_FALSE(e) << bad;
     EXPECT_TRUE(contains(e.error().message, "not a fakenect dump file name")) << bad;
   }
+}
+
+// Found by fakenect_dump_fuzz: a host time of 1.5e18 s parsed, and formatting it back overflowed
+// the microseconds (llround out of range) into a name that did not parse.
+TEST(DumpFileName, RejectsHostTimesPastTheMicrosecondRange) {
+  const std::string name =
+      test::fuzz_regression("fakenect_dump_fuzz", "name-host-time-past-microseconds", true);
+  ASSERT_EQ(name, "d-1513096721513096728-20228015.pgm");
+  auto e = parse_dump_file_name(name);
+  ASSERT_FALSE(e);
+  EXPECT_TRUE(contains(e.error().message, "host time is out of range")) << e.error().message;
+  std::string formatted;
+  format_dump_file_name(DumpEntryType::kDepth, 1.5e18, 1, formatted);  // clamped, still a name
+  EXPECT_TRUE(parse_dump_file_name(formatted)) << formatted;
 }
 
 TEST(DumpFileName, FormatRoundTrips) {

@@ -24,11 +24,13 @@
 #include "algo/landmarks/landmark_lifting.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/guide_steps.hpp"
+#include "firmware/daemon/http_requests.hpp"
 #include "firmware/daemon/session_machine.hpp"
 #include "firmware/daemon/session_records.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/session_store.hpp"
+#include "tests/fuzz/regression_input.hpp"
 
 // After every Eigen header (httplib's <resolv.h> defines _res).
 #include <httplib.h>
@@ -223,6 +225,75 @@ TEST(DaemonConfig, ErrorsNameTheProblem) {
   EXPECT_FALSE(load_daemon_config("/nonexistent/faceboothd.toml"));
 }
 
+// Found by daemon_config_fuzz: toml++ prints a string holding a newline as a multi-line literal
+// string, whose first newline a reader drops, so uri = "\n" printed (--print-default-config)
+// and read back as an empty uri. Strings are printed as escaped basic strings now.
+TEST(DaemonConfig, PrintedStringsReadBackTheSame) {
+  auto config = parse_daemon_config(
+      test::fuzz_regression("daemon_config_fuzz", "uri-starting-with-newline"), "h.toml");
+  ASSERT_TRUE(config) << config.error().message;
+  EXPECT_EQ(config->camera.uri, "\n");
+  config->http.token = std::string("a\"b\\c\x01\x7f'''d");
+  auto again = parse_daemon_config(to_toml(*config), "printed.toml");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->camera.uri, "\n");
+  EXPECT_EQ(again->http.token, config->http.token);
+  EXPECT_EQ(to_toml(*again), to_toml(*config));
+}
+
+// Found by review of daemon_config_fuzz's reach: integers were narrowed to int unchecked (port
+// 2^32 + 80 read as 80) and TOML's nan/inf passed the range checks (min_coverage = nan failed
+// every capture's QA, and printed "nan").
+TEST(DaemonConfig, RefusesOutOfRangeIntegersAndNonFiniteNumbers) {
+  auto wide = parse_daemon_config("[http]\nport = 4294967376\n", "f.toml");
+  ASSERT_FALSE(wide);
+  EXPECT_NE(wide.error().message.find("http.port = 4294967376 is out of range"), std::string::npos)
+      << wide.error().message;
+  for (const char* text : {"[session]\nmin_coverage = nan\n", "[session]\nmax_residual_mm = inf\n",
+                           "[camera]\npreview_fps = -nan\n"}) {
+    auto r = parse_daemon_config(text, "g.toml");
+    ASSERT_FALSE(r) << text;
+    EXPECT_NE(r.error().message.find("must be a finite number"), std::string::npos)
+        << r.error().message;
+  }
+}
+
+// Found moving the request parsing out of the server for http_requests_fuzz: a member of the
+// wrong type made nlohmann's value() throw (a 500 "internal error" for a client's mistake), and
+// integer members were narrowed to int unchecked (index 2^32 + 2 read as 2, frames 2^32 + 45 as
+// 45). Each input is kept in tests/fuzz/regressions/http_requests_fuzz/.
+TEST(HttpRequests, WrongTypesAndWideIntegersAreClientErrors) {
+  auto input = [](const char* name) {
+    return test::fuzz_regression("http_requests_fuzz", name, /*skip_selector=*/true);
+  };
+  auto subject = parse_control_request(input("control-subject-not-a-string"));
+  ASSERT_FALSE(subject);
+  EXPECT_NE(subject.error().message.find("subject must be a string"), std::string::npos);
+  auto button = parse_button_request(input("button-not-a-string"));
+  ASSERT_FALSE(button);
+  EXPECT_NE(button.error().message.find("button must be"), std::string::npos);
+  auto corrections = parse_landmark_corrections(input("correction-index-wraps"));
+  ASSERT_FALSE(corrections);
+  EXPECT_NE(corrections.error().message.find("0..67"), std::string::npos);
+  auto frames = parse_self_calibrate_request(input("self-calibrate-frames-wraps"), 45);
+  ASSERT_FALSE(frames);
+  EXPECT_NE(frames.error().message.find("10..300"), std::string::npos);
+  // Found by http_requests_fuzz in the first version of the moved code: non-negative integers
+  // are unsigned in nlohmann and that branch checked only the upper bound ({"frames": 1}).
+  EXPECT_FALSE(parse_self_calibrate_request(input("self-calibrate-frames-below-10"), 45));
+  // What the kiosk sends still parses.
+  EXPECT_EQ(*parse_control_request(R"({"subject": "Ada"})"), "Ada");
+  EXPECT_EQ(*parse_control_request(""), "");
+  EXPECT_TRUE(*parse_mode_request(R"({"mode": "tracking"})"));
+  EXPECT_EQ(*parse_self_calibrate_request("{}", 45), 45);
+  auto ok = parse_landmark_corrections(R"({"corrections": [{"index": 67, "u": 1.5, "v": 2}]})");
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->at(0).index, 67);
+  EXPECT_EQ(parse_path_id("000000000042").value(), 42);
+  EXPECT_FALSE(parse_path_id("1234567890123"));
+  EXPECT_EQ(parse_shape_names_param(",a,,b,").size(), 2u);
+}
+
 // Issue 35: no "nan" reaches a user. A missing figure (a fit that did not run, a mean over
 // nothing) reads "n/a" in the daemon's log lines, QA reasons and `eval fit`'s console lines,
 // and null in the status JSON, also for in-process readers (nlohmann keeps NaN until dump).
@@ -245,6 +316,15 @@ TEST(GuideSteps, TheProjectGuideHasTwentyExpressions) {
   EXPECT_EQ((*steps)[0].synthetic_expr, "neutral");
   EXPECT_NE((*steps)[1].synthetic_expr.find("jawOpen:0.7"), std::string::npos);
   EXPECT_FALSE(parse_guide_steps("{\"expressions\": 3}"));
+}
+
+// Found while writing guide_fuzz (the target aborts on it): a label that is not a string made
+// nlohmann's value() throw out of parse_guide_steps; faceboothd terminated on such a guide file.
+TEST(GuideSteps, ALabelThatIsNotAStringIsAnError) {
+  auto steps = parse_guide_steps(test::fuzz_regression("guide_fuzz", "label-not-a-string"));
+  ASSERT_FALSE(steps);
+  EXPECT_NE(steps.error().message.find("neutral.label is not a string"), std::string::npos)
+      << steps.error().message;
 }
 
 // ------------------------------------------------------------------ daemon, end to end
@@ -476,11 +556,13 @@ TEST_F(DaemonTest, HeadlessSessionFitsStoresAndOffloads) {
   for (std::size_t i = 0; i < m_old->positions.size(); ++i)
     moved = std::max<double>(moved, std::abs(m_old->positions[i] - m_new->positions[i]));
   EXPECT_GT(moved, 0.01);  // the refit changed the mesh
-  // Bad corrections are refused; only the latest capture can be corrected.
+  // Bad corrections are refused (an index outside 0..67 is a malformed body, 400, since the
+  // parsing moved to http_requests; it was the fitter's 409 before); only the latest capture
+  // can be corrected.
   EXPECT_EQ(
       http.Post(path, R"({"corrections": [{"index": 99, "u": 1, "v": 1}]})", "application/json")
           ->status,
-      409);
+      400);
   EXPECT_EQ(http.Post(path, R"({"corrections": "no"})", "application/json")->status, 400);
   EXPECT_EQ(http.Post("/api/sessions/" + std::to_string(r->session_id) + "/captures/0/landmarks",
                       corr.dump(), "application/json")

@@ -8,6 +8,7 @@
 #include "algo/guide/guide_expressions.hpp"
 #include "storage/asset_files.hpp"
 #include "tests/common/test_face_model.hpp"
+#include "tests/fuzz/regression_input.hpp"
 
 namespace fb {
 namespace {
@@ -50,6 +51,22 @@ TEST(Guide, CommittedRecipesParseAndReferenceModelShapes) {
   }
   EXPECT_EQ(guide->find("smile"), 2);
   EXPECT_EQ(guide->find("nope"), -1);
+}
+
+// Found while writing guide_fuzz (the target aborts on it): nlohmann's value() throws when the
+// member has another type, and "format": 1 escaped the parser as an exception (the daemon and
+// the CLI would terminate on such a guide file). An id of 2^32 read as 0.
+TEST(Guide, WrongTypesAndWideIdsAreErrorsNotExceptions) {
+  auto format = parse_guide_expressions(test::fuzz_regression("guide_fuzz", "format-not-a-string"));
+  ASSERT_FALSE(format.ok());
+  EXPECT_NE(format.error().message.find("format"), std::string::npos) << format.error().message;
+  EXPECT_FALSE(parse_guide_expressions(
+      R"({"format":"facebooth-guide-expressions","version":"1","expressions":[]})"));
+  auto id = parse_guide_expressions(
+      R"({"format":"facebooth-guide-expressions","version":1,"expressions":[)"
+      R"({"id":4294967296,"name":"neutral","weights":{}}]})");
+  ASSERT_FALSE(id.ok());
+  EXPECT_NE(id.error().message.find("0..1000"), std::string::npos) << id.error().message;
 }
 
 TEST(Guide, BadTextGivesClearErrors) {

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "tests/fuzz/regression_input.hpp"
+
 namespace fb {
 namespace {
 
@@ -121,6 +123,19 @@ std::string error_of(const std::string& text) {
   auto parsed = parse_device_json(text);
   EXPECT_FALSE(parsed);
   return parsed ? std::string() : parsed.error().message;
+}
+
+// Found by device_json_fuzz: a number too large for a double ("ax": 1e1539) made nlohmann throw
+// out_of_range, not parse_error, and the exception escaped the parser (std::terminate): a
+// damaged device.json took down the replay camera instead of being reported.
+TEST(DeviceJson, NumberOverflowIsAnErrorNotAnException) {
+  const std::string text = test::fuzz_regression("device_json_fuzz", "number-overflow-1e1539");
+  ASSERT_NE(text.find("1e1539"), std::string::npos);
+  auto parsed = parse_device_json(text);
+  ASSERT_FALSE(parsed);
+  EXPECT_NE(parsed.error().message.find("not valid JSON"), std::string::npos)
+      << parsed.error().message;
+  EXPECT_FALSE(parse_device_json(R"({"reg_info": {"ax": 1e400}, "const_shift": 200})"));
 }
 
 TEST(DeviceJson, ErrorsNameTheField) {

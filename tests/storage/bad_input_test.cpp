@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "sim/crash/crash_trials.hpp"
+#include "storage/data_codec.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/session_store.hpp"
 #include "tests/storage/test_dir.hpp"
@@ -240,6 +241,34 @@ TEST(BadInput, FullDiskDuringCaptureLosesNothing) {
   ASSERT_TRUE(capture(*store, session, 2));
   EXPECT_TRUE(store->verify()->ok());
   EXPECT_EQ(store->capture(session, 2)->attempts, 4);
+}
+
+// Found by review while writing store_files_fuzz: a mesh or rig file whose triangles point
+// past its vertices (add_mesh never writes one; a file written wrong whose checksum matches)
+// was returned as is, and the exporters index positions with those triangles.
+TEST(BadInput, MeshAndRigFilesWithTrianglesPastTheirVerticesAreMalformed) {
+  using namespace store_detail;
+  auto mesh_file = [](std::uint32_t corner) {
+    ByteWriter w;
+    w.put_magic(kMeshMagic);
+    w.put(std::uint32_t{3});
+    w.put(std::uint32_t{1});
+    w.put_span(std::span<const float>(std::vector<float>(9, 1.0f)));
+    w.put_span(std::span<const std::uint32_t>(std::vector<std::uint32_t>{0, 1, corner}));
+    return w.bytes;
+  };
+  MeshData mesh;
+  EXPECT_TRUE(decode_mesh(mesh_file(2), mesh));
+  EXPECT_FALSE(decode_mesh(mesh_file(3), mesh));
+  ByteWriter rig;
+  rig.put_magic(kRigMagic);
+  rig.put(std::uint32_t{3});
+  rig.put(std::uint32_t{1});
+  rig.put(std::uint32_t{0});
+  rig.put_span(std::span<const float>(std::vector<float>(9, 1.0f)));
+  rig.put_span(std::span<const std::uint32_t>(std::vector<std::uint32_t>{0, 1, 7}));
+  RigData decoded;
+  EXPECT_FALSE(decode_rig(rig.bytes, decoded));
 }
 
 }  // namespace

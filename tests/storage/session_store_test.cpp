@@ -444,7 +444,8 @@ TEST(SessionStore, TexturesAndSessionCalibrationRoundTrip) {
   ASSERT_TRUE(a && b);
   EXPECT_FALSE(store->add_texture(session, 1, 256, 256, std::vector<std::uint8_t>{1, 2, 3}, "{}"));
   EXPECT_FALSE(store->add_texture(99, 1, 256, 256, capture_png, "{}"));
-  store = SessionStore::open(dir.path());  // reopen: nothing is an orphan
+  { SessionStore closing = std::move(*store); }  // one writer at a time
+  store = SessionStore::open(dir.path());        // reopen: nothing is an orphan
   ASSERT_TRUE(store);
   EXPECT_EQ(store->orphans_removed(), 0);
   EXPECT_EQ(store->session(session)->calibration_json, R"({"unit": 1})");

@@ -144,7 +144,7 @@ Result<KinectCalibration> parse_device_json(std::string_view text) {
   json root;
   try {
     root = json::parse(text.begin(), text.end());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for 1e400
     return fail(std::string("device.json is not valid JSON (") + e.what() +
                 "); fix or delete the file to use the default Kinect calibration");
   }

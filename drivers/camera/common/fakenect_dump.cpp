@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -210,9 +211,13 @@ void format_name_us(DumpEntryType type, long long micros, std::uint32_t ts, std:
   out.assign(buf, static_cast<std::size_t>(n));
 }
 
+// Host times past this (the year 33658) are not clock readings; their microseconds would not
+// fit a long long either, so names with them are refused and the writer clamps to it.
+constexpr double kMaxHostTimeS = 1e12;
+
 long long to_micros(double host_time_s) {
   if (!(host_time_s > 0.0)) return 0;  // also catches NaN
-  return std::llround(host_time_s * 1e6);
+  return std::llround(std::min(host_time_s, kMaxHostTimeS) * 1e6);
 }
 
 bool is_dump_file_name(const std::string& name) {
@@ -258,6 +263,7 @@ Result<DumpEntry> parse_dump_file_name(std::string_view name) {
       time_text[0] == '-' || !std::isfinite(e.host_time_s)) {
     return bad("host time is not a number");
   }
+  if (e.host_time_s > kMaxHostTimeS) return bad("host time is out of range");
   unsigned long long ts = 0;
   const auto [sp, sec] = std::from_chars(ts_text.data(), ts_text.data() + ts_text.size(), ts);
   if (sec != std::errc() || sp != ts_text.data() + ts_text.size() || ts_text.empty() ||

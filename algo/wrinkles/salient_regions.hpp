@@ -1,0 +1,53 @@
+// Salient wrinkle regions (seed 004, section 3.2): where a face image shows wrinkles, so the
+// synthesis runs only there. A wrinkle is a thin valley or ridge of shading: the luminance
+// gradient changes sign across it with magnitude over a threshold (along x for a line running
+// vertically, along y for one running horizontally). Marked pixels are traced into lines
+// (8-connected); short lines, and lines at the mouth, lips, brows and nose (from the 68
+// landmarks), are dropped; the rest are clustered into rectangles grown by a margin.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "algo/core/image.hpp"
+#include "algo/wrinkles/exemplar.hpp"
+
+namespace fb {
+
+struct PixelRectI {
+  int x = 0, y = 0, width = 0, height = 0;
+  bool contains(int px, int py) const {
+    return px >= x && py >= y && px < x + width && py < y + height;
+  }
+};
+
+struct SalientOptions {
+  float gradient_threshold = 0.01f;  // luminance (0..1) per pixel on both sides of the line
+  int min_line_px = 12;              // lines shorter than this (pores, noise) are dropped
+  float feature_radius_px = 10.0f;   // lines this close to mouth/brow/nose landmarks are dropped
+  int cluster_gap_px = 10;           // lines this close join one region
+  int margin_px = 5;                 // each region grown by this (the paper's 5 px)
+};
+
+struct WrinkleLine {
+  std::vector<Eigen::Vector2i> pixels;
+  PixelRectI box;
+  int length() const { return std::max(box.width, box.height); }
+};
+
+struct SalientRegions {
+  Image<std::uint8_t> marked;      // 1 where the gradient changes sign over the threshold
+  std::vector<WrinkleLine> lines;  // kept lines
+  std::vector<PixelRectI> regions;
+};
+
+// `landmarks`: the 68 iBUG points in this image (optional); without them no line is dropped for
+// lying on a feature.
+SalientRegions salient_regions(const FloatImage& luminance,
+                               const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
+                               const SalientOptions& options = {});
+
+}  // namespace fb

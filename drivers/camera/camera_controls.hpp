@@ -31,5 +31,7 @@ struct CameraResources {
 inline constexpr std::string_view kControlExpression = "expression";  // `expr=` syntax
 inline constexpr std::string_view kControlMotion = "motion";          // headturn | static
 inline constexpr std::string_view kControlFrames = "frames";          // take length
+// "1": frames arrive on the sensor's clock (a late reader loses frames, as with a real sensor).
+inline constexpr std::string_view kControlRealtime = "realtime";
 
 }  // namespace fb

@@ -734,9 +734,13 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   DepthCamera* camera = preview_camera.get();
   if (config.camera.synthetic_imitates_guide &&
       camera_has_control(config.camera.uri, kControlExpression)) {
-    const CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
-                                     {std::string(kControlMotion), "headturn"},
-                                     {std::string(kControlFrames), std::to_string(n)}};
+    CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
+                               {std::string(kControlMotion), "headturn"},
+                               {std::string(kControlFrames), std::to_string(n)}};
+    // A real sensor delivers on its own clock and overwrites what the loop is too late for;
+    // the rendering camera does the same when asked (it renders ahead on its own thread).
+    if (config.camera.realtime && camera_has_control(config.camera.uri, kControlRealtime))
+      controls.push_back({std::string(kControlRealtime), "1"});
     // Rendered with the face model the fitter already holds (FaceModel is immutable after
     // loading) instead of the module loading another 21 MB copy for every take.
     CameraResources lent;
@@ -760,14 +764,17 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   bool box_detected = false, fusion_ready = false;
   std::string box_note;
 
-  const auto period = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(1.0 / (info.fps > 0 ? info.fps : 30.0)));
-  const bool pace = config.camera.realtime && take_camera != nullptr;
-  auto due = Clock::now();
   double rms_sum = 0;
   int fused = 0, recorded = 0;
   RigidPose frontal_pose;
+  // Frames the camera overwrote because this loop was late: gaps in the stream's index, as
+  // the freenect backend's double buffer and the realtime synthetic camera leave them.
   long long dropped = 0;
+  std::uint64_t expected_index = 0;
+  // A sensor that stops delivering (cable, power, a stalled USB stream) ends the take with an
+  // error instead of a take that never finishes; a Kinect's first frame comes within 2 s.
+  constexpr long long kStallMs = 3000;
+  auto last_frame_at = Clock::now();
   int fusion_dropped = 0;  // frames fusion could not follow (lost): kept out, counted
   RgbdFrame frame;
   while (recorded < n) {
@@ -777,22 +784,22 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
       status.frames_dropped += dropped;
       return false;
     }
-    if (pace) {
-      // A real sensor delivers at its own rate: if the loop falls a whole period behind, the
-      // frames it missed are dropped (counted) and the schedule moves on, as a camera would.
-      const auto now = Clock::now();
-      if (now > due + period) {
-        const long long missed = (now - due) / period;
-        dropped += missed;
-        due += missed * period;
-      }
-      std::this_thread::sleep_until(due);
-      due += period;
-    }
     auto got = camera->next_frame(frame, std::chrono::milliseconds(500));
-    if (!got) return got.failure();
+    if (!got)
+      return fail("the camera failed after " + std::to_string(recorded) + " frames of the take (" +
+                  got.error().message + "); check its cable and power, then retry the capture");
     if (*got == FrameStatus::kEndOfStream) break;
-    if (*got == FrameStatus::kTimeout) continue;
+    if (*got == FrameStatus::kTimeout) {
+      if (ms_since(last_frame_at) > kStallMs)
+        return fail("the camera stopped delivering frames after " + std::to_string(recorded) +
+                    " frames of the take (none for " + std::to_string(kStallMs / 1000) +
+                    " s); check its cable and power, then retry the capture");
+      continue;
+    }
+    last_frame_at = Clock::now();
+    if (recorded > 0 && frame.index > expected_index)
+      dropped += static_cast<long long>(frame.index - expected_index);
+    expected_index = frame.index + 1;
     // No live registration check here: the take's own frames are checked after it, on the fit
     // thread (registration_allows_fit), so the check never competes with fusion for the CPU.
     if (!fusion_ready) {
@@ -885,9 +892,9 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   // the face box came from.
   std::fprintf(stderr,
                "faceboothd: take: %d of %d frames fused, %d dropped (fusion could not follow "
-               "the face); face box %d,%d %dx%d %s%s\n",
-               fused, recorded, fusion_dropped, clipped.x, clipped.y, clipped.width, clipped.height,
-               box_detected ? "from dlib" : "fixed (no face found: ",
+               "the face), %lld missed (read too late); face box %d,%d %dx%d %s%s\n",
+               fused, recorded, fusion_dropped, dropped, clipped.x, clipped.y, clipped.width,
+               clipped.height, box_detected ? "from dlib" : "fixed (no face found: ",
                box_detected ? "" : (box_note + ")").c_str());
   return true;
 }

@@ -4,6 +4,9 @@
 //
 // URI: synthetic:seed=3,expr=jawOpen:0.6+mouthSmile_L,motion=headturn|static,frames=90,
 //      anim=expressive (jaw open, smile, blinks, brows up as 5 s of smooth bumps, repeated),
+//      stall_after=N, fail_after=N (fault injection: the stream stalls or fails after N frames),
+//      realtime=1 (frames arrive on the sensor's 30 fps clock, rendered ahead on a thread:
+//      render_ahead.hpp; a consumer that falls behind loses frames, as with a real Kinect),
 //      distance=700,noise=on|off,background=1200|off,identity=random|neutral,
 //      unit=SEED|reg_dx=PX,reg_dy=PX,reg_rot=DEG,depth_scale=S,calibrated=0|1,
 //      world=realistic|identity|texture|hair|clutter|noise|unit and the world's own keys
@@ -40,7 +43,9 @@
 //    registered depth truncates x and so sits up to one pixel left of it, as with a real device.
 //  - Time: frame i has host time i / 30 s (depth and colour alike) and device timestamps
 //    i * 2,000,000 ticks of the 60 MHz clock (wrapping at 2^32). next_frame() renders on demand
-//    and ignores the timeout: no real-time pacing.
+//    and ignores the timeout (no pacing), except with realtime=1: then a thread renders ahead
+//    and next_frame() waits for the frame's sensor time; truth() then has no noiseless depth and
+//    sensor_frame() / material_pixels() belong to the render thread (not to be read).
 //  - Determinism: everything random (identity draw, noise, dropouts) comes from counter-based
 //    hashes of the seed and frame index, so a seed gives bit-identical frames on a given build.
 #pragma once
@@ -58,6 +63,7 @@
 #include "algo/render/kinect_sensor.hpp"
 #include "drivers/camera/camera_backend.hpp"
 #include "sim/camera/frame_truth.hpp"
+#include "sim/camera/render_ahead.hpp"
 #include "sim/camera/synthetic_world.hpp"
 
 namespace fb {
@@ -91,6 +97,12 @@ struct SyntheticOptions {
   std::vector<RigidPose> camera_from_model_track;
 
   int frame_count = 90;
+  // Deliver on the sensor's clock, rendering ahead on a thread (render_ahead.hpp).
+  bool realtime = false;
+  // Fault injection (-1 = off): after this many frames the stream stalls (next_frame() times
+  // out from then on, as a stalled USB stream does) or fails (an error, as an unplugged one).
+  long long stall_after = -1;
+  long long fail_after = -1;
   double distance_mm = 700.0;     // depth of the rest-pose landmark centroid
   double background_mm = 1200.0;  // wall depth; <= 0 for no wall (empty background)
 
@@ -116,14 +128,13 @@ struct SyntheticOptions {
 RegistrationCorrection random_unit_correction(std::uint64_t seed);
 
 // The camera controls it takes (camera_controls.hpp): expression (the `expr=` syntax below),
-// motion (headturn|static) and frames (the take length). Each overrides the URI key of the same
-// meaning; faceboothd sets all three for a take of the guide's expression.
-inline constexpr std::string_view kSyntheticControls = "expression,motion,frames";
+// motion (headturn|static), frames (the take length) and realtime (0|1). Each overrides the URI key
+// of the same meaning; faceboothd sets all three for a take of the guide's expression.
+inline constexpr std::string_view kSyntheticControls = "expression,motion,frames,realtime";
 
 // Parses the URI argument list (after `synthetic:`) and the controls into options. Unknown keys
 // and bad values are errors that list what is accepted.
-Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments,
-                                                 const FaceModel& model,
+Result<SyntheticOptions> parse_synthetic_options(std::string_view arguments, const FaceModel& model,
                                                  const CameraControls& controls = {});
 
 // Parses `expr=` values: `neutral`, or `name[:weight]` terms joined by '+', e.g.
@@ -142,6 +153,8 @@ class SyntheticCamera : public DepthCamera, public GroundTruthCamera {
   void stop() override;
   Result<FrameStatus> next_frame(RgbdFrame& frame, std::chrono::milliseconds timeout) override;
   const FrameTruth* truth() const override;
+  // With realtime=1 and started: what the render thread did (frames late, overwritten, lead).
+  std::optional<RenderAhead::Stats> realtime_stats() const;
 
   const SyntheticOptions& options() const;
   // Sensor-model output of the last frame, including why each missing pixel is missing.

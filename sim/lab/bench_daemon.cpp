@@ -2,15 +2,10 @@
 // measures start-to-ready and resident memory, then runs a session while a second process hammers
 // the HTTP API on loopback, and reports the frames the frame loop dropped. One JSON object on
 // stdout, progress on stderr.
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <signal.h>
-#include <sys/socket.h>
-#include <sys/time.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +17,7 @@
 
 #include "algo/core/clock.hpp"
 #include "algo/core/result.hpp"
+#include "sim/lab/daemon_harness.hpp"
 #include "sim/lab/lab_commands.hpp"
 
 // httplib last: its <resolv.h> defines `_res`, which breaks Eigen headers included after it.
@@ -32,85 +28,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-fs::path find_daemon(const std::string& given) {
-  if (!given.empty()) return given;
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  // Build tree: build/sim/facebooth-lab -> build/firmware/daemon/faceboothd; installed: bin/.
-  for (const fs::path& p : {self.parent_path() / "../firmware/daemon/faceboothd",
-                            self.parent_path() / "faceboothd", fs::path("/usr/bin/faceboothd")})
-    if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
-  return {};
-}
-
-// Binds `fd` to a free loopback port; returns the port, or -1.
-int bind_loopback(int fd) {
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  if (fd >= 0 && ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
-    return ntohs(a.sin_port);
-  return -1;
-}
-
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  const int port = bind_loopback(fd);
-  if (fd >= 0) ::close(fd);
-  return port;
-}
-
-double rss_mb(pid_t pid, const char* field) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(field, 0) == 0) return std::stod(line.substr(std::strlen(field))) / 1024.0;
-  return 0;
-}
-
-// A child process that is killed and reaped when this goes out of scope.
-class Child {
- public:
-  explicit Child(pid_t pid = -1) : pid_(pid) {}
-  ~Child() { kill(SIGKILL); }
-  Child(const Child&) = delete;
-  Child& operator=(const Child&) = delete;
-  pid_t pid() const { return pid_; }
-  // Sends `sig` and waits for the exit; returns the exit status (-1 if none).
-  int kill(int sig) {
-    if (pid_ <= 0) return -1;
-    ::kill(pid_, sig);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return status;
-  }
-
- private:
-  pid_t pid_;
-};
-
-// The load generator: a second process with `threads` keep-alive clients requesting status,
-// sessions and the preview picture until killed. Writes its request count to `count_file`.
-[[noreturn]] void run_load(int port, int threads, const fs::path& count_file) {
-  std::atomic<long long> requests{0};
-  std::vector<std::thread> workers;
-  for (int t = 0; t < threads; ++t)
-    workers.emplace_back([&, t] {
-      httplib::Client c("127.0.0.1", port);
-      c.set_keep_alive(true);
-      const char* paths[] = {"/api/status", "/api/sessions", "/api/preview.bmp", "/"};
-      for (long long i = t;; ++i) {
-        if (c.Get(paths[i % 4])) ++requests;
-        if (i % 200 == 0) std::ofstream(count_file) << requests.load();
-      }
-    });
-  for (auto& w : workers) w.join();
-  std::_Exit(0);
-}
 
 // Tracking mode after the session: the daemon tracks the session's subject and streams VMC to
 // a UDP socket here on loopback.
@@ -127,43 +44,8 @@ struct SessionRun {
   long long frames_dropped = 0, frames_total = 0, captures = 0, load_requests = 0;
   double session_s = 0, export_wait_ms = 0, stop_ms = 0;
   bool clean_exit = false;
+  CameraLog camera;  // the synthetic camera's real-time takes (late frames, buffer memory)
   std::optional<TrackingRun> tracking;
-};
-
-// A UDP socket on a free loopback port that counts the datagrams it receives.
-class UdpCounter {
- public:
-  UdpCounter() {
-    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
-    port_ = bind_loopback(fd_);
-    if (port_ > 0) {
-      // A receive timeout, so the reader sees stop_ without relying on shutdown() waking it.
-      timeval timeout{0, 200000};
-      ::setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-      reader_ = std::thread([this] {
-        char buffer[2048];
-        while (!stop_)
-          if (::recv(fd_, buffer, sizeof buffer, 0) > 0) ++received_;
-      });
-    }
-  }
-  ~UdpCounter() {
-    stop_ = true;
-    if (fd_ >= 0) ::shutdown(fd_, SHUT_RDWR);
-    if (reader_.joinable()) reader_.join();
-    if (fd_ >= 0) ::close(fd_);
-  }
-  UdpCounter(const UdpCounter&) = delete;
-  UdpCounter& operator=(const UdpCounter&) = delete;
-  int port() const { return port_; }
-  long long received() const { return received_; }
-
- private:
-  int fd_ = -1;
-  int port_ = -1;
-  std::atomic<bool> stop_{false};
-  std::atomic<long long> received_{0};
-  std::thread reader_;
 };
 
 // One daemon from start to SIGTERM: a session of the configured captures, with `load_threads`
@@ -176,32 +58,16 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
   SessionRun out;
   fs::remove_all(dir / "data");
   const auto t0 = Clock::now();
-  const pid_t pid = ::fork();
-  if (pid < 0) return fail("fork failed");
-  if (pid == 0) {
-    const std::string log = (dir / "faceboothd.log").string();
-    std::freopen(log.c_str(), "w", stderr);
-    ::execl(daemon.c_str(), daemon.c_str(), "--config", (dir / "faceboothd.toml").c_str(), nullptr);
-    std::_Exit(127);
-  }
+  auto spawned = spawn_daemon(daemon, dir / "faceboothd.toml", dir / "faceboothd.log");
+  if (!spawned) return spawned.failure();
+  const pid_t pid = *spawned;
   Child daemon_proc(pid);
   httplib::Client http("127.0.0.1", port);
   http.set_read_timeout(10, 0);
-  auto status = [&]() -> json {
-    auto r = http.Get("/api/status");
-    return r && r->status == 200 ? json::parse(r->body, nullptr, false) : json();
-  };
-  out.start_to_ready_ms = -1;
-  for (int i = 0; i < 3000; ++i) {
-    auto s = status();
-    if (!s.is_null() && s.value("ready", false)) {
-      out.start_to_ready_ms = ms_since(t0);
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  if (out.start_to_ready_ms < 0)
-    return fail("faceboothd never became ready; see " + (dir / "faceboothd.log").string());
+  auto status = [&] { return daemon_status(http); };
+  auto ready = wait_until_ready(http, t0);
+  if (!ready) return fail(ready.error().message + "; see " + (dir / "faceboothd.log").string());
+  out.start_to_ready_ms = *ready;
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   out.rss_idle = rss_mb(pid, "VmRSS:");
   // The daemon loads the landmark model before it reports ready; say so only if it did.
@@ -221,26 +87,9 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
   }
   Child load(load_pid);
   const auto session_t0 = Clock::now();
-  http.Post("/api/session/start", R"({"subject": "bench"})", "application/json");
-  std::string acted;
-  json last;
-  while (true) {
-    last = status();
-    if (last.is_null()) return fail("faceboothd stopped answering");
-    const std::string state = last["state"];
-    const std::string key = state + std::to_string(last["capture_index"].get<int>()) +
-                            std::to_string(last["attempts"].get<int>());
-    if (state == "error") return fail("faceboothd: " + last.value("error", "?"));
-    if (state == "complete") break;
-    if ((state == "guide" || state == "retry") && key != acted) {
-      if (state == "retry" && last["attempts"].get<int>() >= 3)
-        return fail("a capture failed QA three times");
-      http.Post("/api/sim/button", R"({"button": "main"})", "application/json");
-      acted = key;
-    }
-    if (ms_since(session_t0) > 600000) return fail("session took over 10 minutes");
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  auto session = drive_session(http, "bench");
+  if (!session) return session.failure();
+  json last = *session;
   out.session_s = ms_since(session_t0) / 1000.0;
   // "complete" is published before the session's export folder is written.
   const auto export_t0 = Clock::now();
@@ -292,6 +141,7 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
   const int exit_status = daemon_proc.kill(SIGTERM);
   out.stop_ms = ms_since(stop_t0);
   out.clean_exit = WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0;
+  out.camera = read_camera_log(dir / "faceboothd.log");
   return out;
 }
 
@@ -343,9 +193,8 @@ int bench_daemon(const ParsedOptions& o) {
       << (dir / "guide.json").string() << "\"\n[streaming]\nvmc_target = \"127.0.0.1:" << vmc.port()
       << "\"\n";
 
-  // The same session twice: without load (the frames the frame loop drops by itself on this
-  // machine: the synthetic camera renders on that thread; SIGTERM while the end-of-session
-  // export runs) and under load (the figures; SIGTERM at rest).
+  // The same session twice: without load (the frames the frame loop drops by itself; SIGTERM
+  // while the end-of-session export runs) and under load (the figures; SIGTERM at rest).
   std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (no load)\n";
   auto quiet = run_daemon_session(daemon, dir, port, 0, /*stop_during_export=*/true);
   if (!quiet) return report_failure(quiet.error());
@@ -355,37 +204,48 @@ int bench_daemon(const ParsedOptions& o) {
   if (!loaded) return report_failure(loaded.error());
   const SessionRun& r = *loaded;
 
-  json out = {{"start_to_ready_ms", r.start_to_ready_ms},
-              {"daemon_reported_ready_ms", r.daemon_ready_ms},
-              // Peak resident memory over start-up and the session (VmHWM), landmark model
-              // and face model loaded: what the 256 MB budget is about.
-              {"rss_mb", r.rss_peak},
-              {"rss_peak_mb", r.rss_peak},
-              {"rss_peak_mb_without_load", quiet->rss_peak},
-              {"rss_idle_mb", r.rss_idle},
-              {"rss_end_mb", r.rss_end},
-              {"rss_budget_mb", 256},
-              {"landmark_model_loaded", r.landmark_load_ms > 0},
-              {"landmark_model_load_ms", r.landmark_load_ms},
-              {"frames_dropped_under_load", r.frames_dropped},
-              {"frames_total", r.frames_total},
-              {"frames_dropped_without_load", quiet->frames_dropped},
-              {"frames_total_without_load", quiet->frames_total},
-              {"frames_dropped_note",
-               "a take is paced at the camera's 30 fps; a frame is dropped when the frame loop "
-               "(synthetic rendering of the frame + fusion, one thread) falls a period behind. "
-               "The load's own effect is the difference to the run without load"},
-              {"captures", r.captures},
-              {"frames_per_capture", *frames},
-              {"session_s", r.session_s},
-              {"session_s_without_load", quiet->session_s},
-              {"export_wait_ms", r.export_wait_ms},
-              {"load_clients", *threads},
-              {"load_requests", r.load_requests},
-              {"load_requests_per_s", r.load_requests / r.session_s},
-              {"stop_ms", r.stop_ms},
-              {"stop_ms_during_export", quiet->stop_ms},
-              {"clean_exit", r.clean_exit && quiet->clean_exit}};
+  json out = {
+      {"start_to_ready_ms", r.start_to_ready_ms},
+      {"daemon_reported_ready_ms", r.daemon_ready_ms},
+      // Peak resident memory over start-up and the session (VmHWM), landmark model
+      // and face model loaded: what the 256 MB budget is about.
+      {"rss_mb", r.rss_peak},
+      {"rss_peak_mb", r.rss_peak},
+      {"rss_peak_mb_without_load", quiet->rss_peak},
+      {"rss_idle_mb", r.rss_idle},
+      {"rss_end_mb", r.rss_end},
+      {"rss_budget_mb", 256},
+      {"landmark_model_loaded", r.landmark_load_ms > 0},
+      {"landmark_model_load_ms", r.landmark_load_ms},
+      {"frames_dropped_under_load", r.frames_dropped},
+      {"frames_total", r.frames_total},
+      {"frames_dropped_without_load", quiet->frames_dropped},
+      {"frames_total_without_load", quiet->frames_total},
+      {"camera_frames_late", r.camera.late},
+      {"camera_frames_late_without_load", quiet->camera.late},
+      {"camera_takes_logged", r.camera.takes + quiet->camera.takes},
+      // The synthetic camera renders ahead inside the daemon's process: its slots are
+      // lab memory in the daemon's RSS. The daemon's own peak is rss_mb minus this.
+      {"camera_buffer_mb_max", std::max(r.camera.buffer_mb_max, quiet->camera.buffer_mb_max)},
+      {"rss_peak_mb_less_camera_buffer",
+       r.rss_peak - std::max(r.camera.buffer_mb_max, quiet->camera.buffer_mb_max)},
+      {"frames_dropped_note",
+       "takes arrive on the sensor's 30 fps clock (the synthetic camera renders ahead on "
+       "its own thread, realtime=1); a frame is dropped when the daemon's frame loop "
+       "reads it after the next one arrived (a gap in the stream's index, as with the "
+       "freenect backend). camera_frames_late counts frames the renderer delivered after "
+       "their sensor time: when it is 0 the drop figures measure the daemon alone"},
+      {"captures", r.captures},
+      {"frames_per_capture", *frames},
+      {"session_s", r.session_s},
+      {"session_s_without_load", quiet->session_s},
+      {"export_wait_ms", r.export_wait_ms},
+      {"load_clients", *threads},
+      {"load_requests", r.load_requests},
+      {"load_requests_per_s", r.load_requests / r.session_s},
+      {"stop_ms", r.stop_ms},
+      {"stop_ms_during_export", quiet->stop_ms},
+      {"clean_exit", r.clean_exit && quiet->clean_exit}};
   if (r.tracking) {
     const TrackingRun& t = *r.tracking;
     out["tracking"] = {

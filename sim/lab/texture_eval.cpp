@@ -275,6 +275,69 @@ Result<void> write_picture(const std::string& path, const std::vector<ColorImage
   return success();
 }
 
+// One subject's line of the JSON.
+nlohmann::json run_json(std::uint64_t seed, const AtlasScore& score, double on_surface,
+                        double observed, const TakeTexture& tex, double fit_rms_mm,
+                        double seconds) {
+  return nlohmann::json({{"seed", seed},
+                         {"texture_psnr_db", score.psnr_db},
+                         {"texture_seam_error", score.seam_error},
+                         {"texture_psnr_db_on_fitted_surface", on_surface},
+                         {"seam_samples", score.seam_samples},
+                         {"seam_edges", score.seam_edges},
+                         {"seam_samples_observed", score.seam_samples_observed},
+                         {"face_texels_scored", score.texels},
+                         {"gain", {score.gain.x(), score.gain.y(), score.gain.z()}},
+                         {"observed_fraction", observed},
+                         {"frames_aligned", tex.frames_aligned},
+                         {"views", tex.views.size()},
+                         {"fit_rms_to_depth_mm", fit_rms_mm},
+                         {"texture_s", seconds}});
+}
+
+// The fit's inner landmarks (17-67) on the mesh and their lifted camera points: the pairs that
+// place the mesh on the take's first frame.
+struct LandmarkPairs {
+  std::vector<Eigen::Vector3d> model, camera;
+};
+LandmarkPairs landmark_pairs(const FaceModel& model, const std::vector<float>& vertices,
+                             const FitTarget& target) {
+  LandmarkPairs pairs;
+  for (int l = 17; l < 68; ++l) {
+    const auto& lm = target.landmarks[static_cast<std::size_t>(l)];
+    if (!lm.valid || !lm.point) continue;
+    const auto v = model.landmark_vertices[static_cast<std::size_t>(l)];
+    pairs.model.emplace_back(vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]);
+    pairs.camera.push_back(*lm.point);
+  }
+  return pairs;
+}
+
+// The README's picture: the captured colour frame beside the textured avatar, frontal and turned.
+Result<void> write_avatar_picture(const std::string& path, const FaceModel& model,
+                                  const std::vector<float>& atlas_uvs,
+                                  const std::vector<float>& vertices, const TakeTexture& tex,
+                                  const Capture& cap, const std::vector<Eigen::Vector2d>& points) {
+  const auto& k = cap.intrinsics;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& p : points) centre += p / 68.0;
+  RigidPose turned = tex.poses.front();
+  const Eigen::Vector3d pivot = turned.apply(Eigen::Vector3d::Zero());
+  turned.rotation = Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()) * turned.rotation;
+  turned.translation = pivot;
+  const ColorImage front =
+      render_avatar(model, atlas_uvs, vertices, tex.poses.front(), tex.atlas.image, k);
+  const ColorImage side = render_avatar(model, atlas_uvs, vertices, turned, tex.atlas.image, k);
+  const auto nose = model.landmark_vertices[30];
+  const Eigen::Vector3d tip(vertices[3 * nose], vertices[3 * nose + 1], vertices[3 * nose + 2]);
+  const Eigen::Vector2d rendered_centre = k.project(tex.poses.front().apply(tip));
+  const Eigen::Vector2d side_centre = k.project(turned.apply(tip));
+  const int crop_px = 220, out_px = 320;
+  return write_picture(path, {crop(cap.color, centre, crop_px, out_px),
+                              crop(front, rendered_centre, crop_px, out_px),
+                              crop(side, side_centre, crop_px, out_px)});
+}
+
 int run_eval_texture(const ParsedOptions& options) {
   auto subjects = options.get_int("subjects");
   auto first = options.get_int("first-seed");
@@ -326,22 +389,10 @@ int run_eval_texture(const ParsedOptions& options) {
     if (!target) return report_failure(target.error());
     auto fit = fit_neutral(*model, *target);
     if (!fit) return report_failure(fit.error());
-    std::vector<Eigen::Vector3d> model_points, camera_points;
-    for (int l = 17; l < 68; ++l) {
-      const auto& lm = target->landmarks[static_cast<std::size_t>(l)];
-      if (!lm.valid || !lm.point) continue;
-      const auto v = model->landmark_vertices[static_cast<std::size_t>(l)];
-      model_points.emplace_back(fit->vertices[3 * v], fit->vertices[3 * v + 1],
-                                fit->vertices[3 * v + 2]);
-      camera_points.push_back(*lm.point);
-    }
-    TakeTextureInput in;
-    in.vertices = fit->vertices;
-    in.triangles = model->triangles;
-    in.region_vertices = model->face_vertex_count;
-    in.frames = cap->frames;
-    in.landmarks_model = model_points;
-    in.landmarks_camera = camera_points;
+    const LandmarkPairs pairs = landmark_pairs(*model, fit->vertices, *target);
+    const TakeTextureInput in{fit->vertices, model->triangles, model->face_vertex_count,
+                              cap->frames,   pairs.model,      pairs.camera,
+                              std::nullopt};
     const KinectRegistration registration(cap->calibration);
     const auto t0 = Clock::now();
     TakeTextureOptions topt;
@@ -357,20 +408,8 @@ int run_eval_texture(const ParsedOptions& options) {
                         cap->truth_mesh, cap->truth_pose, cap->intrinsics, *cap->camera);
     const double observed = static_cast<double>(tex->atlas.report.observed_texels) /
                             std::max(1, tex->atlas.report.covered_texels);
-    runs.push_back({{"seed", seed},
-                    {"texture_psnr_db", score.psnr_db},
-                    {"texture_seam_error", score.seam_error},
-                    {"texture_psnr_db_on_fitted_surface", on_surface},
-                    {"seam_samples", score.seam_samples},
-                    {"seam_edges", score.seam_edges},
-                    {"seam_samples_observed", score.seam_samples_observed},
-                    {"face_texels_scored", score.texels},
-                    {"gain", {score.gain.x(), score.gain.y(), score.gain.z()}},
-                    {"observed_fraction", observed},
-                    {"frames_aligned", tex->frames_aligned},
-                    {"views", tex->views.size()},
-                    {"fit_rms_to_depth_mm", fit->rms_to_depth_mm},
-                    {"texture_s", seconds}});
+    runs.push_back(
+        run_json(seed, score, on_surface, observed, *tex, fit->rms_to_depth_mm, seconds));
     psnr_sum += score.psnr_db;
     surface_sum += on_surface;
     psnr_min = std::min(psnr_min, score.psnr_db);
@@ -380,29 +419,7 @@ int run_eval_texture(const ParsedOptions& options) {
     seen += observed;
     const std::string png = options.get("png");
     if (s == 0 && !png.empty()) {
-      const auto& k = cap->intrinsics;
-      Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-      for (const auto& p : points) centre += p / 68.0;
-      RigidPose turned = tex->poses.front();
-      const Eigen::Vector3d pivot = turned.apply(Eigen::Vector3d::Zero());
-      turned.rotation = Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()) * turned.rotation;
-      turned.translation = pivot;
-      const ColorImage front =
-          render_avatar(*model, atlas_uvs, fit->vertices, tex->poses.front(), tex->atlas.image, k);
-      const ColorImage side =
-          render_avatar(*model, atlas_uvs, fit->vertices, turned, tex->atlas.image, k);
-      const Eigen::Vector2d rendered_centre = k.project(tex->poses.front().apply(
-          Eigen::Vector3d(fit->vertices[3 * model->landmark_vertices[30]],
-                          fit->vertices[3 * model->landmark_vertices[30] + 1],
-                          fit->vertices[3 * model->landmark_vertices[30] + 2])));
-      const Eigen::Vector2d side_centre = k.project(
-          turned.apply(Eigen::Vector3d(fit->vertices[3 * model->landmark_vertices[30]],
-                                       fit->vertices[3 * model->landmark_vertices[30] + 1],
-                                       fit->vertices[3 * model->landmark_vertices[30] + 2])));
-      const int crop_px = 220, out_px = 320;
-      if (auto ok = write_picture(png, {crop(cap->color, centre, crop_px, out_px),
-                                        crop(front, rendered_centre, crop_px, out_px),
-                                        crop(side, side_centre, crop_px, out_px)});
+      if (auto ok = write_avatar_picture(png, *model, atlas_uvs, fit->vertices, *tex, *cap, points);
           !ok)
         return report_failure(ok.error());
     }

@@ -151,5 +151,36 @@ TEST_F(RealDumpReplay, RealtimePacingDeliversInOrder) {
             << " timeouts of 1 ms while waiting for 4 frames\n";
 }
 
+// Issue 41: a sensor that stops mid-stream. stall_after=N delivers N frames and then times out
+// (nothing arrives); fail_after=N delivers N and then fails, naming the fault.
+TEST_F(RealDumpReplay, InjectedStallAndFailureAfterNFrames) {
+  for (const char* fault : {"stall_after=3", "fail_after=3"}) {
+    auto cam = replay_camera_backend().open(dir_.string() + "," + fault);
+    ASSERT_TRUE(cam) << cam.error().message;
+    ASSERT_TRUE((*cam)->start());
+    RgbdFrame frame;
+    for (int i = 0; i < 3; ++i) {
+      auto s = (*cam)->next_frame(frame, std::chrono::milliseconds(20));
+      ASSERT_TRUE(s) << fault;
+      ASSERT_EQ(*s, FrameStatus::kFrame) << fault;
+      EXPECT_EQ(frame.index, static_cast<std::uint64_t>(i));
+    }
+    for (int i = 0; i < 2; ++i) {
+      auto s = (*cam)->next_frame(frame, std::chrono::milliseconds(20));
+      if (std::string(fault).rfind("stall", 0) == 0) {
+        ASSERT_TRUE(s);
+        EXPECT_EQ(*s, FrameStatus::kTimeout);
+      } else {
+        ASSERT_FALSE(s);
+        EXPECT_NE(s.error().message.find("failed after 3 frames"), std::string::npos)
+            << s.error().message;
+      }
+    }
+  }
+  auto bad = replay_camera_backend().open(dir_.string() + ",stall_after=-2");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("stall_after"), std::string::npos) << bad.error().message;
+}
+
 }  // namespace
 }  // namespace fb

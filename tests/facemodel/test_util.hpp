@@ -7,12 +7,9 @@
 #include <vector>
 
 #include "algo/facemodel/face_model.hpp"
+#include "tests/common/tiny_face_model.hpp"  // make_tiny_model()
 
 namespace fb::test {
-
-// A small but complete model (5 vertices, 2 identity modes, 3 expressions) with
-// deterministic contents, for format and evaluate tests that must not depend on the asset.
-FaceModel make_tiny_model();
 
 // The committed asset (FB_DATA_DIR/facemodel.fbfm), read once per process.
 const std::vector<std::byte>& asset_bytes();

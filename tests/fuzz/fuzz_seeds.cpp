@@ -15,6 +15,7 @@
 #include "storage/data_codec.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/export/mesh_files.hpp"
+#include "tests/common/tiny_face_model.hpp"
 
 namespace {
 
@@ -34,32 +35,6 @@ struct Corpus {
 template <class Container>
 Bytes as_bytes(const Container& c) {
   return Bytes(reinterpret_cast<const char*>(c.data()), c.size() * sizeof(c[0]));
-}
-
-fb::FaceModel tiny_face_model() {
-  fb::FaceModel m;
-  m.vertex_count = 5;
-  m.face_vertex_count = 3;
-  m.identity_count = 2;
-  m.expression_count = 3;
-  m.fitting_expression_count = 2;
-  for (int i = 0; i < 15; ++i) m.neutral.push_back(10.0f * i - 7.5f);
-  for (int k = 0; k < 30; ++k) m.identity_basis.push_back(0.25f * ((k * 7) % 11) - 1.0f);
-  for (int k = 0; k < 45; ++k) m.expression_basis.push_back(0.5f * ((k * 5) % 13) - 3.0f);
-  m.expression_names = {"jawOpen", "mouthSmile_L", "PupilDilate_L"};
-  m.triangles = {0, 1, 2, 0, 2, 3, 2, 3, 4};
-  for (std::uint32_t i = 0; i < 68; ++i) m.landmark_vertices[i] = i % 5;
-  m.rigid_landmarks = {0, 36, 67};
-  m.right_jawline = {1, 2};
-  m.left_jawline = {3};
-  m.right_extended_jawline = {0, 1, 2};
-  m.left_extended_jawline = {3, 4};
-  m.fitting_vertices = {0, 1, 2};
-  m.rigid_vertices = {4};
-  m.provenance = "fuzz seed";
-  m.uvs = {0, 0, 1, 0, 0, 1, 1, 1};
-  m.triangle_uvs = {0, 1, 2, 0, 2, 3, 2, 3, 1};
-  return m;
 }
 
 fb::BilinearModel tiny_bilinear_model() {
@@ -221,7 +196,7 @@ int main(int argc, char** argv) {
     c.add(fb::to_device_json(calibration));
   }
   {
-    auto model = fb::serialize_face_model(tiny_face_model());
+    auto model = fb::serialize_face_model(fb::test::make_tiny_model());
     if (!model) {
       std::fprintf(stderr, "fuzz_seeds: %s\n", model.error().message.c_str());
       return 1;

@@ -1,5 +1,6 @@
 #include "drivers/camera/common/camera_uri.hpp"
 
+#include <charconv>
 #include <filesystem>
 #include <optional>
 
@@ -7,7 +8,9 @@ namespace fb {
 
 Result<CameraUri> parse_camera_uri(std::string_view uri) {
   if (uri.empty()) {
-    return fail("empty camera URI; use e.g. 'synthetic:', 'replay:DIR', 'freenect:0' or 'openni2:FILE.oni'");
+    return fail(
+        "empty camera URI; use e.g. 'synthetic:', 'replay:DIR', 'freenect:0' or "
+        "'openni2:FILE.oni'");
   }
   const auto colon = uri.find(':');
   CameraUri parsed;
@@ -24,13 +27,14 @@ Result<std::map<std::string, std::string>> parse_key_values(std::string_view arg
   std::size_t start = 0;
   while (start <= arguments.size() && !arguments.empty()) {
     const auto comma = arguments.find(',', start);
-    const auto item = arguments.substr(start, comma == std::string_view::npos ? std::string_view::npos
-                                                                               : comma - start);
+    const auto item = arguments.substr(
+        start, comma == std::string_view::npos ? std::string_view::npos : comma - start);
     if (!item.empty()) {
       const auto eq = item.find('=');
       std::string key(item.substr(0, eq));
       std::string value = eq == std::string_view::npos ? "1" : std::string(item.substr(eq + 1));
-      if (key.empty()) return fail("camera option '" + std::string(item) + "' has no name before '='");
+      if (key.empty())
+        return fail("camera option '" + std::string(item) + "' has no name before '='");
       if (values.count(key)) return fail("camera option '" + key + "' is given twice");
       values.emplace(std::move(key), std::move(value));
     }
@@ -47,6 +51,15 @@ Result<RecordingOptions> parse_recording_options(std::string_view text, std::str
   if (!values) return values.failure();
   RecordingOptions options;
   for (const auto& [key, value] : *values) {
+    if (key == "stall_after" || key == "fail_after") {
+      long long n = -1;
+      const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), n);
+      if (ec != std::errc{} || end != value.data() + value.size() || n < 0)
+        return fail(std::string(backend) + " option '" + key + "=" + value +
+                    "' must be a frame count (0 or more)");
+      (key == "stall_after" ? options.stall_after : options.fail_after) = n;
+      continue;
+    }
     bool* target = key == "realtime" ? &options.realtime : key == "loop" ? &options.loop : nullptr;
     if (target == nullptr) {
       return fail("unknown " + std::string(backend) + " option '" + key +

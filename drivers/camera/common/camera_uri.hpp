@@ -27,8 +27,13 @@ Result<std::map<std::string, std::string>> parse_key_values(std::string_view arg
 struct RecordingOptions {
   bool realtime = false;  // pace frames at the recorded times (else as fast as they are read)
   bool loop = false;      // start over at the end instead of reporting kEndOfStream
+  // Fault injection (replay only; -1 = off): after this many frames since start() the stream
+  // stalls (next_frame() times out from then on) or fails, as an unplugged sensor does.
+  long long stall_after = -1;
+  long long fail_after = -1;
 };
-inline constexpr std::string_view kRecordingOptionsHelp = "realtime=0|1, loop=0|1";
+inline constexpr std::string_view kRecordingOptionsHelp =
+    "realtime=0|1, loop=0|1, stall_after=N, fail_after=N";
 
 // Splits `PATH[,realtime=0|1][,loop=0|1]`. A comma starts the options only if everything after
 // it is a valid option list, so paths containing commas still work. An unknown option is an

@@ -216,6 +216,10 @@ class Openni2Camera final : public DepthCamera {
     playback_ = is_recording_argument(target);
     info_.uri = std::string(kBackend) + ":" + target + (options_.realtime ? ",realtime=1" : "") +
                 (options_.loop ? ",loop=1" : "");
+    if (options_.stall_after >= 0 || options_.fail_after >= 0)
+      return fail(
+          "openni2: stall_after and fail_after are fault injection of the replay backend "
+          "only (replay:DIR,stall_after=N)");
     if (!playback_ && (options_.loop || options_.realtime)) {
       return fail("openni2: '" + target +
                   "' is not a recording; loop and realtime apply to recordings only "

@@ -36,6 +36,14 @@ class ReplayCamera final : public DepthCamera {
     if (!started_) {
       return fail("replay camera '" + info_.uri + "' is not started; call start() first");
     }
+    const auto delivered = static_cast<long long>(next_index_);
+    if (options_.fail_after >= 0 && delivered >= options_.fail_after)
+      return fail("replay: the camera failed after " + std::to_string(delivered) +
+                  " frames (fault injected by fail_after)");
+    if (options_.stall_after >= 0 && delivered >= options_.stall_after) {
+      std::this_thread::sleep_for(timeout);  // a stalled stream: nothing arrives
+      return FrameStatus::kTimeout;
+    }
     if (reader_.position() >= reader_.depth_frame_count()) {
       if (!options_.loop) return FrameStatus::kEndOfStream;
       reader_.rewind();
@@ -80,7 +88,8 @@ class ReplayCamera final : public DepthCamera {
 };
 
 constexpr std::string_view kUsage =
-    "replay:DIR[,realtime=1][,loop=1]  play a fakenect dump directory (INDEX.txt + d-/r- files)";
+    "replay:DIR[,realtime=1][,loop=1][,stall_after=N|fail_after=N]  play a fakenect dump "
+    "directory (INDEX.txt + d-/r- files); stall_after/fail_after inject a stalled or failed stream";
 
 Result<std::unique_ptr<DepthCamera>> open_replay(std::string_view arguments) {
   if (arguments.empty()) {

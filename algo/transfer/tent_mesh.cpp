@@ -48,6 +48,17 @@ Result<PolygonFaces> faces_of(int vertex_count, std::span<const std::uint32_t> i
   return f;
 }
 
+std::vector<std::uint32_t> fan_triangles(const PolygonFaces& faces) {
+  std::vector<std::uint32_t> out;
+  for (int f = 0; f < faces.face_count(); ++f) {
+    const std::uint32_t b = faces.offsets[static_cast<std::size_t>(f)];
+    const std::uint32_t e = faces.offsets[static_cast<std::size_t>(f) + 1];
+    for (std::uint32_t k = b + 1; k + 1 < e; ++k)
+      out.insert(out.end(), {faces.indices[b], faces.indices[k], faces.indices[k + 1]});
+  }
+  return out;
+}
+
 namespace {
 
 int find_root(std::vector<int>& parent, int v) {

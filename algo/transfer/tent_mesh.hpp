@@ -37,6 +37,9 @@ struct PolygonFaces {
 Result<PolygonFaces> faces_of(int vertex_count, std::span<const std::uint32_t> indices,
                               int corners);
 
+// The faces as triangles (polygons fanned from their first corner), 3 indices each.
+std::vector<std::uint32_t> fan_triangles(const PolygonFaces& faces);
+
 // Edge neighbours of every vertex (sorted, compressed rows) and the mesh's connected components.
 struct TentTopology {
   int vertex_count = 0;

@@ -7,7 +7,7 @@
 
 #include <Eigen/Geometry>
 
-#include "algo/transfer/vtc_transfer.hpp"
+#include "algo/transfer/expression_set.hpp"
 #include "tests/common/test_face_model.hpp"
 
 namespace fb {
@@ -207,6 +207,30 @@ TEST(VtcFace, OneFactorServesEveryExpression) {
   // (On another identity the source's tents do not fit exactly; the residual spreads thinly.)
   EXPECT_LT(moved.tail(m.vertex_count - m.face_vertex_count).maxCoeff(), 0.15);  // mm
   EXPECT_GT(moved.maxCoeff(), 2.0);
+}
+
+// A target that sits turned, scaled and moved gets the same expressions, turned with it: the
+// alignment brings it into the source's axes first.
+TEST(VtcFace, AlignedTargetGetsTheSameExpressionsInItsOwnFrame) {
+  const FaceModel& m = test::face_model();
+  const FaceCase& f = face_case();
+  Similarity pose;
+  pose.scale = 1.2;
+  pose.rotation =
+      Eigen::AngleAxisd(0.5, Eigen::Vector3d(0.3, 1, 0).normalized()).toRotationMatrix();
+  pose.translation << 40, -20, 700;
+  const std::vector<Points> exprs = {
+      with_expression(f.neutral_a, m.expression_index("jawOpen")),
+      with_expression(f.neutral_a, m.expression_index("mouthSmile_L"))};
+  auto plain = transfer_expression_set(f.topology, f.neutral_a, exprs, f.neutral_b);
+  auto posed = transfer_expression_set(f.topology, f.neutral_a, exprs, pose.apply(f.neutral_b));
+  ASSERT_TRUE(plain && posed) << (posed ? plain.error().message : posed.error().message);
+  ASSERT_EQ(posed->expressions.size(), 2u);
+  for (std::size_t j = 0; j < 2; ++j) {
+    const Points truth = pose.apply(plain->expressions[j]);
+    EXPECT_LT(((posed->expressions[j] - truth).rowwise().norm()).maxCoeff(), 1e-6) << j;  // mm
+  }
+  EXPECT_GT(posed->factor_ms, 0);
 }
 
 }  // namespace

@@ -1,0 +1,259 @@
+// `facebooth transfer`: a source's expression set mapped onto another face's neutral by
+// vertex-tent-coordinate deformation transfer (algo/transfer, seed 002 section IV), written in
+// the export formats.
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "algo/transfer/expression_set.hpp"
+#include "host/cli/commands.hpp"
+#include "host/cli/export_summary.hpp"
+#include "storage/asset_files.hpp"
+#include "storage/export/export_session.hpp"
+#include "storage/export/mesh_files.hpp"
+
+namespace fb::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::string_view kSessionPrefix = "session:";
+
+// A face to read: a stored session ("session:N") or a path.
+struct FaceSpec {
+  std::optional<SessionId> session;
+  fs::path path;
+  std::string text;
+};
+
+Result<FaceSpec> parse_face_spec(const std::string& text, const char* option) {
+  if (text.empty()) return fail(std::string("--") + option + " is required");
+  FaceSpec spec{std::nullopt, {}, text};
+  if (text.rfind(kSessionPrefix, 0) == 0) {
+    const std::string id = text.substr(kSessionPrefix.size());
+    char* end = nullptr;
+    const long long v = std::strtoll(id.c_str(), &end, 10);
+    if (id.empty() || *end != '\0' || v <= 0)
+      return fail(std::string("--") + option + " " + text + ": write session:ID, ID > 0");
+    spec.session = v;
+  } else {
+    spec.path = text;
+  }
+  return spec;
+}
+
+Result<MeshData> read_mesh(const fs::path& path) {
+  auto read = read_obj(path);
+  if (!read) return read.failure();
+  if (read->mesh.vertex_count() < 3 || read->mesh.triangle_count() < 1)
+    return fail(path.string() + " has no faces: give a mesh with v and f records");
+  return std::move(read->mesh);
+}
+
+// The expression files of a mesh folder: blendshapes/NN_NAME.obj (the layout `facebooth export
+// --format obj` writes) or else every *.obj beside neutral.obj; names from the file stems.
+std::vector<std::pair<std::string, fs::path>> expression_files(const fs::path& dir) {
+  const bool exported = fs::is_directory(dir / "blendshapes");
+  std::vector<std::pair<std::string, fs::path>> files;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(exported ? dir / "blendshapes" : dir, ec)) {
+    if (!e.is_regular_file() || e.path().extension() != ".obj") continue;
+    std::string name = e.path().stem().string();
+    if (!exported && name == "neutral") continue;
+    const auto cut = name.find('_');
+    if (exported && cut != std::string::npos &&
+        std::all_of(name.begin(), name.begin() + static_cast<std::ptrdiff_t>(cut), ::isdigit))
+      name = name.substr(cut + 1);
+    files.emplace_back(name, e.path());
+  }
+  std::sort(files.begin(), files.end(),
+            [](const auto& a, const auto& b) { return a.second < b.second; });
+  return files;
+}
+
+Result<RigData> read_mesh_folder(const fs::path& dir) {
+  if (!fs::is_directory(dir))
+    return fail(dir.string() +
+                " is not a folder: --from takes a folder with neutral.obj and the "
+                "expressions as OBJ files, or session:ID");
+  auto neutral = read_mesh(dir / "neutral.obj");
+  if (!neutral) return fail("--from " + dir.string() + ": " + neutral.error().message);
+  RigData rig;
+  rig.neutral = std::move(neutral->positions);
+  rig.triangles = std::move(neutral->triangles);
+  for (const auto& [name, path] : expression_files(dir)) {
+    auto mesh = read_mesh(path);
+    if (!mesh) return mesh.failure();
+    if (mesh->positions.size() != rig.neutral.size() || mesh->triangles != rig.triangles)
+      return fail(path.string() + " does not share neutral.obj's vertices and faces (" +
+                  std::to_string(mesh->vertex_count()) + " vertices against " +
+                  std::to_string(rig.vertex_count()) +
+                  "): every expression must be the neutral mesh moved");
+    rig.shapes.push_back(std::move(mesh->positions));
+    rig.shape_names.push_back(name);
+  }
+  if (rig.shapes.empty())
+    return fail("--from " + dir.string() + " has neutral.obj but no expression OBJ files");
+  return rig;
+}
+
+Result<ExportContent> read_session(const std::string& store_dir, SessionId id) {
+  if (store_dir.empty()) return fail("session:" + std::to_string(id) + " needs --store DIR");
+  StoreOptions so;
+  so.read_only = true;
+  so.create = false;
+  auto store = SessionStore::open(store_dir, so);
+  if (!store) return store.failure();
+  return load_session_content(*store, id);
+}
+
+Result<RigData> read_source(const FaceSpec& spec, const std::string& store_dir) {
+  if (!spec.session) return read_mesh_folder(spec.path);
+  auto content = read_session(store_dir, *spec.session);
+  if (!content) return content.failure();
+  if (content->rig.shapes.empty())
+    return fail("session " + std::to_string(*spec.session) +
+                " has no rig to transfer from: build one with `facebooth rig --store " + store_dir +
+                " --session " + std::to_string(*spec.session) + " --save`");
+  return std::move(content->rig);
+}
+
+// The target neutral, and the target session's texture when it has one.
+Result<std::pair<MeshData, std::vector<std::uint8_t>>> read_target(const FaceSpec& spec,
+                                                                   const std::string& store_dir) {
+  if (!spec.session) {
+    auto mesh = read_mesh(spec.path);
+    if (!mesh) return fail("--to " + spec.text + ": " + mesh.error().message);
+    return std::pair{std::move(*mesh), std::vector<std::uint8_t>{}};
+  }
+  auto content = read_session(store_dir, *spec.session);
+  if (!content) return content.failure();
+  return std::pair{content->rig.neutral_mesh(), std::move(content->texture_png)};
+}
+
+Result<void> check_same_topology(const RigData& source, const MeshData& target) {
+  if (source.vertex_count() == target.vertex_count() && source.triangles == target.triangles)
+    return success();
+  return fail("the target (" + std::to_string(target.vertex_count()) + " vertices, " +
+              std::to_string(target.triangle_count()) +
+              " triangles) does not have the source's "
+              "topology (" +
+              std::to_string(source.vertex_count()) + " vertices, " +
+              std::to_string(source.triangles.size() / 3) +
+              " triangles): transfer needs both meshes in one topology (e.g. both fitted to the "
+              "face model); correspondence between different topologies is not implemented yet");
+}
+
+struct Transferred {
+  RigData rig;
+  double factor_ms = 0, per_expression_ms = 0;
+};
+
+// The target is aligned to the source (similarity over all vertices), transferred there and
+// moved back, so the source's per-vertex transformations act in the target's own axes.
+Result<Transferred> transfer_rig(const RigData& source, const MeshData& target) {
+  auto faces = faces_of(source.vertex_count(), source.triangles, 3);
+  if (!faces) return faces.failure();
+  std::vector<Points> expressions;
+  for (const auto& shape : source.shapes) expressions.push_back(points_from_floats(shape));
+  auto moved = transfer_expression_set(tent_topology(*faces), points_from_floats(source.neutral),
+                                       expressions, points_from_floats(target.positions));
+  if (!moved) return moved.failure();
+  Transferred out;
+  out.factor_ms = moved->factor_ms;
+  out.per_expression_ms = moved->per_expression_ms;
+  out.rig.neutral = target.positions;
+  out.rig.triangles = target.triangles;
+  out.rig.shape_names = source.shape_names;
+  for (const Points& e : moved->expressions) out.rig.shapes.push_back(floats_from_points(e));
+  return out;
+}
+
+int run_transfer(const ParsedOptions& options) {
+  auto from = parse_face_spec(options.get("from"), "from");
+  if (!from) return report_failure(from.error());
+  auto to = parse_face_spec(options.get("to"), "to");
+  if (!to) return report_failure(to.error());
+  if (options.get("out").empty()) return report_failure({"--out DIR is required"});
+  auto format = parse_export_format(options.get("format"));
+  if (!format) return report_failure(format.error());
+  ExportRequest request;
+  request.format = *format;
+  request.out = options.get("out");
+  request.overwrite = options.flag("force");
+  if (!options.get("names").empty()) {
+    auto names = parse_shape_names(options.get("names"));
+    if (!names) return report_failure(names.error());
+    request.names = *names;
+  }
+  const std::string store_dir = options.get("store");
+  auto source = read_source(*from, store_dir);
+  if (!source) return report_failure(source.error());
+  auto target = read_target(*to, store_dir);
+  if (!target) return report_failure(target.error());
+  if (auto same = check_same_topology(*source, target->first); !same)
+    return report_failure(same.error());
+  std::cerr << "transfer: " << source->shape_count() << " expressions onto "
+            << target->first.vertex_count() << " vertices...\n";
+  auto result = transfer_rig(*source, target->first);
+  if (!result) return report_failure(result.error());
+  ExportContent content;
+  content.rig = std::move(result->rig);
+  content.texture_png = std::move(target->second);
+  content.source = {{"kind", "transfer"},
+                    {"method", "vertex-tent-coordinate deformation transfer"},
+                    {"from", from->text},
+                    {"to", to->text}};
+  if (auto model = load_face_model(); model) use_face_model_uvs(content, *model);
+  auto summary = export_content(content, request);
+  if (!summary) return report_failure(summary.error());
+  nlohmann::json out = summary_json(*summary);
+  out["format"] = to_string(*format);
+  out["expressions"] = content.rig.shape_count();
+  out["vertices"] = content.rig.vertex_count();
+  out["factor_ms"] = result->factor_ms;
+  out["per_expression_ms"] = result->per_expression_ms;
+  out["uvs"] = !content.uvs.empty();
+  std::cout << out.dump(2) << std::endl;
+  return kExitOk;
+}
+
+}  // namespace
+
+std::vector<Command> transfer_commands() {
+  return {
+      {{"transfer",
+        "map a source's expressions onto another face's neutral (vertex-tent coordinates)",
+        "Each source expression becomes one 3x3 transformation per vertex (its one-ring tent "
+        "with an apex on the normal, neutral -> expression); the target expression is the "
+        "least-squares surface whose tents deform the same way, one sparse system factored once "
+        "for the target and solved once per expression (seed 002, section IV). The target is "
+        "first aligned to the source by a similarity over all vertices. Source and target must "
+        "share one topology (same vertices and triangles, e.g. both fitted to the face model); "
+        "different topologies are refused. OBJ quads are read as triangle pairs. Writes the "
+        "target neutral and the transferred expressions as blendshapes in --format's layout "
+        "(see `facebooth export`); JSON summary on stdout.",
+        {{"from", "SRC",
+          "the source: a folder with neutral.obj and the expressions as OBJ files (or "
+          "blendshapes/NN_NAME.obj, as `export --format obj` writes), or session:ID (that "
+          "session's subject's rig, in --store)",
+          ""},
+         {"to", "TARGET",
+          "the target neutral: an OBJ file, or session:ID (that subject's neutral in --store; its "
+          "texture is carried into the export)",
+          ""},
+         {"store", "DIR", "session store for session:ID sources and targets", ""},
+         {"out", "DIR", "output folder (must not exist unless --force)", ""},
+         {"format", "F", "facewarehouse, glb, obj or ply", "obj"},
+         {"names", "N",
+          "model or arkit (default: the format's, arkit for glb; arkit needs the face model's "
+          "names)",
+          ""},
+         {"force", "", "replace --out if it exists", ""}}},
+       run_transfer}};
+}
+
+}  // namespace fb::cli

@@ -159,21 +159,60 @@ struct SourceSurface {
   TriangleGrid grid;
 };
 
-// The source point at cylinder position q; among overlapping layers (folds of the projection)
-// the one nearest to the target vertex `near` in 3D.
+// Barycentric coordinates of the point of triangle (a, b, c) nearest to p (Ericson, Real-Time
+// Collision Detection 5.1.5).
+Eigen::Vector3d closest_on_triangle(const Eigen::RowVector3d& p, const Eigen::RowVector3d& a,
+                                    const Eigen::RowVector3d& b, const Eigen::RowVector3d& c) {
+  const Eigen::RowVector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Eigen::RowVector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const Eigen::RowVector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const double denom = va + vb + vc;
+  if (std::abs(denom) < 1e-300) return {1, 0, 0};
+  return {va / denom, vb / denom, vc / denom};
+}
+
+// The source point for a target vertex: among the source triangles within one grid cell of
+// the cylinder position q (where the feature warp puts the vertex), the point nearest to the
+// aligned target vertex `near` in 3D. The warp picks the neighbourhood, so folds of the
+// projection (lips, eyelids, under the chin) and a different face shape do not mislead a
+// global nearest-point search; the 3D search removes the warp's residual within it.
 SurfacePoint source_point(const SourceSurface& s, const Vec2& q, const Eigen::RowVector3d& near) {
   SurfacePoint best;
   double best_score = std::numeric_limits<double>::infinity();
   const auto [cx, cy] = s.grid.index(q);
-  for (std::uint32_t t : s.grid.cells[static_cast<std::size_t>(cy * s.grid.nx + cx)]) {
-    const std::uint32_t a = s.tris[t], b = s.tris[t + 1], c = s.tris[t + 2];
-    const Eigen::Vector3d w = barycentric(q, s.uv[a], s.uv[b], s.uv[c]);
-    if (w.minCoeff() < -1e-3) continue;
-    const Eigen::Vector3d wc = w.cwiseMax(0.0) / w.cwiseMax(0.0).sum();
-    const Eigen::RowVector3d x =
-        wc[0] * s.points.row(a) + wc[1] * s.points.row(b) + wc[2] * s.points.row(c);
-    const double score = (x - near).squaredNorm();
-    if (score < best_score) best = {{a, b, c}, wc, true}, best_score = score;
+  for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, s.grid.ny - 1); ++y) {
+    for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, s.grid.nx - 1); ++x) {
+      for (std::uint32_t t : s.grid.cells[static_cast<std::size_t>(y * s.grid.nx + x)]) {
+        const std::uint32_t a = s.tris[t], b = s.tris[t + 1], c = s.tris[t + 2];
+        const Eigen::Vector3d w =
+            closest_on_triangle(near, s.points.row(a), s.points.row(b), s.points.row(c));
+        const Eigen::RowVector3d p =
+            w[0] * s.points.row(a) + w[1] * s.points.row(b) + w[2] * s.points.row(c);
+        const double score = (p - near).squaredNorm();
+        if (score < best_score) best = {{a, b, c}, w, true}, best_score = score;
+      }
+    }
   }
   return best;
 }

@@ -136,6 +136,20 @@ Points vertex_normals(const PolygonFaces& faces, const Points& points) {
   return sum;
 }
 
+std::vector<double> vertex_areas(const PolygonFaces& faces, const Points& points) {
+  std::vector<double> area(static_cast<std::size_t>(points.rows()), 0.0);
+  for (int f = 0; f < faces.face_count(); ++f) {
+    const std::uint32_t b = faces.offsets[static_cast<std::size_t>(f)];
+    const std::uint32_t e = faces.offsets[static_cast<std::size_t>(f) + 1];
+    Eigen::RowVector3d n = Eigen::RowVector3d::Zero();
+    for (std::uint32_t k = b; k < e; ++k)
+      n += Eigen::RowVector3d(points.row(faces.indices[k]))
+               .cross(Eigen::RowVector3d(points.row(faces.indices[k + 1 < e ? k + 1 : b])));
+    for (std::uint32_t k = b; k < e; ++k) area[faces.indices[k]] += n.norm() / 2 / (e - b);
+  }
+  return area;
+}
+
 Points tent_apexes(const TentTopology& topology, const Points& points) {
   const Points normals = vertex_normals(topology.faces, points);
   Points apex = points;

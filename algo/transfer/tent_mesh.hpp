@@ -61,6 +61,9 @@ TentTopology tent_topology(const PolygonFaces& faces);
 // (0, 0, 1) where no face has area.
 Points vertex_normals(const PolygonFaces& faces, const Points& points);
 
+// Each vertex's share of the surface: 1/k of the area of every k-gon it is a corner of.
+std::vector<double> vertex_areas(const PolygonFaces& faces, const Points& points);
+
 // The apex of every tent: v0 + normal * (mean length of v0's ring edges), so that the tent's
 // height stretches with the surface as the third triangle vertex of Sumner and Popovic does.
 Points tent_apexes(const TentTopology& topology, const Points& points);

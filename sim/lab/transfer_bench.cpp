@@ -9,50 +9,17 @@
 
 #include "algo/core/clock.hpp"
 #include "algo/fitting/expression_transfer.hpp"
+#include "algo/transfer/correspondence.hpp"
 #include "algo/transfer/vtc_transfer.hpp"
 #include "host/cli/guide_files.hpp"
 #include "host/cli/rig_support.hpp"
 #include "host/cli/stats.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/subject/remesh.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
 namespace {
-
-// The face model with face-region triangles split at their centroid (1 -> 3, no T-junctions)
-// in index order until the mesh has `vertices` vertices: new vertex i is the mean of corners[i].
-struct Refined {
-  std::vector<std::uint32_t> triangles;
-  std::vector<std::array<std::uint32_t, 3>> corners;
-  int vertex_count = 0;
-};
-
-Refined refine_face(const FaceModel& model, int vertices) {
-  Refined r;
-  r.vertex_count = model.vertex_count;
-  const auto face = static_cast<std::uint32_t>(model.face_vertex_count);
-  for (std::size_t t = 0; t + 2 < model.triangles.size(); t += 3) {
-    const std::uint32_t a = model.triangles[t], b = model.triangles[t + 1],
-                        c = model.triangles[t + 2];
-    if (r.vertex_count >= vertices || a >= face || b >= face || c >= face) {
-      r.triangles.insert(r.triangles.end(), {a, b, c});
-      continue;
-    }
-    const auto m = static_cast<std::uint32_t>(r.vertex_count++);
-    r.corners.push_back({a, b, c});
-    r.triangles.insert(r.triangles.end(), {a, b, m, b, c, m, c, a, m});
-  }
-  return r;
-}
-
-Points refined_points(const Points& p, const Refined& r) {
-  Points out(r.vertex_count, 3);
-  out.topRows(p.rows()) = p;
-  for (std::size_t i = 0; i < r.corners.size(); ++i)
-    out.row(p.rows() + static_cast<Eigen::Index>(i)) =
-        (p.row(r.corners[i][0]) + p.row(r.corners[i][1]) + p.row(r.corners[i][2])) / 3.0;
-  return out;
-}
 
 struct Inputs {
   FaceModel dt_model;  // the face model re-topologised, for ExpressionTransfer
@@ -60,19 +27,19 @@ struct Inputs {
   std::vector<Points> expressions;
 };
 
-Inputs make_inputs(const FaceModel& model, const Refined& r, int expressions) {
+Inputs make_inputs(const FaceModel& model, const Remesh& r, int expressions) {
   Inputs in;
   const Points s0 = points_from_floats(face(model, identity_draw(1, model.identity_count), {}));
-  in.source_neutral = refined_points(s0, r);
-  in.target_neutral = refined_points(
-      points_from_floats(face(model, identity_draw(2, model.identity_count), {})), r);
+  in.source_neutral = r.apply(s0);
+  in.target_neutral =
+      r.apply(points_from_floats(face(model, identity_draw(2, model.identity_count), {})));
   for (int j = 0; j < expressions; ++j)
-    in.expressions.push_back(refined_points(s0 + points_from_floats(model.expression_shape(j)), r));
+    in.expressions.push_back(r.apply(s0 + points_from_floats(model.expression_shape(j))));
   // Metadata, fitting and rigid vertex lists keep their (old, still valid) indices.
   in.dt_model = model;
-  in.dt_model.vertex_count = r.vertex_count;
+  in.dt_model.vertex_count = r.vertex_count();
   in.dt_model.triangles = r.triangles;
-  in.dt_model.neutral = floats_from_points(refined_points(points_from_floats(model.neutral), r));
+  in.dt_model.neutral = floats_from_points(r.apply(points_from_floats(model.neutral)));
   in.dt_model.identity_basis.clear();
   in.dt_model.expression_basis.clear();
   in.dt_model.uvs.clear();
@@ -114,6 +81,22 @@ Result<void> time_dt(const Inputs& in, Timing& t) {
   return success();
 }
 
+// Section V's correspondence from the model's topology onto the split target.
+Result<double> time_correspondence(const FaceModel& model, const Inputs& in, const Remesh& r) {
+  const Points source = in.source_neutral.topRows(model.vertex_count);
+  Points source_features(68, 3), target_features(68, 3);
+  for (int l = 0; l < 68; ++l) {
+    const auto v = model.landmark_vertices[static_cast<std::size_t>(l)];
+    source_features.row(l) = source.row(v);
+    target_features.row(l) = in.target_neutral.row(v);  // split keeps the original vertices
+  }
+  const auto t0 = Clock::now();
+  auto c = find_correspondence(source, model.triangles, source_features, in.target_neutral,
+                               target_features);
+  if (!c) return c.failure();
+  return ms_since(t0);
+}
+
 int run_bench_transfer(const ParsedOptions& options) {
   auto repeats = options.get_int("repeats");
   auto vertices = options.get_int("vertices");
@@ -121,16 +104,21 @@ int run_bench_transfer(const ParsedOptions& options) {
     return report_failure({"--repeats >= 1, --vertices >= 1"});
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
-  const Refined refined = refine_face(*model, static_cast<int>(*vertices));
+  const Remesh refined = split_at_centroids(model->triangles, model->vertex_count,
+                                            model->face_vertex_count, static_cast<int>(*vertices));
   const Inputs in = make_inputs(*model, refined, model->fitting_expression_count);
-  auto faces = faces_of(refined.vertex_count, refined.triangles, 3);
+  auto faces = faces_of(refined.vertex_count(), refined.triangles, 3);
   if (!faces) return report_failure(faces.error());
   const TentTopology topology = tent_topology(*faces);
   Timing vtc, dt;
+  Samples correspondence_ms;
   for (long long r = 0; r < *repeats; ++r) {
     std::cerr << "bench transfer: repeat " << r + 1 << "/" << *repeats << "\n";
     if (auto ok = time_vtc(in, topology, vtc); !ok) return report_failure(ok.error());
     if (auto ok = time_dt(in, dt); !ok) return report_failure(ok.error());
+    auto ms = time_correspondence(*model, in, refined);
+    if (!ms) return report_failure(ms.error());
+    correspondence_ms.add(*ms);
   }
   nlohmann::json out;
   out["factor_ms"] = vtc.factor_ms.min();
@@ -139,13 +127,14 @@ int run_bench_transfer(const ParsedOptions& options) {
   out["dt_per_expression_ms"] = dt.per_expression_ms.min();
   out["per_expression_vs_dt"] = vtc.per_expression_ms.min() / dt.per_expression_ms.min();
   out["factor_vs_dt"] = vtc.factor_ms.min() / dt.factor_ms.min();
-  out["vertices"] = refined.vertex_count;
+  out["correspondence_ms"] = correspondence_ms.min();
+  out["vertices"] = refined.vertex_count();
   out["triangles"] = refined.triangles.size() / 3;
-  out["unknowns"] = 2 * refined.vertex_count;
+  out["unknowns"] = 2 * refined.vertex_count();
   out["factor_nonzeros"] = vtc.factor_nonzeros;
   out["expressions"] = in.expressions.size();
   out["peer"] = "algo/fitting ExpressionTransfer (Sumner-Popovic deformation transfer)";
-  out["targets"] = {{"per_expression_ms", 20}};
+  out["targets"] = {{"per_expression_ms", 20}, {"correspondence_ms", 200}};
   out["definition"] =
       "best of --repeats, wall clock, one thread. Meshes: the face model with face-region "
       "triangles split at their centroid until --vertices; source subject 1 and its 53 fitting "

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 
 #include <nlohmann/json.hpp>
 
@@ -77,20 +78,23 @@ TEST_F(TransferCli, ExportedSubjectOntoAnotherNeutralMatchesItsTruth) {
   const SyntheticSubject truth = subject(2);
   EXPECT_EQ(report["expressions"].get<int>(), truth.rig.shape_count());
   EXPECT_GT(report["factor_ms"].get<double>(), 0.0);
-  int checked = 0;
-  for (int j : {0, 10, 26, 45}) {  // browDown_L, eyeBlink_L, jawOpen, mouthSmile_L (model order)
+  // Pooled over every shape, as eval transfer's cross_subject_vertex_error_mm (budget 0.5).
+  double sum = 0;
+  int shapes = 0;
+  for (int j = 0; j < truth.rig.shape_count(); ++j) {
     const std::string& name = truth.rig.shape_names[static_cast<std::size_t>(j)];
-    char index[8];
+    char index[16];
     std::snprintf(index, sizeof index, "%02d", j + 1);  // export numbers from 01
     auto mesh = read_obj(dir_ / "out" / "blendshapes" / (std::string(index) + "_" + name + ".obj"));
     ASSERT_TRUE(mesh) << mesh.error().message;
-    EXPECT_LT(moving_error_mm(mesh->mesh.positions, truth.rig.shapes[static_cast<std::size_t>(j)],
-                              truth.rig.neutral),
-              0.5)
-        << name;
-    ++checked;
+    const double e = moving_error_mm(
+        mesh->mesh.positions, truth.rig.shapes[static_cast<std::size_t>(j)], truth.rig.neutral);
+    std::cerr << name << " " << e << "\n";
+    EXPECT_LT(e, 1.5) << name;
+    sum += e;
+    ++shapes;
   }
-  EXPECT_EQ(checked, 4);
+  EXPECT_LT(sum / shapes, 0.5);
 }
 
 TEST_F(TransferCli, StoredSessionOntoStoredSessionWritesEveryFormat) {

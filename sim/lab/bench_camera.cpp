@@ -8,9 +8,9 @@
 
 #include "algo/core/clock.hpp"
 #include "drivers/camera/recorder/recorder.hpp"
+#include "sim/lab/lab_commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/scratch_directory.hpp"
-#include "sim/lab/lab_commands.hpp"
 
 namespace fb::cli {
 namespace {

@@ -12,10 +12,10 @@
 
 #include "algo/calibration/checkerboard_calibrator.hpp"
 #include "algo/sensor/self_calibration.hpp"
-#include "host/cli/progress.hpp"
 #include "sim/camera/board_scene.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "host/cli/progress.hpp"
 #include "sim/scoring/self_calibration_eval.hpp"
 
 namespace fb::cli {

@@ -19,14 +19,14 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "sim/camera/frame_truth.hpp"
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/landmarks/face_region_box.hpp"
+#include "sim/camera/world_presets.hpp"
+#include "sim/lab/lab_commands.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/scratch_directory.hpp"
 #include "host/cli/stats.hpp"
-#include "sim/camera/frame_truth.hpp"
-#include "sim/camera/world_presets.hpp"
-#include "sim/lab/lab_commands.hpp"
 #include "sim/scoring/take_runner.hpp"
 
 namespace fb::cli {

@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "sim/lab/lab_commands.hpp"
 #include "sim/scoring/take_runner.hpp"
+#include "sim/lab/lab_commands.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
 

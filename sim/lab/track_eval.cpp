@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "sim/camera/world_presets.hpp"
-#include "sim/lab/lab_commands.hpp"
 #include "sim/scoring/occlusion_eval.hpp"
 #include "sim/scoring/take_runner.hpp"
+#include "sim/lab/lab_commands.hpp"
 #include "sim/subject/unit_calibration.hpp"
 #include "storage/asset_files.hpp"
 

@@ -232,7 +232,12 @@ Result<Correspondence> find_correspondence(const Points& source_neutral,
   if (!align) return align.failure();
   const Points target = align->apply(target_neutral);
   const Points target_feat = align->apply(target_features);
-  Cylinder cyl{source_features.colwise().mean(), 1};
+  // The axis runs through the middle of the source's bounding box (the head's centre, or behind
+  // a face-only mesh): through the features' centroid it would pierce the face, where the
+  // angle is ill-defined.
+  const Eigen::RowVector3d mid =
+      (source_neutral.colwise().minCoeff() + source_neutral.colwise().maxCoeff()) / 2;
+  Cylinder cyl{mid, 1};
   double r = 0;
   for (Eigen::Index i = 0; i < source_features.rows(); ++i) {
     const Eigen::RowVector3d d = source_features.row(i) - cyl.axis;

@@ -217,6 +217,10 @@ int run_eval_transfer(const ParsedOptions& options) {
       add_cross_errors(subject.neutral, subject.expressions[j], (*dt_cross)[j], *min_motion,
                        dt_moving, dt_all);
     }
+    if (auto ok = add_cross_topology(*model, topology, first, subject, remeshes, *min_motion,
+                                     topology_errors, correspondence_ms);
+        !ok)
+      return report_failure(ok.error());
   }
   nlohmann::json out;
   auto median = [](const std::vector<double>& v) { return stats_of(v).median; };

@@ -189,6 +189,9 @@ int run_transfer(const ParsedOptions& options) {
     if (!names) return report_failure(names.error());
     request.names = *names;
   }
+  if (fs::exists(request.out) && !request.overwrite)  // before the work, not after it
+    return report_failure({request.out.string() +
+                           " already exists: choose another --out, or pass --force to replace it"});
   const std::string store_dir = options.get("store");
   auto source = read_source(*from, store_dir);
   if (!source) return report_failure(source.error());

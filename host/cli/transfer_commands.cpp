@@ -3,7 +3,9 @@
 // the export formats.
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -134,35 +136,97 @@ Result<std::pair<MeshData, std::vector<std::uint8_t>>> read_target(const FaceSpe
   return std::pair{content->rig.neutral_mesh(), std::move(content->texture_png)};
 }
 
-Result<void> check_same_topology(const RigData& source, const MeshData& target) {
-  if (source.vertex_count() == target.vertex_count() && source.triangles == target.triangles)
-    return success();
-  return fail("the target (" + std::to_string(target.vertex_count()) + " vertices, " +
-              std::to_string(target.triangle_count()) +
-              " triangles) does not have the source's "
-              "topology (" +
-              std::to_string(source.vertex_count()) + " vertices, " +
-              std::to_string(source.triangles.size() / 3) +
-              " triangles): transfer needs both meshes in one topology (e.g. both fitted to the "
-              "face model); correspondence between different topologies is not implemented yet");
+bool same_topology(const RigData& source, const MeshData& target) {
+  return source.vertex_count() == target.vertex_count() && source.triangles == target.triangles;
+}
+
+// Feature points (section V) from a file of "x y z" lines ('#' comments), for meshes of
+// different topology.
+Result<Points> read_landmarks(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) return fail("cannot read " + path.string() + ": give a file of 'x y z' lines");
+  std::vector<Eigen::RowVector3d> rows;
+  int line_no = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
+    std::istringstream ls(line);
+    Eigen::RowVector3d p;
+    if (!(ls >> p[0] >> p[1] >> p[2]) || !p.allFinite())
+      return fail(path.string() + " line " + std::to_string(line_no) + ": expected 'x y z'");
+    rows.push_back(p);
+  }
+  Points out(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t i = 0; i < rows.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = rows[i];
+  return out;
+}
+
+// A face's feature points: its --*-landmarks file, else the face model's 68 landmark vertices
+// when the mesh has the model's topology, else none.
+Result<std::optional<Points>> features_of(const std::string& file, std::span<const float> xyz,
+                                          const std::vector<std::uint32_t>& triangles,
+                                          const FaceModel* model) {
+  if (!file.empty()) {
+    auto read = read_landmarks(file);
+    if (!read) return read.failure();
+    return std::optional<Points>(std::move(*read));
+  }
+  if (model == nullptr || model->triangles != triangles ||
+      xyz.size() != static_cast<std::size_t>(model->vertex_count) * 3)
+    return std::optional<Points>();
+  const Points p = points_from_floats(xyz);
+  Points out(68, 3);
+  for (int l = 0; l < 68; ++l)
+    out.row(l) = p.row(model->landmark_vertices[static_cast<std::size_t>(l)]);
+  return std::optional<Points>(out);
 }
 
 struct Transferred {
   RigData rig;
   double factor_ms = 0, per_expression_ms = 0;
+  std::optional<double> correspondence_ms;
+  int unmatched = 0;
 };
 
-// The target is aligned to the source (similarity over all vertices), transferred there and
-// moved back, so the source's per-vertex transformations act in the target's own axes.
-Result<Transferred> transfer_rig(const RigData& source, const MeshData& target) {
+struct Features {
+  std::optional<Points> source, target;
+};
+
+// One topology: the target is aligned to the source (similarity over all vertices),
+// transferred there and moved back, so the source's per-vertex transformations act in the
+// target's own axes. Two topologies: section V's correspondence from the feature points.
+Result<Transferred> transfer_rig(const RigData& source, const MeshData& target,
+                                 const Features& features) {
+  const bool same = same_topology(source, target);
+  if (!same && (!features.source || !features.target))
+    return fail("the target (" + std::to_string(target.vertex_count()) + " vertices, " +
+                std::to_string(target.triangle_count()) +
+                " triangles) does not have the source's topology (" +
+                std::to_string(source.vertex_count()) + " vertices, " +
+                std::to_string(source.triangles.size() / 3) +
+                " triangles): give the same feature points on both, --to-landmarks FILE and, "
+                "unless the source is on the face model's mesh, --from-landmarks FILE");
   auto faces = faces_of(source.vertex_count(), source.triangles, 3);
   if (!faces) return faces.failure();
+  auto target_faces = faces_of(target.vertex_count(), target.triangles, 3);
+  if (!target_faces) return target_faces.failure();
   std::vector<Points> expressions;
   for (const auto& shape : source.shapes) expressions.push_back(points_from_floats(shape));
-  auto moved = transfer_expression_set(tent_topology(*faces), points_from_floats(source.neutral),
-                                       expressions, points_from_floats(target.positions));
-  if (!moved) return moved.failure();
   Transferred out;
+  Result<ExpressionSetTransfer> moved = fail("not run");
+  if (same) {
+    moved = transfer_expression_set(tent_topology(*faces), points_from_floats(source.neutral),
+                                    expressions, points_from_floats(target.positions));
+  } else {
+    auto across = transfer_expression_set_across(
+        tent_topology(*faces), points_from_floats(source.neutral), expressions, *features.source,
+        tent_topology(*target_faces), points_from_floats(target.positions), *features.target);
+    if (!across) return across.failure();
+    out.correspondence_ms = across->correspondence_ms;
+    out.unmatched = across->unmatched;
+    moved = static_cast<ExpressionSetTransfer>(std::move(*across));
+  }
+  if (!moved) return moved.failure();
   out.factor_ms = moved->factor_ms;
   out.per_expression_ms = moved->per_expression_ms;
   out.rig.neutral = target.positions;
@@ -197,11 +261,19 @@ int run_transfer(const ParsedOptions& options) {
   if (!source) return report_failure(source.error());
   auto target = read_target(*to, store_dir);
   if (!target) return report_failure(target.error());
-  if (auto same = check_same_topology(*source, target->first); !same)
-    return report_failure(same.error());
+  auto model = load_face_model();  // the landmark vertices and UVs of its mesh, when it loads
+  const FaceModel* face_model = model ? &*model : nullptr;
+  Features features;
+  auto from_features =
+      features_of(options.get("from-landmarks"), source->neutral, source->triangles, face_model);
+  if (!from_features) return report_failure(from_features.error());
+  auto to_features = features_of(options.get("to-landmarks"), target->first.positions,
+                                 target->first.triangles, face_model);
+  if (!to_features) return report_failure(to_features.error());
+  features = {std::move(*from_features), std::move(*to_features)};
   std::cerr << "transfer: " << source->shape_count() << " expressions onto "
             << target->first.vertex_count() << " vertices...\n";
-  auto result = transfer_rig(*source, target->first);
+  auto result = transfer_rig(*source, target->first, features);
   if (!result) return report_failure(result.error());
   ExportContent content;
   content.rig = std::move(result->rig);
@@ -210,7 +282,7 @@ int run_transfer(const ParsedOptions& options) {
                     {"method", "vertex-tent-coordinate deformation transfer"},
                     {"from", from->text},
                     {"to", to->text}};
-  if (auto model = load_face_model(); model) use_face_model_uvs(content, *model);
+  if (face_model != nullptr) use_face_model_uvs(content, *face_model);
   auto summary = export_content(content, request);
   if (!summary) return report_failure(summary.error());
   nlohmann::json out = summary_json(*summary);
@@ -220,6 +292,10 @@ int run_transfer(const ParsedOptions& options) {
   out["factor_ms"] = result->factor_ms;
   out["per_expression_ms"] = result->per_expression_ms;
   out["uvs"] = !content.uvs.empty();
+  if (result->correspondence_ms) {
+    out["correspondence_ms"] = *result->correspondence_ms;
+    out["unmatched_vertices"] = result->unmatched;
+  }
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }
@@ -234,9 +310,12 @@ std::vector<Command> transfer_commands() {
         "with an apex on the normal, neutral -> expression); the target expression is the "
         "least-squares surface whose tents deform the same way, one sparse system factored once "
         "for the target and solved once per expression (seed 002, section IV). The target is "
-        "first aligned to the source by a similarity over all vertices. Source and target must "
-        "share one topology (same vertices and triangles, e.g. both fitted to the face model); "
-        "different topologies are refused. OBJ quads are read as triangle pairs. Writes the "
+        "first aligned to the source by a similarity over all vertices. Meshes of different "
+        "topology need the same feature points on both (section V: aligned by them, projected "
+        "onto a cylinder, parameterised by their triangulation, each target vertex given a point "
+        "on the source): --to-landmarks, and --from-landmarks unless the source is on the face "
+        "model's mesh (whose 68 landmark vertices are used); without them different topologies "
+        "are refused. OBJ quads are read as triangle pairs. Writes the "
         "target neutral and the transferred expressions as blendshapes in --format's layout "
         "(see `facebooth export`); JSON summary on stdout.",
         {{"from", "SRC",
@@ -254,6 +333,14 @@ std::vector<Command> transfer_commands() {
          {"names", "N",
           "model or arkit (default: the format's, arkit for glb; arkit needs the face model's "
           "names)",
+          ""},
+         {"from-landmarks", "FILE",
+          "the source's feature points, one 'x y z' line each (default: the face model's 68 "
+          "landmark vertices when the source is on its mesh)",
+          ""},
+         {"to-landmarks", "FILE",
+          "the target's feature points, the same points in the same order (needed when the "
+          "target's topology differs from the source's)",
           ""},
          {"force", "", "replace --out if it exists", ""}}},
        run_transfer}};

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sim/subject/remesh.hpp"
 #include "storage/export/mesh_files.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "tests/common/run_command.hpp"
@@ -97,6 +98,50 @@ TEST_F(TransferCli, ExportedSubjectOntoAnotherNeutralMatchesItsTruth) {
   EXPECT_LT(sum / shapes, 0.5);
 }
 
+// Section V from the command line: subject 2 decimated (another topology, written as OBJ) with
+// its 68 landmark points in a file; the source on the face model's mesh uses the model's own.
+TEST_F(TransferCli, AnotherTopologyWithLandmarksMatchesItsTruth) {
+  const FaceModel& m = test::face_model();
+  ASSERT_EQ(
+      facebooth("export --from-face-model --seed 1 --format obj --out " + path("src")).exit_code,
+      0);
+  const SyntheticSubject truth = subject(2);
+  const std::vector<std::uint32_t> keep(m.landmark_vertices.begin(), m.landmark_vertices.end());
+  const Remesh r = decimate(m.triangles, points_from_floats(m.neutral), 0.5, keep);
+  const Points neutral = points_from_floats(truth.rig.neutral);
+  {
+    std::ofstream obj(path("target.obj"));
+    obj << encode_obj({floats_from_points(r.apply(neutral)), r.triangles});
+    std::ofstream marks(path("target.landmarks"));
+    marks << "# the 68 iBUG points of subject 2, mm\n";
+    for (std::uint32_t v : m.landmark_vertices)
+      marks << neutral(v, 0) << " " << neutral(v, 1) << " " << neutral(v, 2) << "\n";
+  }
+  auto run = facebooth("transfer --from " + path("src") + " --to " + path("target.obj") +
+                           " --to-landmarks " + path("target.landmarks") + " --out " + path("out"),
+                       test::Stderr::kDropped);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto report = nlohmann::json::parse(run.out);
+  EXPECT_GT(report["correspondence_ms"].get<double>(), 0.0);
+  EXPECT_LT(report["unmatched_vertices"].get<int>(), 10);
+  double sum = 0;
+  int shapes = 0;
+  for (int j = 0; j < truth.rig.shape_count(); ++j) {
+    const std::string& name = truth.rig.shape_names[static_cast<std::size_t>(j)];
+    char index[16];
+    std::snprintf(index, sizeof index, "%02d", j + 1);
+    auto mesh = read_obj(dir_ / "out" / "blendshapes" / (std::string(index) + "_" + name + ".obj"));
+    ASSERT_TRUE(mesh) << mesh.error().message;
+    const Points shape = points_from_floats(truth.rig.shapes[static_cast<std::size_t>(j)]);
+    const double e = moving_error_mm(mesh->mesh.positions, floats_from_points(r.apply(shape)),
+                                     floats_from_points(r.apply(neutral)));
+    if (e < 0) continue;
+    sum += e;
+    ++shapes;
+  }
+  EXPECT_LT(sum / shapes, 1.0);  // mm, eval transfer's cross_topology budget
+}
+
 TEST_F(TransferCli, StoredSessionOntoStoredSessionWritesEveryFormat) {
   {
     auto store = SessionStore::open(path("store"));
@@ -125,6 +170,7 @@ TEST_F(TransferCli, BadInputIsRefusedWithWhatToDo) {
                          path("o1"));
   EXPECT_EQ(other.exit_code, 1);
   EXPECT_NE(other.out.find("does not have the source's topology"), std::string::npos) << other.out;
+  EXPECT_NE(other.out.find("--to-landmarks"), std::string::npos) << other.out;
   auto missing = facebooth("transfer --from " + path("nowhere") + " --to " + path("tri.obj") +
                            " --out " + path("o2"));
   EXPECT_EQ(missing.exit_code, 1);

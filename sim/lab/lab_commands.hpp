@@ -21,5 +21,7 @@ Command bench_rig_command();                            // rig_bench.cpp
 std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration
 std::vector<Command> calibration_eval_commands();       // eval calibration
 std::vector<Command> texture_eval_commands();           // eval texture
+std::vector<Command> transfer_eval_commands();          // eval transfer
+Command bench_transfer_command();                       // transfer_bench.cpp
 
 }  // namespace fb::cli

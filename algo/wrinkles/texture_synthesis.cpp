@@ -15,7 +15,7 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // Planar feature channels: gradients x, y and height, row-major.
 struct Channels {
   int width = 0, height = 0;
-  std::vector<float> gx, gy, h;
+  std::vector<float> gx, gy, s, h;
   std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
 };
 
@@ -37,8 +37,9 @@ class Random {
 
 class Synthesizer {
  public:
-  Synthesizer(const ImageGradient& input, std::span<const PixelRectI> regions,
-              std::span<const WrinkleExemplar> exemplars, const SynthesisOptions& o)
+  Synthesizer(const ImageGradient& input, const FloatImage& shading,
+              std::span<const PixelRectI> regions, std::span<const WrinkleExemplar> exemplars,
+              const SynthesisOptions& o)
       : o_(o), r_(o.patch_radius), w_(input.gx.width), h_(input.gx.height) {
     // The input padded by the patch radius (edges clamped), so patches need no bounds checks.
     in_.width = w_ + 2 * r_;
@@ -46,12 +47,14 @@ class Synthesizer {
     const std::size_t n = static_cast<std::size_t>(in_.width) * in_.height;
     in_.gx.resize(n);
     in_.gy.resize(n);
+    in_.s.resize(n);
     in_.h.assign(n, 0.0f);
     for (int y = 0; y < in_.height; ++y)
       for (int x = 0; x < in_.width; ++x) {
         const int sx = std::clamp(x - r_, 0, w_ - 1), sy = std::clamp(y - r_, 0, h_ - 1);
         in_.gx[in_.index(x, y)] = input.gx.at(sx, sy);
         in_.gy[in_.index(x, y)] = input.gy.at(sx, sy);
+        in_.s[in_.index(x, y)] = shading.at(sx, sy);
       }
     domain_.resize(w_, h_);
     std::fill(domain_.pixels.begin(), domain_.pixels.end(), std::uint8_t{0});
@@ -70,6 +73,7 @@ class Synthesizer {
       c.height = e.height_mm.height;
       c.gx = g.gx.pixels;
       c.gy = g.gy.pixels;
+      c.s = normalised_shading(e.luminance, o).pixels;
       c.h = e.height_mm.pixels;
       const int centres = (c.width - 2 * r_) * (c.height - 2 * r_);
       first_centre_.push_back(total_centres_);
@@ -124,8 +128,8 @@ class Synthesizer {
       const std::size_t b = c.index(qx - r_, qy + oy);
       for (int k = 0; k <= 2 * r_; ++k) {
         const float dx = in_.gx[a + k] - c.gx[b + k], dy = in_.gy[a + k] - c.gy[b + k];
-        const float dh = in_.h[a + k] - c.h[b + k];
-        d += dx * dx + dy * dy + lambda_ * dh * dh;
+        const float dh = in_.h[a + k] - c.h[b + k], ds = in_.s[a + k] - c.s[b + k];
+        d += dx * dx + dy * dy + lambda_ * dh * dh + shading_weight_ * ds * ds;
       }
       if (d > bound) return d;
     }
@@ -231,6 +235,7 @@ class Synthesizer {
   int total_centres_ = 0;
   std::vector<Match> nnf_;
   float lambda_ = 0.0f;
+  float shading_weight_ = static_cast<float>(o_.shading_weight);
   std::int64_t evaluations_ = 0;
 };
 
@@ -245,14 +250,18 @@ std::vector<WrinkleExemplar> rescale_exemplars(std::span<const WrinkleExemplar> 
   return out;
 }
 
-ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptions& options) {
+FloatImage normalised_shading(const FloatImage& luminance, const SynthesisOptions& options) {
   const FloatImage mean = gaussian_blur(luminance, options.normalise_sigma_px);
   FloatImage ratio;
   ratio.resize(luminance.width, luminance.height);
   const auto levels = static_cast<float>(options.feature_levels);
   for (std::size_t i = 0; i < ratio.pixels.size(); ++i)
-    ratio.pixels[i] = levels * luminance.pixels[i] / std::max(mean.pixels[i], 1e-3f);
-  return image_gradient(ratio);
+    ratio.pixels[i] = levels * (luminance.pixels[i] / std::max(mean.pixels[i], 1e-3f) - 1.0f);
+  return ratio;
+}
+
+ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptions& options) {
+  return image_gradient(normalised_shading(luminance, options));
 }
 
 Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
@@ -269,7 +278,8 @@ Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
     if (e.height_mm.width != e.luminance.width || e.height_mm.height != e.luminance.height)
       return fail("wrinkle synthesis: exemplar " + e.name +
                   " has height and shading images of different sizes");
-  Synthesizer s(wrinkle_features(luminance, options), regions, exemplars, options);
+  Synthesizer s(wrinkle_features(luminance, options), normalised_shading(luminance, options),
+                regions, exemplars, options);
   if (!s.has_exemplars())
     return fail(
         "wrinkle synthesis: no exemplar is larger than a patch at this pixel size; give "

@@ -46,9 +46,10 @@ struct SynthesisOptions {
   double lambda = 10.0;             // weight of the height channel (the paper's)
   int em_iterations = 4;            // the first matches gradients only (no heights yet)
   int patchmatch_passes = 4;        // per EM iteration, alternating scan order
-  double normalise_sigma_px = 3.0;  // local mean the luminance is divided by
+  double normalise_sigma_px = 4.0;  // local mean the luminance is divided by
   double feature_levels = 128.0;    // gradient units: levels of a mid-grey 8-bit image
   double robust_exponent = -0.6;    // E-step weight |d|^(r - 2), r = 0.8 (Kwatra et al.)
+  double shading_weight = 4.0;      // the normalised shading itself as a third channel
   PatchSearch search = PatchSearch::kPatchMatch;
   std::uint64_t seed = 1;
 };
@@ -61,7 +62,9 @@ struct WrinkleSynthesis {
   std::int64_t distance_evaluations = 0;
 };
 
-// The gradient features of a luminance image (see the header comment).
+// The luminance divided by its local mean, minus 1, in levels (see the header comment).
+FloatImage normalised_shading(const FloatImage& luminance, const SynthesisOptions& options);
+// The gradient features of a luminance image: the gradients of normalised_shading().
 ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptions& options);
 
 // `luminance`: the face image (0..1); `regions`: where to synthesise (salient regions, margin

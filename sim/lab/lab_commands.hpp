@@ -20,5 +20,6 @@ Command bench_rig_command();                            // rig_bench.cpp
 std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration
 std::vector<Command> calibration_eval_commands();       // eval calibration
 std::vector<Command> texture_eval_commands();           // eval texture
+std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench wrinkles
 
 }  // namespace fb::cli

@@ -274,4 +274,49 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   return c;
 }
 
+WrinkleScore score_wrinkles(const WrinkleCase& c, const WrinkleDetail& d, int margin) {
+  const int w = c.luminance.width, h = c.luminance.height;
+  auto in_any = [](const std::vector<PixelRectI>& rs, int x, int y, int grow) {
+    for (const auto& r : rs)
+      if (x >= r.x - grow && y >= r.y - grow && x < r.x + r.width + grow &&
+          y < r.y + r.height + grow)
+        return true;
+    return false;
+  };
+  WrinkleScore s;
+  double t_n = 0, w_n = 0, w_hit = 0, d_n = 0, d_in = 0;
+  double sg = 0, st = 0, sgg = 0, stt = 0, sgt = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float truth = c.true_height_mm.at(x, y), got = d.synthesis.height_mm.at(x, y);
+      const bool t = in_any(c.true_regions, x, y, 0), t5 = in_any(c.true_regions, x, y, margin);
+      const bool det = d.synthesis.domain.at(x, y) != 0;
+      if (t) {
+        ++t_n;
+        s.height_mae_mm += std::abs(got - truth);
+        s.zero_field_mae_mm += std::abs(truth);
+        sg += got, st += truth, sgg += got * got, stt += truth * truth, sgt += got * truth;
+        if (std::abs(truth) >= 0.1f) {
+          ++w_n;
+          w_hit += det;
+          s.wrinkle_pixel_mae_mm += std::abs(got - truth);
+        }
+      }
+      if (det) ++d_n, d_in += t5;
+      if (!t5)
+        s.max_displacement_outside_mm =
+            std::max(s.max_displacement_outside_mm, static_cast<double>(std::abs(got)));
+    }
+  if (t_n > 1) {
+    const double cov = sgt - sg * st / t_n, vg = sgg - sg * sg / t_n, vt = stt - st * st / t_n;
+    s.height_correlation = vg > 0 && vt > 0 ? cov / std::sqrt(vg * vt) : 0.0;
+  }
+  s.height_mae_mm /= std::max(1.0, t_n);
+  s.zero_field_mae_mm /= std::max(1.0, t_n);
+  s.wrinkle_pixel_mae_mm /= std::max(1.0, w_n);
+  s.region_recall = w_n > 0 ? w_hit / w_n : 0.0;
+  s.region_precision = d_n > 0 ? d_in / d_n : 0.0;
+  return s;
+}
+
 }  // namespace fb::cli

@@ -20,7 +20,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
-#include "algo/wrinkles/texture_synthesis.hpp"
+#include "algo/wrinkles/wrinkle_detail.hpp"
 
 namespace fb::cli {
 
@@ -50,5 +50,17 @@ struct WrinkleCase {
 };
 
 Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseOptions& options);
+
+struct WrinkleScore {
+  double height_mae_mm = 0, zero_field_mae_mm = 0, wrinkle_pixel_mae_mm = 0, height_correlation = 0;
+  double region_recall = 0, region_precision = 0, max_displacement_outside_mm = 0;
+};
+
+// Scores against the truth. T: the true relief windows; T+m: grown by the margin; D: the
+// detected regions; W: pixels in T whose true relief is at least 0.1 mm deep or high.
+// height_mae_mm and height_correlation (Pearson, synthesised vs true) over T, zero_field_mae_mm
+// the MAE of an all-zero field over T, wrinkle_pixel_mae_mm over W; region_recall = |W in D| /
+// |W|; region_precision = |D in T+m| / |D|; max_displacement_outside_mm over the image minus T+m.
+WrinkleScore score_wrinkles(const WrinkleCase& c, const WrinkleDetail& d, int margin);
 
 }  // namespace fb::cli

@@ -29,52 +29,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-struct Score {
-  double height_mae_mm = 0, zero_field_mae_mm = 0, wrinkle_pixel_mae_mm = 0;
-  double region_recall = 0, region_precision = 0, max_displacement_outside_mm = 0;
-};
-
-// Scores against the truth. T: the true relief windows; T+5: grown by the 5 px margin;
-// D: the detected regions; W: pixels in T whose true relief is at least 0.1 mm deep or high.
-Score score(const WrinkleCase& c, const WrinkleDetail& d, int margin) {
-  const int w = c.luminance.width, h = c.luminance.height;
-  auto in_any = [](const std::vector<PixelRectI>& rs, int x, int y, int grow) {
-    for (const auto& r : rs)
-      if (x >= r.x - grow && y >= r.y - grow && x < r.x + r.width + grow &&
-          y < r.y + r.height + grow)
-        return true;
-    return false;
-  };
-  Score s;
-  double t_n = 0, w_n = 0, w_hit = 0, d_n = 0, d_in = 0;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      const float truth = c.true_height_mm.at(x, y), got = d.synthesis.height_mm.at(x, y);
-      const bool t = in_any(c.true_regions, x, y, 0), t5 = in_any(c.true_regions, x, y, margin);
-      const bool det = d.synthesis.domain.at(x, y) != 0;
-      if (t) {
-        ++t_n;
-        s.height_mae_mm += std::abs(got - truth);
-        s.zero_field_mae_mm += std::abs(truth);
-        if (std::abs(truth) >= 0.1f) {
-          ++w_n;
-          w_hit += det;
-          s.wrinkle_pixel_mae_mm += std::abs(got - truth);
-        }
-      }
-      if (det) ++d_n, d_in += t5;
-      if (!t5)
-        s.max_displacement_outside_mm =
-            std::max(s.max_displacement_outside_mm, static_cast<double>(std::abs(got)));
-    }
-  s.height_mae_mm /= std::max(1.0, t_n);
-  s.zero_field_mae_mm /= std::max(1.0, t_n);
-  s.wrinkle_pixel_mae_mm /= std::max(1.0, w_n);
-  s.region_recall = w_n > 0 ? w_hit / w_n : 0.0;
-  s.region_precision = d_n > 0 ? d_in / d_n : 0.0;
-  return s;
-}
-
 bool is_truth_crop(const std::string& name) {
   return name.rfind("forehead_", 0) == 0 || name.rfind("crows_feet_", 0) == 0;
 }
@@ -155,10 +109,11 @@ std::vector<WrinkleExemplar> exemplars_for(const Setup& setup, WrinkleRelief rel
   return out;
 }
 
-nlohmann::json score_json(const Score& s) {
+nlohmann::json score_json(const WrinkleScore& s) {
   return {{"height_mae_mm", s.height_mae_mm},
           {"zero_field_mae_mm", s.zero_field_mae_mm},
           {"wrinkle_pixel_mae_mm", s.wrinkle_pixel_mae_mm},
+          {"height_correlation", s.height_correlation},
           {"region_recall", s.region_recall},
           {"region_precision", s.region_precision},
           {"max_displacement_outside_mm", s.max_displacement_outside_mm}};
@@ -175,12 +130,12 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   WrinkleDetailOptions wo;
   wo.exemplar_mm_per_px = setup->exemplars.mm_per_px;
   nlohmann::json runs = nlohmann::json::array(), summary;
-  Score worst{0, 0, 0, 1, 1, 0};
+  WrinkleScore worst{0, 0, 0, 1, 1, 1, 0};
   Progress progress("eval wrinkles", 2 * static_cast<int>(*subjects));
   for (const auto relief : {WrinkleRelief::kGrooves, WrinkleRelief::kScan}) {
     const std::string name = relief == WrinkleRelief::kGrooves ? "grooves" : "scan";
     const std::vector<WrinkleExemplar> ex = exemplars_for(*setup, relief);
-    Score mean;
+    WrinkleScore mean;
     for (long long s = 0; s < *subjects; ++s) {
       const auto seed = static_cast<std::uint64_t>(*first + s);
       auto c = make_case(*setup, relief, seed, vary);
@@ -190,10 +145,11 @@ int run_eval_wrinkles(const ParsedOptions& options) {
           wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx, ex, wo);
       const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
       if (!d) return report_failure(d.error());
-      const Score sc = score(*c, *d, wo.regions.margin_px);
+      const WrinkleScore sc = score_wrinkles(*c, *d, wo.regions.margin_px);
       mean.height_mae_mm += sc.height_mae_mm / *subjects;
       mean.zero_field_mae_mm += sc.zero_field_mae_mm / *subjects;
       mean.wrinkle_pixel_mae_mm += sc.wrinkle_pixel_mae_mm / *subjects;
+      mean.height_correlation += sc.height_correlation / *subjects;
       mean.region_recall += sc.region_recall / *subjects;
       mean.region_precision += sc.region_precision / *subjects;
       mean.max_displacement_outside_mm =
@@ -201,6 +157,7 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       worst.height_mae_mm = std::max(worst.height_mae_mm, sc.height_mae_mm);
       worst.zero_field_mae_mm = std::max(worst.zero_field_mae_mm, sc.zero_field_mae_mm);
       worst.wrinkle_pixel_mae_mm = std::max(worst.wrinkle_pixel_mae_mm, sc.wrinkle_pixel_mae_mm);
+      worst.height_correlation = std::min(worst.height_correlation, sc.height_correlation);
       worst.region_recall = std::min(worst.region_recall, sc.region_recall);
       worst.region_precision = std::min(worst.region_precision, sc.region_precision);
       worst.max_displacement_outside_mm =
@@ -262,7 +219,7 @@ int run_bench_wrinkles(const ParsedOptions& options) {
                             setup->exemplars.exemplars, wo);
     const double s = std::chrono::duration<double>(Clock::now() - t0).count();
     if (!d) return report_failure(d.error());
-    const Score sc = score(*c, *d, wo.regions.margin_px);
+    const WrinkleScore sc = score_wrinkles(*c, *d, wo.regions.margin_px);
     const bool pm = search == PatchSearch::kPatchMatch;
     seconds[pm ? 0 : 1] = s;
     methods[pm ? "patchmatch" : "brute_force"] = {

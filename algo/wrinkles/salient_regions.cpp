@@ -82,6 +82,35 @@ FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o)
   return out;
 }
 
+// SalientOptions' feature pixels, from the landmarks.
+Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2d, 68>& l,
+                                   const SalientOptions& o) {
+  Image<std::uint8_t> out;
+  out.resize(w, h);
+  std::fill(out.pixels.begin(), out.pixels.end(), std::uint8_t{0});
+  std::vector<Eigen::Vector2d> eyes[2];
+  for (int i = 36; i < 48; ++i) eyes[i < 42 ? 0 : 1].push_back(l[static_cast<std::size_t>(i)]);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const Eigen::Vector2d p(x, y);
+      bool on = false;
+      for (int i = 17; i < 26 && !on; ++i)
+        on = i != 21 && segment_distance(p, l[static_cast<std::size_t>(i)],
+                                         l[static_cast<std::size_t>(i + 1)]) < o.mask_brow_px;
+      for (const auto& eye : eyes) {
+        if (on) break;
+        on = inside_polygon(p, eye);
+        for (std::size_t i = 0; i < eye.size() && !on; ++i)
+          on = segment_distance(p, eye[i], eye[(i + 1) % eye.size()]) < o.mask_eye_px;
+      }
+      for (int i = 27; i < 68 && !on; ++i)
+        on = (i < 36 || i >= 48) &&
+             (l[static_cast<std::size_t>(i)] - p).norm() < o.feature_radius_px;
+      out.at(x, y) = on;
+    }
+  return out;
+}
+
 PixelRectI merge(const PixelRectI& a, const PixelRectI& b) {
   const int x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
   const int x1 = std::max(a.x + a.width, b.x + b.width),
@@ -105,7 +134,10 @@ SalientRegions salient_regions(const FloatImage& luminance,
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
   const ImageGradient g = image_gradient(detection_image(luminance, o));
   std::vector<Eigen::Vector2d> outline;
-  if (landmarks) outline = face_outline(*landmarks, o);
+  if (landmarks) {
+    outline = face_outline(*landmarks, o);
+    out.features = feature_pixels(w, h, *landmarks, o);
+  }
   for (int y = 2; y + 2 < h; ++y)
     for (int x = 2; x + 2 < w; ++x)
       if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||

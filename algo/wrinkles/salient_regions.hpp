@@ -44,6 +44,12 @@ struct SalientOptions {
   // Lines this close (px) to the eyelids (landmarks 37-40, 43-46; not the outer corners 36 and
   // 45, where crow's feet start) are the lids' own edges.
   float eyelid_radius_px = 4.0f;
+  // With landmarks, the features' pixels are left out of the synthesis (SalientRegions::
+  // features): their albedo edges would read as relief. Brows: this far either side of the
+  // landmark polyline; eyes: inside the contour and this far around it; nose and mouth:
+  // feature_radius_px around their landmarks.
+  float mask_brow_px = 6.0f;
+  float mask_eye_px = 3.0f;
 };
 
 struct WrinkleLine {
@@ -56,6 +62,7 @@ struct SalientRegions {
   Image<std::uint8_t> marked;      // 1 where the gradient changes sign over the threshold
   std::vector<WrinkleLine> lines;  // kept lines
   std::vector<PixelRectI> regions;
+  Image<std::uint8_t> features;  // 1 on brows, eyes, nose and mouth (empty without landmarks)
 };
 
 // `landmarks`: the 68 iBUG points in this image (optional); without them no line is dropped for

@@ -39,7 +39,7 @@ class Synthesizer {
  public:
   Synthesizer(const ImageGradient& input, const FloatImage& shading,
               std::span<const PixelRectI> regions, std::span<const WrinkleExemplar> exemplars,
-              const SynthesisOptions& o)
+              const SynthesisOptions& o, const Image<std::uint8_t>* excluded)
       : o_(o), r_(o.patch_radius), w_(input.gx.width), h_(input.gx.height) {
     // The input padded by the patch radius (edges clamped), so patches need no bounds checks.
     in_.width = w_ + 2 * r_;
@@ -61,7 +61,7 @@ class Synthesizer {
     for (const auto& rect : regions)
       for (int y = std::max(0, rect.y); y < std::min(h_, rect.y + rect.height); ++y)
         for (int x = std::max(0, rect.x); x < std::min(w_, rect.x + rect.width); ++x)
-          domain_.at(x, y) = 1;
+          domain_.at(x, y) = excluded == nullptr || !excluded->at(x, y);
     for (int y = 0; y < h_; ++y)
       for (int x = 0; x < w_; ++x)
         if (domain_.at(x, y)) pixels_.emplace_back(x, y);
@@ -267,7 +267,8 @@ ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptio
 Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
                                              std::span<const PixelRectI> regions,
                                              std::span<const WrinkleExemplar> exemplars,
-                                             const SynthesisOptions& options) {
+                                             const SynthesisOptions& options,
+                                             const Image<std::uint8_t>* excluded) {
   if (options.patch_radius < 1 || options.patch_radius > 8 || options.em_iterations < 1 ||
       options.patchmatch_passes < 1 || !(options.lambda >= 0.0))
     return fail(
@@ -278,8 +279,12 @@ Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
     if (e.height_mm.width != e.luminance.width || e.height_mm.height != e.luminance.height)
       return fail("wrinkle synthesis: exemplar " + e.name +
                   " has height and shading images of different sizes");
-  Synthesizer s(wrinkle_features(luminance, options), normalised_shading(luminance, options),
-                regions, exemplars, options);
+  Synthesizer s(
+      wrinkle_features(luminance, options), normalised_shading(luminance, options), regions,
+      exemplars, options,
+      excluded && excluded->width == luminance.width && excluded->height == luminance.height
+          ? excluded
+          : nullptr);
   if (!s.has_exemplars())
     return fail(
         "wrinkle synthesis: no exemplar is larger than a patch at this pixel size; give "

@@ -68,11 +68,13 @@ FloatImage normalised_shading(const FloatImage& luminance, const SynthesisOption
 ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptions& options);
 
 // `luminance`: the face image (0..1); `regions`: where to synthesise (salient regions, margin
-// included); `exemplars` at the input's pixel size. Fails when no exemplar is larger than a
+// included); `exemplars` at the input's pixel size; `excluded` (optional, the input's size): pixels
+// never synthesised (the features). Fails when no exemplar is larger than a
 // patch or the options are out of range.
 Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
                                              std::span<const PixelRectI> regions,
                                              std::span<const WrinkleExemplar> exemplars,
-                                             const SynthesisOptions& options = {});
+                                             const SynthesisOptions& options = {},
+                                             const Image<std::uint8_t>* excluded = nullptr);
 
 }  // namespace fb

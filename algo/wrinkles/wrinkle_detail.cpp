@@ -14,7 +14,9 @@ Result<WrinkleDetail> wrinkle_detail(
   out.regions = salient_regions(luminance, landmarks, options.regions);
   const std::vector<WrinkleExemplar> scaled =
       rescale_exemplars(exemplars, options.exemplar_mm_per_px, out.image_mm_per_px);
-  auto synthesis = synthesize_wrinkles(luminance, out.regions.regions, scaled, options.synthesis);
+  auto synthesis =
+      synthesize_wrinkles(luminance, out.regions.regions, scaled, options.synthesis,
+                          out.regions.features.empty() ? nullptr : &out.regions.features);
   if (!synthesis) return synthesis.failure();
   out.synthesis = std::move(*synthesis);
   return out;

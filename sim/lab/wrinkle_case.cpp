@@ -162,6 +162,7 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   so.world.seed = o.seed;
   so.world.texture = true;
   so.world.light_vary = o.light_vary;
+  so.distance_mm = o.distance_mm;
   auto brows = parse_expression_spec(
       "browInnerUp_L+browInnerUp_R+browOuterUp_L:0.8+browOuterUp_R:0.8", model);
   if (!brows) return brows.failure();

@@ -31,8 +31,9 @@ enum class WrinkleRelief {
 
 struct WrinkleCaseOptions {
   WrinkleRelief relief = WrinkleRelief::kGrooves;
-  std::uint64_t seed = 1;   // subject (identity, skin texture and tone) and noise
-  bool light_vary = false;  // the synthetic world's per-take light instead of the booth's
+  std::uint64_t seed = 1;      // subject (identity, skin texture and tone) and noise
+  bool light_vary = false;     // the synthetic world's per-take light instead of the booth's
+  double distance_mm = 700.0;  // the face's distance (the synthetic camera's default)
   // kScan: the crops placed as truth (forehead_0, crows_feet_left_0, crows_feet_right_0) and
   // their pixel size.
   std::vector<WrinkleExemplar> scan_crops;

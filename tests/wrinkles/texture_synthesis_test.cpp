@@ -98,7 +98,9 @@ TEST(TextureSynthesis, GroovesOfKnownDepthAreRecoveredFromOtherGrooves) {
   // Nothing outside the regions.
   for (int y = 0; y < 110; ++y)
     for (int x = 0; x < 180; ++x)
-      if (!out->domain.at(x, y)) ASSERT_EQ(out->height_mm.at(x, y), 0.0f);
+      if (!out->domain.at(x, y)) {
+        ASSERT_EQ(out->height_mm.at(x, y), 0.0f);
+      }
   EXPECT_EQ(out->height_mm.at(170, 5), 0.0f);
 }
 

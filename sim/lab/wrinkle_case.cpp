@@ -151,9 +151,8 @@ std::vector<Eigen::Vector3f> vertex_normals_of(std::span<const Eigen::Vector3f> 
   return n;
 }
 
-}  // namespace
-
-Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseOptions& o) {
+// The synthetic camera's subject: static, frontal, textured skin, brows raised.
+Result<SyntheticOptions> camera_options(const FaceModel& model, const WrinkleCaseOptions& o) {
   SyntheticOptions so;
   so.seed = o.seed;
   so.motion = SyntheticMotion::kStatic;
@@ -167,6 +166,15 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
       "browInnerUp_L+browInnerUp_R+browOuterUp_L:0.8+browOuterUp_R:0.8", model);
   if (!brows) return brows.failure();
   so.expression_weights = *brows;
+  return so;
+}
+
+}  // namespace
+
+Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseOptions& o) {
+  auto options = camera_options(model, o);
+  if (!options) return options.failure();
+  const SyntheticOptions& so = *options;
   auto camera = make_synthetic_camera(model, so);
   if (!camera) return camera.failure();
   if (auto ok = (*camera)->start(); !ok) return ok.failure();

@@ -1,5 +1,7 @@
 #include "algo/wrinkles/wrinkle_detail.hpp"
 
+#include <algorithm>
+
 namespace fb {
 
 Result<WrinkleDetail> wrinkle_detail(
@@ -19,6 +21,22 @@ Result<WrinkleDetail> wrinkle_detail(
                           out.regions.features.empty() ? nullptr : &out.regions.features);
   if (!synthesis) return synthesis.failure();
   out.synthesis = std::move(*synthesis);
+  if (options.keep_near_lines_px > 0) {
+    const int r = options.keep_near_lines_px, w = luminance.width, h = luminance.height;
+    Image<std::uint8_t> near;
+    near.resize(w, h);
+    std::fill(near.pixels.begin(), near.pixels.end(), std::uint8_t{0});
+    for (const auto& line : out.regions.lines)
+      for (const auto& p : line.pixels)
+        for (int y = std::max(0, p.y() - r); y <= std::min(h - 1, p.y() + r); ++y)
+          for (int x = std::max(0, p.x() - r); x <= std::min(w - 1, p.x() + r); ++x)
+            near.at(x, y) = 1;
+    for (std::size_t i = 0; i < near.pixels.size(); ++i)
+      if (!near.pixels[i]) {
+        out.synthesis.height_mm.pixels[i] = 0.0f;
+        out.synthesis.domain.pixels[i] = 0;
+      }
+  }
   return out;
 }
 

@@ -18,6 +18,11 @@ struct WrinkleDetailOptions {
   SalientOptions regions;
   SynthesisOptions synthesis;
   double exemplar_mm_per_px = 0.25;  // the exemplars' pixel size (data/wrinkle_exemplars)
+  // Heights are kept only this close (px, square neighbourhood) to a kept wrinkle line, the rest
+  // of each region set to 0 (the paper's "neighbourhood around the detected wrinkles, 5 pixels"
+  // read as around the lines; the regions' boxes still give the synthesis its context).
+  // 0 = keep the whole regions.
+  int keep_near_lines_px = 0;
 };
 
 struct WrinkleDetail {

@@ -14,6 +14,7 @@ Result<WrinkleDetail> wrinkle_detail(
   WrinkleDetail out;
   out.image_mm_per_px = face_depth_mm / focal_px;
   out.regions = salient_regions(luminance, landmarks, options.regions);
+  if (!options.given_regions.empty()) out.regions.regions = options.given_regions;
   const std::vector<WrinkleExemplar> scaled =
       rescale_exemplars(exemplars, options.exemplar_mm_per_px, out.image_mm_per_px);
   auto synthesis =

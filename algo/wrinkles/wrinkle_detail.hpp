@@ -6,6 +6,7 @@
 #include <array>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -23,6 +24,9 @@ struct WrinkleDetailOptions {
   // read as around the lines; the regions' boxes still give the synthesis its context).
   // 0 = keep the whole regions.
   int keep_near_lines_px = 0;
+  // Regions given by hand (the paper's user rectangles, margin included): used instead of the
+  // detected ones (the features are still left out).
+  std::vector<PixelRectI> given_regions;
 };
 
 struct WrinkleDetail {

@@ -128,6 +128,7 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   auto setup = load_setup(options);
   if (!setup) return report_failure(setup.error());
   const bool vary = options.get("light") == "vary";
+  const bool given = options.get("regions") == "truth";
   const auto distance = options.get_double("distance-mm");
   if (!distance || *distance < 500 || *distance > 1500)
     return report_failure({"--distance-mm takes a distance in 500-1500 mm"});
@@ -144,6 +145,11 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       const auto seed = static_cast<std::uint64_t>(*first + s);
       auto c = make_case(*setup, relief, seed, vary, *distance);
       if (!c) return report_failure(c.error());
+      if (given) {
+        wo.given_regions.clear();
+        for (const auto& r : c->true_regions)
+          wo.given_regions.push_back({r.x - 5, r.y - 5, r.width + 10, r.height + 10});
+      }
       const auto t0 = Clock::now();
       auto d =
           wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx, ex, wo);
@@ -188,6 +194,8 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   out["by_relief"] = summary;
   out["light"] = vary ? "vary (per-take light drawn from the seed)" : "the booth's key light";
   out["distance_mm"] = *distance;
+  out["regions"] = given ? "given: the true windows + 5 px (the paper's user rectangles)"
+                         : "detected (salient regions)";
   out["budget"] = {{"height_mae_mm", "<= 0.15"},
                    {"region_recall", ">= 0.9"},
                    {"region_precision", ">= 0.8"},
@@ -270,6 +278,10 @@ std::vector<Command> wrinkles_eval_commands() {
              {"first-seed", "N", "seed of the first subject", "1"},
              {"light", "booth|vary", "the booth's key light or a per-take one", "booth"},
              {"distance-mm", "MM", "the face's distance from the camera", "700"},
+             {"regions", "detected|truth",
+              "detected regions, or the true windows + 5 px given as the paper's user "
+              "rectangles (scores the synthesis alone)",
+              "detected"},
              {"png-prefix", "P", "figures", ""},
              exemplars,
              json}},

@@ -7,6 +7,7 @@
 
 #include "algo/core/mix64.hpp"
 #include "algo/wrinkles/texture_synthesis.hpp"
+#include "algo/wrinkles/wrinkle_detail.hpp"
 
 namespace fb {
 namespace {
@@ -150,6 +151,30 @@ TEST(TextureSynthesis, RescaledExemplarsKeepTheirDepthAndTooSmallOnesAreAnError)
   const auto out = synthesize_wrinkles(c.luminance, c.regions, std::span(&tiny, 1));
   ASSERT_FALSE(out.ok());
   EXPECT_NE(out.error().message.find("larger exemplars"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace fb
+
+namespace fb {
+namespace {
+
+TEST(WrinkleDetail, HandGivenRegionsAreUsedAndABadDistanceIsRefused) {
+  const Case c = make_case();
+  const std::vector<WrinkleExemplar> ex = {exemplar(false), exemplar(true)};
+  WrinkleDetailOptions o;
+  o.exemplar_mm_per_px = kMmPerPx;
+  o.given_regions = {{15, 17, 90, 36}};  // the horizontal grooves only
+  // 700 mm at f 583.3 px: the exemplars' own 1.2 mm per pixel.
+  const auto d = wrinkle_detail(c.luminance, std::nullopt, 700.0, 700.0 / kMmPerPx, ex, o);
+  ASSERT_TRUE(d.ok()) << d.error().message;
+  EXPECT_NEAR(d->image_mm_per_px, kMmPerPx, 1e-9);
+  EXPECT_EQ(d->synthesis.patches, 90 * 36);
+  EXPECT_EQ(d->synthesis.height_mm.at(150, 50), 0.0f);  // the vertical grooves: not given
+  EXPECT_LT(d->synthesis.height_mm.at(60, 45), -0.4f);  // the 0.8 mm groove's floor
+  const auto bad = wrinkle_detail(c.luminance, std::nullopt, 0.0, 580.0, ex, o);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("fit the face first"), std::string::npos);
 }
 
 }  // namespace

@@ -14,14 +14,101 @@ bool sign_change(const ImageGradient& g, int x, int y, int dx, int dy, float t) 
   return (a < -t && b > t) || (a > t && b < -t);
 }
 
-// Minimum distance from p to the landmarks that mark the mouth, lips, brows and nose.
-float feature_distance(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d, 68>& l) {
-  double best = 1e30;
-  for (int i = 17; i < 68; ++i) {
+double segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                        const Eigen::Vector2d& b) {
+  const Eigen::Vector2d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / std::max(d.squaredNorm(), 1e-12), 0.0, 1.0);
+  return (a + t * d - p).norm();
+}
+
+// Whether p lies on a feature: within feature_radius_px of a nose, mouth or lip landmark
+// (27-35, 48-67), or within brow_radius_px of a brow's landmark polyline (17-21, 22-26; the
+// forehead's lines run right above it).
+bool on_feature(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d, 68>& l,
+                const SalientOptions& o) {
+  for (int i = 27; i < 68; ++i) {
     if (i >= 36 && i < 48) continue;  // the eyes: crow's feet and lids sit right beside them
-    best = std::min(best, (l[static_cast<std::size_t>(i)] - p).norm());
+    if ((l[static_cast<std::size_t>(i)] - p).norm() < o.feature_radius_px) return true;
   }
+  for (int i = 17; i < 26; ++i) {
+    if (i == 21) continue;  // the two brows are separate polylines
+    if (segment_distance(p, l[static_cast<std::size_t>(i)], l[static_cast<std::size_t>(i + 1)]) <
+        o.brow_radius_px)
+      return true;
+  }
+  return false;
+}
+
+bool inside_polygon(const Eigen::Vector2d& q, const std::vector<Eigen::Vector2d>& polygon) {
+  bool in = false;
+  for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const auto& a = polygon[i];
+    const auto& b = polygon[j];
+    if ((a.y() > q.y()) != (b.y() > q.y()) &&
+        q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x())
+      in = !in;
+  }
+  return in;
+}
+
+// The face outline of SalientOptions (image coordinates, y down).
+std::vector<Eigen::Vector2d> face_outline(const std::array<Eigen::Vector2d, 68>& l,
+                                          const SalientOptions& o) {
+  std::vector<Eigen::Vector2d> polygon;
+  const double lift = o.forehead_fraction * (l[16] - l[0]).norm();
+  for (int i = 0; i <= 16; ++i) polygon.push_back(l[static_cast<std::size_t>(i)]);
+  for (int i = 26; i >= 17; --i)
+    polygon.push_back(l[static_cast<std::size_t>(i)] - Eigen::Vector2d(0.0, lift));
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : polygon) c += p / static_cast<double>(polygon.size());
+  for (auto& p : polygon) p = c + o.outline_shrink * (p - c);
+  return polygon;
+}
+
+float eyelid_distance(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d, 68>& l) {
+  double best = 1e30;
+  for (const int i : {37, 38, 39, 40, 41, 43, 44, 46, 47, 42})
+    best = std::min(best, (l[static_cast<std::size_t>(i)] - p).norm());
   return static_cast<float>(best);
+}
+
+// The image the sign changes are looked for in (SalientOptions).
+FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o) {
+  FloatImage out = o.smooth_sigma_px > 0 ? gaussian_blur(luminance, o.smooth_sigma_px) : luminance;
+  if (o.relative_sigma_px <= 0) return out;
+  const FloatImage mean = gaussian_blur(luminance, o.relative_sigma_px);
+  for (std::size_t i = 0; i < out.pixels.size(); ++i)
+    out.pixels[i] = 0.5f * out.pixels[i] / std::max(mean.pixels[i], 1e-3f);
+  return out;
+}
+
+// SalientOptions' feature pixels, from the landmarks.
+Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2d, 68>& l,
+                                   const SalientOptions& o) {
+  Image<std::uint8_t> out;
+  out.resize(w, h);
+  std::fill(out.pixels.begin(), out.pixels.end(), std::uint8_t{0});
+  std::vector<Eigen::Vector2d> eyes[2];
+  for (int i = 36; i < 48; ++i) eyes[i < 42 ? 0 : 1].push_back(l[static_cast<std::size_t>(i)]);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const Eigen::Vector2d p(x, y);
+      bool on = false;
+      for (int i = 17; i < 26 && !on; ++i)
+        on = i != 21 && segment_distance(p, l[static_cast<std::size_t>(i)],
+                                         l[static_cast<std::size_t>(i + 1)]) < o.mask_brow_px;
+      for (const auto& eye : eyes) {
+        if (on) break;
+        on = inside_polygon(p, eye);
+        for (std::size_t i = 0; i < eye.size() && !on; ++i)
+          on = segment_distance(p, eye[i], eye[(i + 1) % eye.size()]) < o.mask_eye_px;
+      }
+      for (int i = 27; i < 68 && !on; ++i)
+        on = (i < 36 || i >= 48) &&
+             (l[static_cast<std::size_t>(i)] - p).norm() < o.feature_radius_px;
+      out.at(x, y) = on;
+    }
+  return out;
 }
 
 PixelRectI merge(const PixelRectI& a, const PixelRectI& b) {
@@ -45,7 +132,12 @@ SalientRegions salient_regions(const FloatImage& luminance,
   const int w = luminance.width, h = luminance.height;
   out.marked.resize(w, h);
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
-  const ImageGradient g = image_gradient(luminance);
+  const ImageGradient g = image_gradient(detection_image(luminance, o));
+  std::vector<Eigen::Vector2d> outline;
+  if (landmarks) {
+    outline = face_outline(*landmarks, o);
+    out.features = feature_pixels(w, h, *landmarks, o);
+  }
   for (int y = 2; y + 2 < h; ++y)
     for (int x = 2; x + 2 < w; ++x)
       if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||
@@ -82,7 +174,18 @@ SalientRegions salient_regions(const FloatImage& luminance,
         Eigen::Vector2d c = Eigen::Vector2d::Zero();
         for (const auto& p : line.pixels) c += p.cast<double>();
         c /= static_cast<double>(line.pixels.size());
-        if (feature_distance(c, *landmarks) < o.feature_radius_px) continue;
+        if (on_feature(c, *landmarks, o)) continue;
+        if (o.inside_face_only) {
+          // Most of the line, not its centroid: the head's silhouette is a loop around the face.
+          std::size_t inside = 0;
+          for (const auto& p : line.pixels) inside += inside_polygon(p.cast<double>(), outline);
+          if (2 * inside <= line.pixels.size()) continue;
+        }
+        // A lid's edge: most of the line lies along the eye's contour.
+        int near_lid = 0;
+        for (const auto& p : line.pixels)
+          near_lid += eyelid_distance(p.cast<double>(), *landmarks) < o.eyelid_radius_px;
+        if (2 * near_lid > static_cast<int>(line.pixels.size())) continue;
       }
       out.lines.push_back(std::move(line));
     }

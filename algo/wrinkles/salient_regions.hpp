@@ -25,11 +25,31 @@ struct PixelRectI {
 };
 
 struct SalientOptions {
-  float gradient_threshold = 0.01f;  // luminance (0..1) per pixel on both sides of the line
-  int min_line_px = 12;              // lines shorter than this (pores, noise) are dropped
-  float feature_radius_px = 10.0f;   // lines this close to mouth/brow/nose landmarks are dropped
-  int cluster_gap_px = 10;           // lines this close join one region
-  int margin_px = 5;                 // each region grown by this (the paper's 5 px)
+  float gradient_threshold = 0.005f;  // luminance (0..1) per pixel on both sides of the line
+  int min_line_px = 12;               // lines shorter than this (pores, noise) are dropped
+  float feature_radius_px = 10.0f;    // lines this close to mouth/nose landmarks are dropped
+  float brow_radius_px = 5.0f;        // lines this close to a brow's landmark polyline too
+  int cluster_gap_px = 10;            // lines this close join one region
+  int margin_px = 5;                  // each region grown by this (the paper's 5 px)
+  // Against a camera's noise and the skin's colour: the luminance is smoothed and divided by its
+  // local mean (x 0.5, so the threshold reads as luminance on mid-grey skin) before the gradient.
+  double smooth_sigma_px = 0.7;    // 0 = off
+  double relative_sigma_px = 4.0;  // 0 = absolute luminance
+  // With landmarks, only lines inside the face are kept: the jaw line (0-16) closed over the
+  // brows (17-26) raised by forehead_fraction x the jaw's width, shrunk towards its centre by
+  // outline_shrink (the silhouette and the ears are no wrinkles).
+  bool inside_face_only = true;
+  double forehead_fraction = 0.4;
+  double outline_shrink = 0.88;
+  // Lines this close (px) to the eyelids (landmarks 37-40, 43-46; not the outer corners 36 and
+  // 45, where crow's feet start) are the lids' own edges.
+  float eyelid_radius_px = 4.0f;
+  // With landmarks, the features' pixels are left out of the synthesis (SalientRegions::
+  // features): their albedo edges would read as relief. Brows: this far either side of the
+  // landmark polyline; eyes: inside the contour and this far around it; nose and mouth:
+  // feature_radius_px around their landmarks.
+  float mask_brow_px = 6.0f;
+  float mask_eye_px = 3.0f;
 };
 
 struct WrinkleLine {
@@ -42,6 +62,7 @@ struct SalientRegions {
   Image<std::uint8_t> marked;      // 1 where the gradient changes sign over the threshold
   std::vector<WrinkleLine> lines;  // kept lines
   std::vector<PixelRectI> regions;
+  Image<std::uint8_t> features;  // 1 on brows, eyes, nose and mouth (empty without landmarks)
 };
 
 // `landmarks`: the 68 iBUG points in this image (optional); without them no line is dropped for

@@ -23,5 +23,6 @@ std::vector<Command> calibration_eval_commands();       // eval calibration
 std::vector<Command> texture_eval_commands();           // eval texture
 std::vector<Command> transfer_eval_commands();          // eval transfer
 Command bench_transfer_command();                       // transfer_bench.cpp
+std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench wrinkles
 
 }  // namespace fb::cli

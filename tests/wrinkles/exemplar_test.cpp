@@ -88,7 +88,9 @@ TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
   for (int i = 0; i < 68; ++i) landmarks[static_cast<std::size_t>(i)] = {100.0, 300.0};  // far away
   for (int i = 48; i < 68; ++i)  // the lips along the mouth line
     landmarks[static_cast<std::size_t>(i)] = {80.0 + 2.0 * (i - 48), 130.0};
-  const SalientRegions r = salient_regions(lum, landmarks);
+  SalientOptions o;
+  o.inside_face_only = false;  // the landmarks here mark the mouth only, no face outline
+  const SalientRegions r = salient_regions(lum, landmarks, o);
   ASSERT_EQ(r.regions.size(), 1u);
   const PixelRectI& f = r.regions.front();
   EXPECT_TRUE(f.contains(45, 40) && f.contains(155, 50));  // both lines, end to end
@@ -96,7 +98,7 @@ TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
   EXPECT_LT(f.y + f.height, 70);                           // not down to the mouth
   for (const auto& l : r.lines) EXPECT_GE(l.length(), 12);
   // Without landmarks the mouth's line is a region of its own.
-  EXPECT_EQ(salient_regions(lum, std::nullopt).regions.size(), 2u);
+  EXPECT_EQ(salient_regions(lum, std::nullopt, o).regions.size(), 2u);
 }
 
 TEST(Exemplar, TheShippedSetIsWhatTheConverterMakesFromTheScan) {

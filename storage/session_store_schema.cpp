@@ -126,6 +126,18 @@ CREATE TABLE textures(
   created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
 CREATE INDEX textures_by_session ON textures(session_id);
 )sql",
+      // v5: sessions and subjects imported from booths (`facebooth sync`) keep the booth's id
+      // and their id there, so several booths' ids never collide in one host store.
+      R"sql(
+ALTER TABLE subjects ADD COLUMN origin_booth TEXT;
+ALTER TABLE subjects ADD COLUMN origin_id INTEGER;
+ALTER TABLE sessions ADD COLUMN origin_booth TEXT;
+ALTER TABLE sessions ADD COLUMN origin_id INTEGER;
+CREATE UNIQUE INDEX subjects_by_origin ON subjects(origin_booth, origin_id)
+  WHERE origin_booth IS NOT NULL;
+CREATE UNIQUE INDEX sessions_by_origin ON sessions(origin_booth, origin_id)
+  WHERE origin_booth IS NOT NULL;
+)sql",
   };
   return list;
 }

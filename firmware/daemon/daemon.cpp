@@ -83,6 +83,9 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (ec)
     return fail("cannot create the data directory '" + config.storage.data_dir.string() +
                 "': " + ec.message());
+  auto booth_id = load_booth_id(config.storage.data_dir);
+  if (!booth_id) return booth_id.failure();
+  impl->booth_id = std::move(*booth_id);
   FrameSpool::remove_stale(config.storage.data_dir / "spool");  // takes of a crashed run
   auto records = open_session_records(config.storage.data_dir);
   if (!records) return fail("cannot open the session store: " + records.error().message);

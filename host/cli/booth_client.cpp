@@ -2,6 +2,9 @@
 
 #include <httplib.h>
 
+#include <sys/socket.h>
+
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -162,6 +165,14 @@ Result<DownloadStats> BoothClient::download_once(
   httplib::Headers headers;
   if (have > 0 && !tag.empty()) headers.emplace("Range", "bytes=" + std::to_string(have) + "-");
 
+  if (max_bytes_per_s > 0) {
+    // A small receive window, so TCP slows the booth down: with the kernel's autotuning (tens of
+    // MB on loopback) the booth would send everything at once and the limit would only buffer.
+    const int window = static_cast<int>(std::clamp(max_bytes_per_s / 8, 16e3, 256e3));
+    http_->set_socket_options([window](int sock) {
+      ::setsockopt(sock, SOL_SOCKET, SO_RCVBUF, &window, sizeof window);
+    });
+  }
   DownloadStats stats;
   std::ofstream out;
   std::string error_body;

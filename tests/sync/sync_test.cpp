@@ -320,6 +320,57 @@ TEST_F(SyncTest, BoothKilledMidTransferLeavesTheStoreAndTheNextSyncResumes) {
   EXPECT_EQ((*store.sessions())[0].done_count, 3);
 }
 
+// --watch: a session completed on the booth while sync watches is imported, rigged and its
+// rig sent back in a later round; SIGTERM stops the watch between rounds, cleanly.
+TEST_F(SyncTest, WatchPicksUpASessionCompletedWhileItRuns) {
+  Booth a(dir_ / "booth-a", "synthetic:seed=6", kToken);
+  ASSERT_TRUE(a.start());
+  ChildProcess watching;
+  const fs::path log = dir_ / "sync-watch.log";
+  ASSERT_TRUE(watching.start({FB_CLI_PATH, "sync", "--watch", "--interval", "0.5", "--store",
+                              host().string(), "--booth", a.url()},
+                             log));
+  // A session through the booth's API, as the kiosk page drives it.
+  httplib::Client http("127.0.0.1", a.port());
+  ASSERT_EQ(http.Post("/api/session/start", R"({"subject": "Cy"})", "application/json")->status,
+            202);
+  std::string pressed;  // the state + capture a press was sent for (one press each)
+  bool complete = false;
+  for (int i = 0; i < 1200 && !complete; ++i) {
+    auto r = http.Get("/api/status");
+    if (!r || r->status != 200) continue;
+    const json s = json::parse(r->body);
+    const std::string now = s["state"].get<std::string>();
+    const std::string at = now + s["capture_index"].dump() + "/" + s["attempts"].dump();
+    if ((now == "guide" || now == "retry") && at != pressed) {
+      http.Post("/api/session/next", "{}", "application/json");
+      pressed = at;
+    }
+    complete = now == "complete" || (now == "idle" && !pressed.empty());
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(complete);
+  // The watch's rounds (one JSON line each) until one has imported and uploaded it.
+  json done;
+  for (int i = 0; i < 1200 && done.is_null(); ++i) {
+    std::ifstream in(log);
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line.front() != '{') continue;
+      const json round = json::parse(line, nullptr, false);
+      if (!round.is_discarded() && round["rigs_uploaded"] == 1) done = round;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_FALSE(done.is_null()) << "no round imported the session";
+  EXPECT_EQ(done["imported"], 1);
+  EXPECT_GT(done["round"].get<int>(), 1);  // it watched before the session was there
+  const int status = watching.kill(SIGTERM);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  SessionStore store = open_host();
+  ASSERT_EQ(store.sessions()->size(), 1u);
+  EXPECT_EQ(store.subject(store.sessions()->front().subject)->name, "Cy");
+}
+
 // ------------------------------------------------------------------ refused bundles
 
 std::string tar_entry(const std::string& name, const std::string& content, char type = '0') {

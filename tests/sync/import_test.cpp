@@ -178,11 +178,15 @@ TEST_F(ImportTest, SigkillAtAnyPhaseLeavesTheStoreAsItWasOrComplete) {
     const auto sessions = store->sessions()->size();
     if (was_killed) {
       EXPECT_LE(sessions, 1u);
-      if (sessions == 0) EXPECT_EQ(store->subjects()->size(), 0u) << "step " << step;
+      if (sessions == 0) {
+        EXPECT_EQ(store->subjects()->size(), 0u) << "step " << step;
+      }
     } else {
       EXPECT_EQ(sessions, 1u) << "step " << step;
     }
-    if (sessions == 1) EXPECT_EQ(store->sessions()->front().done_count, 3);
+    if (sessions == 1) {
+      EXPECT_EQ(store->sessions()->front().done_count, 3);
+    }
   }
   EXPECT_GE(killed, 5);  // the kills landed inside the import
 }

@@ -312,7 +312,7 @@ int run_sync(const ParsedOptions& options) {
   if (!token) return report_failure(token.error());
   auto rate = options.get_double("max-rate");
   auto interval = options.get_double("interval");
-  auto rounds = options.get_int("rounds");
+  auto rounds = options.get_int("watch-rounds");
   if (!rate || !interval || !rounds)
     return report_failure(!rate ? rate.error() : !interval ? interval.error() : rounds.error());
   auto model = load_face_model();
@@ -370,7 +370,7 @@ std::vector<Command> sync_commands() {
       {"insecure", "", "allow plain HTTP to a booth on another machine", ""},
       {"watch", "", "keep syncing as sessions complete (until SIGINT/SIGTERM)", ""},
       {"interval", "S", "seconds between --watch rounds", "5"},
-      {"rounds", "N", "with --watch: stop after N rounds (0 = never)", "0"},
+      {"watch-rounds", "N", "with --watch: stop after N rounds (0 = never)", "0"},
       {"max-rate", "MB/S", "limit each booth's download rate (0 = none)", "0"},
       {"no-rig", "", "import only; do not rig", ""},
       {"no-upload", "", "rig on the host but do not send the rigs back", ""},

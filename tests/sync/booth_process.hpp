@@ -91,14 +91,14 @@ class ChildProcess {
 
 class Booth {
  public:
-  Booth(fs::path dir, std::string camera, std::string token, std::string bind = "127.0.0.1")
+  Booth(fs::path dir, std::string camera, std::string token, std::string bind = "127.0.0.1",
+        int captures = 3)
       : dir_(std::move(dir)), port_(free_port()) {
     fs::create_directories(dir_);
-    // The project's first three guide expressions, so the host rigs with its own recipes.
+    // The project's first guide expressions, so the host rigs with its own recipes.
     std::ifstream in(fs::path(FB_DATA_DIR) / "guide_expressions.json");
     auto guide = nlohmann::json::parse(in);
-    guide["expressions"] = {guide["expressions"][0], guide["expressions"][1],
-                            guide["expressions"][2]};
+    guide["expressions"].erase(guide["expressions"].begin() + captures, guide["expressions"].end());
     std::ofstream(dir_ / "guide.json") << guide.dump(1);
     std::ofstream(dir_ / "faceboothd.toml")
         << "[camera]\nuri = \"" << camera

@@ -265,7 +265,9 @@ TEST_F(SyncTest, OffloadFromAnotherAddressNeedsTheTokenAndInsecure) {
 // Issue 38: a booth that goes away in the middle of a transfer leaves the host store as it was
 // (it passes `store info --verify`), and the next sync resumes and completes.
 TEST_F(SyncTest, BoothKilledMidTransferLeavesTheStoreAndTheNextSyncResumes) {
-  Booth a(dir_ / "booth-a", "synthetic:seed=4", kToken);
+  // Six captures (~8 MB): the booth's kernel still sends what it had queued after the kill (up
+  // to its 4 MiB socket buffer), so the bundle must be larger for the transfer to be cut.
+  Booth a(dir_ / "booth-a", "synthetic:seed=4", kToken, "127.0.0.1", 6);
   ASSERT_TRUE(a.capture("Ada").is_object());
   ASSERT_TRUE(a.start());
   const fs::path part = host() / ".sync" / booth_id_of(a) / "session-1.tar.part";
@@ -312,12 +314,13 @@ TEST_F(SyncTest, BoothKilledMidTransferLeavesTheStoreAndTheNextSyncResumes) {
   EXPECT_EQ(again.report["rigged"], 1);
   EXPECT_EQ(again.report["booths"][0]["resumed_bytes"], kept) << again.report.dump(1);
   EXPECT_EQ(entry["bytes"].get<std::uint64_t>() + kept, entry["bundle_bytes"].get<std::uint64_t>());
+  EXPECT_GT(entry["bytes"].get<std::uint64_t>(), 1'000'000u);  // a real part came after the cut
   EXPECT_FALSE(fs::exists(part));
   SessionStore store = open_host();
   auto verify = store.verify();
   ASSERT_TRUE(verify && verify->ok());
   ASSERT_EQ(store.sessions()->size(), 1u);
-  EXPECT_EQ((*store.sessions())[0].done_count, 3);
+  EXPECT_EQ((*store.sessions())[0].done_count, 6);
 }
 
 // --watch: a session completed on the booth while sync watches is imported, rigged and its

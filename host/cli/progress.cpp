@@ -61,7 +61,10 @@ void TransferProgress::draw(bool final) {
   const long long now_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
                                std::chrono::steady_clock::now().time_since_epoch())
                                .count();
-  const double mb = 1e6;
+  // MB, or kB for what is smaller than a megabyte (a refused bundle, a tiny session).
+  const bool small = total < 1'000'000;
+  const double mb = small ? 1e3 : 1e6;
+  const char* unit = small ? "kB" : "MB";
   char line[160];
   if (terminal_) {
     if (!final && now_ms - last_draw_ms_ < 100) return;
@@ -69,13 +72,14 @@ void TransferProgress::draw(bool final) {
     const int filled = total > 0 ? static_cast<int>(width * static_cast<double>(done) / total) : 0;
     std::string bar(static_cast<std::size_t>(filled), '#');
     bar.resize(width, '.');
-    std::snprintf(line, sizeof line, "\r%s [%s] %6.1f / %.1f MB", what_.c_str(), bar.c_str(),
-                  done / mb, total / mb);
+    std::snprintf(line, sizeof line, "\r%s [%s] %6.1f / %.1f %s", what_.c_str(), bar.c_str(),
+                  done / mb, total / mb, unit);
     std::cerr << line << std::flush;
   } else {
     // Logs: a line per ~10 % of what is known so far, and the last one.
     if (!final && done < last_printed_ + std::max<std::uint64_t>(total / 10, 1)) return;
-    std::snprintf(line, sizeof line, "%s %.1f / %.1f MB\n", what_.c_str(), done / mb, total / mb);
+    std::snprintf(line, sizeof line, "%s %.1f / %.1f %s\n", what_.c_str(), done / mb, total / mb,
+                  unit);
     std::cerr << line;
     last_printed_ = done;
   }

@@ -3,7 +3,10 @@
 // and import included, no rigging) beside a plain HTTP GET of the same bundles (the peer: what
 // the wire and the booth's export give), and sessions per minute with rigging and rig upload.
 // One JSON object on stdout, progress on stderr.
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -43,10 +46,18 @@ fs::path find_binary(const std::string& given, const std::string& build_relative
   return {};
 }
 
+// A loopback port nothing listens on now (the kernel's pick for port 0, released at once).
 int loopback_port() {
-  httplib::Server probe;
-  const int port = probe.bind_to_any_port("127.0.0.1");
-  probe.stop();
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  int port = -1;
+  if (fd >= 0 && ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+    port = ntohs(a.sin_port);
+  if (fd >= 0) ::close(fd);
   return port;
 }
 
@@ -73,8 +84,14 @@ class BoothDaemon {
       std::_Exit(127);
     }
     httplib::Client http("127.0.0.1", port);
+    http.set_connection_timeout(1, 0);
+    http.set_read_timeout(5, 0);
     for (int i = 0; i < 600; ++i) {
       if (auto r = http.Get("/api/status"); r && r->status == 200) return success();
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        pid_ = -1;
+        break;  // it exited (a port in use, a bad config): the log says why
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
     return fail("faceboothd never answered; see " +

@@ -130,7 +130,10 @@ Result<std::pair<std::uint64_t, double>> raw_get(const std::vector<int>& ports) 
         http.set_read_timeout(60, 0);
         auto ready = http.Get("/api/offload/ready");
         if (!ready || ready->status != 200) return void(errors[i] = "no ready list");
-        for (const auto& s : json::parse(ready->body)["sessions"]) {
+        const json list = json::parse(ready->body, nullptr, false);
+        if (list.is_discarded() || !list["sessions"].is_array())
+          return void(errors[i] = "the ready list is not JSON");
+        for (const auto& s : list["sessions"]) {
           auto tar = http.Get("/api/offload/sessions/" + std::to_string(s["id"].get<int>()) +
                               "/bundle.tar");
           if (!tar || tar->status != 200) return void(errors[i] = "bundle GET failed");

@@ -220,7 +220,7 @@ struct SessionImport {
   std::int64_t origin_session = 0;
   std::int64_t origin_subject = 0;
   std::string subject_name;
-  std::string calibration_json;      // the unit's device.json text, may be empty
+  std::string calibration_json;           // the unit's device.json text, may be empty
   std::vector<ImportedCapture> captures;  // index 0..n-1, in order
 };
 

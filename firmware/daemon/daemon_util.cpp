@@ -50,7 +50,8 @@ std::string tar_header(const std::string& name, std::uint64_t size, std::int64_t
   std::snprintf(header + 108, 8, "%07o", 0);
   std::snprintf(header + 116, 8, "%07o", 0);
   std::snprintf(header + 124, 12, "%011llo", static_cast<unsigned long long>(size));
-  std::snprintf(header + 136, 12, "%011llo", static_cast<unsigned long long>(mtime > 0 ? mtime : std::time(nullptr)));
+  std::snprintf(header + 136, 12, "%011llo",
+                static_cast<unsigned long long>(mtime > 0 ? mtime : std::time(nullptr)));
   std::memset(header + 148, ' ', 8);
   header[156] = '0';
   std::memcpy(header + 257, "ustar", 6);
@@ -141,10 +142,10 @@ Result<std::string> load_booth_id(const std::filesystem::path& data_dir) {
     std::ifstream in(path);
     std::string id;
     std::getline(in, id);
-    const bool valid = !id.empty() && id.size() <= 64 &&
-                       std::all_of(id.begin(), id.end(), [](char c) {
-                         return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
-                       });
+    const bool valid =
+        !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char c) {
+          return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
+        });
     if (!valid)
       return fail(path.string() +
                   " is not a booth id (1..64 of [A-Za-z0-9_-]): restore it from a backup (hosts "

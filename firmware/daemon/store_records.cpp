@@ -186,8 +186,8 @@ Result<void> StoreRecords::commit_capture(std::int64_t session, int index, Captu
 // capture: the fused depth (16-bit PGM, mm), the frontal colour frame (PNG), its landmarks
 // (JSON, the operator's correction when there is one) and the newest fitted mesh (OBJ, model
 // frame, mm); per session the unit's calibration (device.json). The host's `facebooth sync`
-// reads it (storage/bundle_import.hpp). When the subject has a rig from this session, a FaceWarehouse folder is added
-// through storage/export's session exporter.
+// reads it (storage/bundle_import.hpp). When the subject has a rig from this session, a
+// FaceWarehouse folder is added through storage/export's session exporter.
 Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& exports_dir,
                                               const std::function<bool()>& cancelled) {
   auto stop_requested = [&]() -> Result<void> {

@@ -268,6 +268,8 @@ Result<std::vector<SessionInfo>> SessionStore::sessions() const {
                    "(SELECT count(*) FROM captures c WHERE c.session_id=s.id), "
                    "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done'), " +
                        std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
+                       (impl_->schema_version >= 5 ? ", s.origin_booth, s.origin_id"
+                                                   : ", NULL, NULL") +
                        " FROM sessions s ORDER BY s.id");
   if (!stmt) return stmt.failure();
   std::vector<SessionInfo> out;
@@ -284,6 +286,8 @@ Result<std::vector<SessionInfo>> SessionStore::sessions() const {
     s.capture_count = stmt->int32(5);
     s.done_count = stmt->int32(6);
     s.calibration_json = stmt->text(7);
+    s.origin_booth = stmt->text(8);
+    s.origin_session = stmt->int64(9);
     out.push_back(std::move(s));
   }
   return out;
@@ -349,15 +353,7 @@ Result<void> SessionStore::reject_capture(SessionId session, int index,
   return stmt->run();
 }
 
-namespace {
-
-// A capture's .fbseq file, streamed frame by frame (a capture is tens of megabytes), with what
-// the frames table needs: each frame's header and byte offset.
-struct FrameSequence {
-  SessionStore::Impl::StoredFile file;
-  std::vector<std::uint64_t> offsets;
-  std::vector<frame_record::Header> headers;
-};
+namespace store_detail {
 
 Result<FrameSequence> write_frame_sequence(const SessionStore::Impl& impl,
                                            const std::string& folder, const std::string& stem,
@@ -388,7 +384,7 @@ Result<FrameSequence> write_frame_sequence(const SessionStore::Impl& impl,
   return out;
 }
 
-}  // namespace
+}  // namespace store_detail
 
 Result<void> SessionStore::commit_capture(SessionId session, int index, const CaptureInput& input) {
   if (auto r = impl_->require_writer(); !r) return r;

@@ -28,7 +28,7 @@
 
 namespace fb {
 
-inline constexpr int kSessionStoreSchemaVersion = 4;
+inline constexpr int kSessionStoreSchemaVersion = 5;
 inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
 
 using SubjectId = std::int64_t;
@@ -87,6 +87,10 @@ struct SessionInfo {
   // The unit calibration its frames were taken with (device.json text); empty when the device
   // did not record one (stores before schema v4): the host then assumes the defaults.
   std::string calibration_json;
+  // Where an imported session came from (`facebooth sync`, schema v5): the booth's id and the
+  // session's id on that booth; empty / 0 for a session captured into this store.
+  std::string origin_booth;
+  std::int64_t origin_session = 0;
 };
 
 struct CaptureInfo {
@@ -194,6 +198,32 @@ struct TakeData {
   }
 };
 
+// A session fetched from a booth (`facebooth sync`, storage/bundle_import.hpp), imported in one
+// transaction. The subject is keyed by (booth, origin_subject): a booth's later sessions of the
+// same subject join it, and two booths never share a subject or a session by accident of ids.
+struct ImportedCapture {
+  int index = 0;
+  std::string expression;
+  CaptureState state = CaptureState::kPending;
+  int attempts = 0;
+  std::map<std::string, double> qa_scores;
+  std::vector<RgbdFrame> frames;  // a done capture needs at least one
+  DepthImage fused_depth;         // may be empty
+  std::vector<Landmark> landmarks;
+  LandmarkSource landmark_source = LandmarkSource::kAutomatic;
+  std::optional<MeshData> mesh;  // the booth's newest fit of the capture
+  MeshRole mesh_role = MeshRole::kFitted;
+};
+
+struct SessionImport {
+  std::string booth;  // the booth's id ([A-Za-z0-9_-], 1..64 characters)
+  std::int64_t origin_session = 0;
+  std::int64_t origin_subject = 0;
+  std::string subject_name;
+  std::string calibration_json;           // the unit's device.json text, may be empty
+  std::vector<ImportedCapture> captures;  // index 0..n-1, in order
+};
+
 // Result of SessionStore::verify().
 struct VerifyReport {
   std::string integrity;  // PRAGMA integrity_check's answer, "ok" when healthy
@@ -255,6 +285,15 @@ class SessionStore {
 
   // Records the unit calibration (device.json text) the session's frames are taken with.
   Result<void> set_session_calibration(SessionId session, const std::string& device_json);
+
+  // --- sessions imported from booths (schema v5)
+  // Stores a whole session (subject found or added, session, captures, frames, landmarks,
+  // meshes) in one durable step: a failure or a crash at any point leaves none of it. Fails
+  // when the session was imported before (imported_session() says as which).
+  Result<SessionId> import_session(const SessionImport& session);
+  // The local id of the booth's session when it has been imported (nullopt: not yet).
+  Result<std::optional<SessionId>> imported_session(const std::string& booth,
+                                                    std::int64_t origin_session) const;
 
   // --- meshes, rigs, models, takes
   Result<MeshId> add_mesh(SessionId session, std::optional<int> capture_index, MeshRole role,

@@ -20,6 +20,7 @@
 
 #include "storage/data_codec.hpp"
 #include "storage/durable_file.hpp"
+#include "storage/frame_record.hpp"
 #include "storage/session_store.hpp"
 #include "storage/sha256.hpp"
 #include "storage/sqlite_util.hpp"
@@ -442,5 +443,21 @@ struct SessionStore::Impl {
     return list->front();
   }
 };
+
+namespace store_detail {
+
+// A capture's .fbseq file, streamed frame by frame (a capture is tens of megabytes), with what
+// the frames table needs: each frame's header and byte offset (session_store.cpp; the import
+// writes its captures the same way).
+struct FrameSequence {
+  SessionStore::Impl::StoredFile file;
+  std::vector<std::uint64_t> offsets;
+  std::vector<frame_record::Header> headers;
+};
+Result<FrameSequence> write_frame_sequence(const SessionStore::Impl& impl,
+                                           const std::string& folder, const std::string& stem,
+                                           const CaptureInput& input, std::size_t frame_count);
+
+}  // namespace store_detail
 
 }  // namespace fb

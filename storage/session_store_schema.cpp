@@ -4,6 +4,19 @@
 
 namespace fb::store_detail {
 
+// v5: sessions and subjects imported from booths (`facebooth sync`) keep the booth's id and
+// their id there, so several booths' ids never collide in one host store.
+constexpr const char* kV5ImportedFromBooths = R"sql(
+ALTER TABLE subjects ADD COLUMN origin_booth TEXT;
+ALTER TABLE subjects ADD COLUMN origin_id INTEGER;
+ALTER TABLE sessions ADD COLUMN origin_booth TEXT;
+ALTER TABLE sessions ADD COLUMN origin_id INTEGER;
+CREATE UNIQUE INDEX subjects_by_origin ON subjects(origin_booth, origin_id)
+  WHERE origin_booth IS NOT NULL;
+CREATE UNIQUE INDEX sessions_by_origin ON sessions(origin_booth, origin_id)
+  WHERE origin_booth IS NOT NULL;
+)sql";
+
 // Each migration moves the schema from version (index) to version (index + 1). Never edit a
 // released migration: add a new one, so every store upgrades along the same path.
 const std::vector<std::string>& migrations() {
@@ -126,6 +139,7 @@ CREATE TABLE textures(
   created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
 CREATE INDEX textures_by_session ON textures(session_id);
 )sql",
+      kV5ImportedFromBooths,
   };
   return list;
 }

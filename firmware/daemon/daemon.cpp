@@ -83,6 +83,9 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (ec)
     return fail("cannot create the data directory '" + config.storage.data_dir.string() +
                 "': " + ec.message());
+  auto booth_id = load_booth_id(config.storage.data_dir);
+  if (!booth_id) return booth_id.failure();
+  impl->booth_id = std::move(*booth_id);
   FrameSpool::remove_stale(config.storage.data_dir / "spool");  // takes of a crashed run
   auto records = open_session_records(config.storage.data_dir);
   if (!records) return fail("cannot open the session store: " + records.error().message);
@@ -772,8 +775,9 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   long long dropped = 0;
   std::uint64_t expected_index = 0;
   // A sensor that stops delivering (cable, power, a stalled USB stream) ends the take with an
-  // error instead of a take that never finishes; a Kinect's first frame comes within 2 s.
-  constexpr long long kStallMs = 3000;
+  // error instead of a take that never finishes: 3 s without a frame mid-take, 10 s for the
+  // first (a stream starting up; a rendering camera renders ahead before its first frame).
+  constexpr long long kStallMs = 3000, kFirstFrameMs = 10000;
   auto last_frame_at = Clock::now();
   int fusion_dropped = 0;  // frames fusion could not follow (lost): kept out, counted
   RgbdFrame frame;
@@ -790,9 +794,10 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
                   got.error().message + "); check its cable and power, then retry the capture");
     if (*got == FrameStatus::kEndOfStream) break;
     if (*got == FrameStatus::kTimeout) {
-      if (ms_since(last_frame_at) > kStallMs)
+      const long long allowed = recorded == 0 ? kFirstFrameMs : kStallMs;
+      if (ms_since(last_frame_at) > static_cast<double>(allowed))
         return fail("the camera stopped delivering frames after " + std::to_string(recorded) +
-                    " frames of the take (none for " + std::to_string(kStallMs / 1000) +
+                    " frames of the take (none for " + std::to_string(allowed / 1000) +
                     " s); check its cable and power, then retry the capture");
       continue;
     }

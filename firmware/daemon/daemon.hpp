@@ -91,7 +91,10 @@ std::string encode_bmp(const ColorImage& image);
 // piece so a download never holds the whole bundle in memory.
 class TarStream {
  public:
-  static Result<TarStream> open(const std::filesystem::path& folder, const std::string& prefix);
+  // `mtime`: the entries' modification time (seconds since the epoch; 0 = now). The bundle
+  // gives the session's start, so the same session is the same bytes every time (resume).
+  static Result<TarStream> open(const std::filesystem::path& folder, const std::string& prefix,
+                                std::int64_t mtime = 0);
   std::uint64_t size() const { return total_; }
   Result<std::string> read(std::uint64_t offset, std::uint64_t length) const;
 

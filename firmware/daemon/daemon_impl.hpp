@@ -137,11 +137,16 @@ struct StatusData {
 // The status JSON's "registration" object (daemon_calibration.cpp).
 nlohmann::json registration_json(const StatusData& s);
 
+// The booth's id, kept in `data_dir/booth-id` (created once, random): hosts key the sessions
+// they sync by it, so two booths' session ids never collide (daemon_util.cpp).
+Result<std::string> load_booth_id(const std::filesystem::path& data_dir);
+
 struct Daemon::Impl {
   DaemonConfig config;
   DaemonOptions options;
   std::chrono::steady_clock::time_point created_at = std::chrono::steady_clock::now();
   std::string token;
+  std::string booth_id;  // this booth's id for the hosts that sync it (load_booth_id)
   std::vector<GuideStep> guide;
 
   std::unique_ptr<Gpio> gpio;

@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "firmware/daemon/daemon_impl.hpp"
+#include "storage/durable_file.hpp"
 
 namespace fb {
 
@@ -42,14 +43,15 @@ std::string encode_bmp(const ColorImage& image) {
 
 namespace {
 
-std::string tar_header(const std::string& name, std::uint64_t size) {
+std::string tar_header(const std::string& name, std::uint64_t size, std::int64_t mtime) {
   char header[512] = {};
   std::snprintf(header, 100, "%s", name.c_str());
   std::snprintf(header + 100, 8, "%07o", 0644);
   std::snprintf(header + 108, 8, "%07o", 0);
   std::snprintf(header + 116, 8, "%07o", 0);
   std::snprintf(header + 124, 12, "%011llo", static_cast<unsigned long long>(size));
-  std::snprintf(header + 136, 12, "%011llo", static_cast<unsigned long long>(std::time(nullptr)));
+  std::snprintf(header + 136, 12, "%011llo",
+                static_cast<unsigned long long>(mtime > 0 ? mtime : std::time(nullptr)));
   std::memset(header + 148, ' ', 8);
   header[156] = '0';
   std::memcpy(header + 257, "ustar", 6);
@@ -63,7 +65,8 @@ std::string tar_header(const std::string& name, std::uint64_t size) {
 
 }  // namespace
 
-Result<TarStream> TarStream::open(const std::filesystem::path& folder, const std::string& prefix) {
+Result<TarStream> TarStream::open(const std::filesystem::path& folder, const std::string& prefix,
+                                  std::int64_t mtime) {
   namespace fs = std::filesystem;
   TarStream t;
   std::error_code ec;
@@ -81,7 +84,7 @@ Result<TarStream> TarStream::open(const std::filesystem::path& folder, const std
     if (ec) return fail("cannot stat '" + file.string() + "'");
     const std::string name = prefix + "/" + fs::relative(file, folder).generic_string();
     if (name.size() > 99) return fail("file name too long for the archive: " + name);
-    e.header = tar_header(name, e.size);
+    e.header = tar_header(name, e.size, mtime);
     e.offset = t.total_;
     t.total_ += 512 + e.size + (512 - e.size % 512) % 512;
     t.entries_.push_back(std::move(e));
@@ -130,6 +133,31 @@ Result<std::string> tar_folder(const std::filesystem::path& folder, const std::s
   auto t = TarStream::open(folder, prefix);
   if (!t) return t.failure();
   return t->read(0, t->size());
+}
+
+Result<std::string> load_booth_id(const std::filesystem::path& data_dir) {
+  const std::filesystem::path path = data_dir / "booth-id";
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) {
+    std::ifstream in(path);
+    std::string id;
+    std::getline(in, id);
+    const bool valid =
+        !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char c) {
+          return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_';
+        });
+    if (!valid)
+      return fail(path.string() +
+                  " is not a booth id (1..64 of [A-Za-z0-9_-]): restore it from a backup (hosts "
+                  "know this booth's sessions by it), or delete it to start as a new booth");
+    return id;
+  }
+  const std::string id = "booth-" + random_token(16);
+  const std::string text = id + "\n";
+  auto written = write_file_durably(
+      path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+  if (!written) return fail("cannot write the booth id: " + written.error().message);
+  return id;
 }
 
 Result<std::string> Daemon::Impl::guide_picture(int index) {

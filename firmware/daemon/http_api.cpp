@@ -5,12 +5,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "firmware/daemon/daemon_impl.hpp"
 #include "firmware/daemon/http_requests.hpp"
 #include "firmware/kiosk/kiosk_assets.hpp"
 #include "storage/export/facewarehouse.hpp"
+#include "storage/sha256.hpp"
 
 namespace fb {
 namespace {
@@ -40,6 +43,26 @@ void send_error(httplib::Response& res, int status, const std::string& message) 
 
 Result<std::int64_t> id_param(const httplib::Request& req, std::size_t i) {
   return parse_path_id(req.matches[i].str());
+}
+
+// Seconds since the epoch of an ISO 8601 UTC time ("2026-12-06T06:30:00.123Z"); 0 if unreadable.
+std::int64_t iso_seconds(const std::string& iso) {
+  std::tm tm{};
+  if (!strptime(iso.c_str(), "%Y-%m-%dT%H:%M:%S", &tm)) return 0;
+  return static_cast<std::int64_t>(timegm(&tm));
+}
+
+// A bundle's identity: the SHA-256 of its manifest's file list (paths, sizes, digests), which,
+// unlike the manifest file itself, has no creation time in it.
+std::string bundle_etag(const std::filesystem::path& folder) {
+  std::ifstream in(folder / "manifest.json");
+  auto j = json::parse(in, nullptr, false);
+  if (j.is_discarded() || !j.contains("files")) return {};
+  const std::string files = j["files"].dump();
+  return "\"" +
+         sha256_hex(std::span(reinterpret_cast<const std::uint8_t*>(files.data()), files.size()))
+             .substr(0, 32) +
+         "\"";
 }
 
 json session_json(const RecordSession& s) {
@@ -257,23 +280,28 @@ Result<void> Daemon::Impl::setup_http() {
       j["rig_upload"] = "/api/offload/sessions/" + std::to_string(s.id) + "/rig";
       list.push_back(j);
     }
-    send_json(res, {{"sessions", list}});
+    send_json(res, {{"booth_id", booth_id}, {"sessions", list}});
   });
   auto send_bundle = [this](const httplib::Request& req, httplib::Response& res) {
     auto id = id_param(req, 1);
     if (!id) return send_error(res, 400, id.error().message);
     Result<std::filesystem::path> out = fail("");
+    std::string created_at;
     {
       std::lock_guard lock(records_mutex);
       out = records->export_session(*id, config.storage.data_dir / "exports",
                                     [this] { return stopping.load(); });
+      if (auto s = records->session(*id)) created_at = s->created_at;
     }
     if (!out) return send_error(res, 404, out.error().message);
     const std::string prefix = "session-" + std::to_string(*id);
-    auto tar = TarStream::open(*out, prefix);
+    auto tar = TarStream::open(*out, prefix, iso_seconds(created_at));
     if (!tar) return send_error(res, 500, tar.error().message);
     auto stream = std::make_shared<TarStream>(std::move(*tar));
     res.set_header("Content-Disposition", "attachment; filename=\"" + prefix + ".tar\"");
+    // The same files give the same archive: a host resumes a cut transfer with a Range request
+    // and compares this tag to know that the rest is of the same bundle.
+    if (auto tag = bundle_etag(*out); !tag.empty()) res.set_header("ETag", tag);
     res.set_content_provider(static_cast<size_t>(stream->size()), "application/x-tar",
                              [stream](size_t offset, size_t length, httplib::DataSink& sink) {
                                auto bytes =

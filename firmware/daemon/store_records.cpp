@@ -185,8 +185,9 @@ Result<void> StoreRecords::commit_capture(std::int64_t session, int index, Captu
 // storage/export's ExportFolder (temporary folder, SHA-256 manifest, atomic rename). Per done
 // capture: the fused depth (16-bit PGM, mm), the frontal colour frame (PNG), its landmarks
 // (JSON, the operator's correction when there is one) and the newest fitted mesh (OBJ, model
-// frame, mm). When the subject has a rig from this session, a FaceWarehouse folder is added
-// through storage/export's session exporter.
+// frame, mm); per session the unit's calibration (device.json). The host's `facebooth sync`
+// reads it (storage/bundle_import.hpp). When the subject has a rig from this session, a
+// FaceWarehouse folder is added through storage/export's session exporter.
 Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& exports_dir,
                                               const std::function<bool()>& cancelled) {
   auto stop_requested = [&]() -> Result<void> {
@@ -280,13 +281,19 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
   std::string subject_name;
   if (auto subj = store_.subject(s->subject)) subject_name = subj->name;
   nlohmann::json session_doc = {{"format", "facebooth-session-bundle"},
-                                {"version", 2},
+                                {"version", 3},
                                 {"session", id},
                                 {"subject", subject_name},
                                 {"subject_id", s->subject},
+                                {"created_at", s->created_at},
                                 {"complete", s->complete},
                                 {"fitted_captures", fitted},
                                 {"captures", list}};
+  // v3: the unit's calibration, which the host needs to map depth to colour when it refits.
+  if (!s->calibration_json.empty()) {
+    if (auto ok = write("calibration.json", s->calibration_json); !ok) return ok.failure();
+    session_doc["calibration"] = "calibration.json";
+  }
   if (auto ok = write("session.json", session_doc.dump(1)); !ok) return ok.failure();
   ExportManifest manifest;
   manifest.what = "facebooth-session-bundle";

@@ -68,10 +68,12 @@ Result<ParsedOptions> parse_options(const CommandSpec& spec, const std::vector<s
       parsed.values_[name] = "1";
     } else if (inline_value) {
       parsed.values_[name] = *inline_value;
+      parsed.all_[name].push_back(*inline_value);
     } else {
       if (i + 1 >= args.size())
         return fail("--" + name + " needs a value (" + option->value_name + ")");
       parsed.values_[name] = args[++i];
+      parsed.all_[name].push_back(args[i]);
     }
   }
   return parsed;

@@ -32,6 +32,11 @@ class ParsedOptions {
   std::string get(const std::string& name) const;
   Result<long long> get_int(const std::string& name) const;
   Result<double> get_double(const std::string& name) const;
+  // Every value of an option given more than once, in order (get() returns the last).
+  std::vector<std::string> all(const std::string& name) const {
+    auto it = all_.find(name);
+    return it == all_.end() ? std::vector<std::string>{} : it->second;
+  }
   bool help_requested = false;
 
  private:
@@ -39,6 +44,7 @@ class ParsedOptions {
                                              std::string_view);
   std::map<std::string, std::string> values_;
   std::map<std::string, std::string> defaults_;
+  std::map<std::string, std::vector<std::string>> all_;
 };
 
 // `program` names the binary in messages and help: "facebooth" or "facebooth-lab".

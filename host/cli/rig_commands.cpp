@@ -215,22 +215,13 @@ int run_rig(const ParsedOptions& options) {
       ex.capture_indices.push_back(ge.id);
     }
   }
-  std::vector<std::vector<float>> generic;
-  RigInput input = generic_rig_input(*model, generic);
-  for (const auto& m : ex.meshes) input.examples.emplace_back(m);
-  input.example_weights = ex.weights;
   auto bar = std::make_shared<Progress>("rig", 1000);
   rig_opts->progress = rig_progress(bar);
-  auto rig = rig_subject(input, *rig_opts);
+  auto rigged = rig_examples(ex, *model, *rig_opts);
   bar.reset();
-  if (!rig) return report_failure(rig.error());
-
-  RigData data;
-  data.neutral = rig->neutral;
-  data.shapes = rig->shapes;
-  for (int j = 0; j < model->fitting_expression_count; ++j)
-    data.shape_names.push_back(model->expression_names[static_cast<std::size_t>(j)]);
-  data.triangles = model->triangles;
+  if (!rigged) return report_failure(rigged.error());
+  const RigResult* rig = &rigged->result;
+  const RigData& data = rigged->data;
 
   nlohmann::json out;
   out["examples"] = ex.names.size();

@@ -72,6 +72,24 @@ Result<SessionExamples> load_session_examples(const SessionStore& store, Session
   return out;
 }
 
+Result<SessionRig> rig_examples(const SessionExamples& examples, const FaceModel& model,
+                                const RigOptions& options) {
+  std::vector<std::vector<float>> generic;
+  RigInput input = generic_rig_input(model, generic);
+  for (const auto& m : examples.meshes) input.examples.emplace_back(m);
+  input.example_weights = examples.weights;
+  auto rig = rig_subject(input, options);
+  if (!rig) return rig.failure();
+  SessionRig out;
+  out.data.neutral = rig->neutral;
+  out.data.shapes = rig->shapes;
+  for (int j = 0; j < model.fitting_expression_count; ++j)
+    out.data.shape_names.push_back(model.expression_names[static_cast<std::size_t>(j)]);
+  out.data.triangles = model.triangles;
+  out.result = std::move(*rig);
+  return out;
+}
+
 RigInput generic_rig_input(const FaceModel& model, std::vector<std::vector<float>>& storage) {
   const std::size_t floats = static_cast<std::size_t>(model.vertex_count) * 3;
   storage.assign(static_cast<std::size_t>(model.fitting_expression_count) + 1,

@@ -31,6 +31,16 @@ Result<SessionExamples> load_session_examples(const SessionStore& store, Session
                                               const FaceModel& model, const GuideSet& guide,
                                               bool allow_missing);
 
+// A session's rig: the rigging result and the rig as the store keeps it (the model's fitting
+// expression names, its triangles).
+struct SessionRig {
+  RigResult result;
+  RigData data;
+};
+// Example-based rigging of loaded examples (what `rig` and `sync` do).
+Result<SessionRig> rig_examples(const SessionExamples& examples, const FaceModel& model,
+                                const RigOptions& options);
+
 // The generic rig of the face model: A_0 = the model's neutral, A_j = A_0 + expression j for the
 // fitting expressions (their storage lives in `storage`).
 RigInput generic_rig_input(const FaceModel& model, std::vector<std::vector<float>>& storage);

@@ -358,6 +358,8 @@ int run_store_info(const ParsedOptions& options) {
                         {"captures", s.capture_count},
                         {"done", s.done_count},
                         {"created_at", s.created_at}};
+    if (!s.origin_booth.empty())  // imported by `sync`: the booth and its session id there
+      j["origin"] = {{"booth", s.origin_booth}, {"session", s.origin_session}};
     auto next = store->next_capture(s.id);
     if (next && *next)
       j["next_capture"] = {{"index", (*next)->index}, {"expression", (*next)->expression}};

@@ -16,6 +16,7 @@ Command bench_track_command();                          // track_bench.cpp
 std::vector<Command> storage_eval_commands();           // eval storage
 std::vector<Command> daemon_bench_commands();           // bench daemon
 std::vector<Command> soak_bench_commands();             // bench soak
+std::vector<Command> sync_bench_commands();             // bench sync (bench_sync.cpp)
 std::vector<Command> rig_eval_commands();               // eval rig, eval model
 Command bench_rig_command();                            // rig_bench.cpp
 std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration

@@ -1032,6 +1032,13 @@ TEST_F(DaemonTest, SigtermMidTakeStopsCleanlyAndLosesNothing) {
     ::execl(FB_FACEBOOTHD, FB_FACEBOOTHD, "--config", (dir_ / "faceboothd.toml").c_str(), nullptr);
     ::_exit(127);
   }
+  // A failed assertion below returns early: the daemon must not outlive the test.
+  struct Reaper {
+    pid_t pid;
+    ~Reaper() {
+      if (pid > 0 && ::kill(pid, SIGKILL) == 0) ::waitpid(pid, nullptr, 0);
+    }
+  } reaper{pid};
   httplib::Client http("127.0.0.1", c.http.port);
   auto status = [&]() -> nlohmann::json {
     auto r = http.Get("/api/status");
@@ -1071,11 +1078,8 @@ TEST_F(DaemonTest, SigtermMidTakeStopsCleanlyAndLosesNothing) {
     done = ::waitpid(pid, &wstatus, WNOHANG);
     if (done == 0) std::this_thread::sleep_for(milliseconds(10));
   }
-  if (done == 0) {
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, &wstatus, 0);
-    FAIL() << "faceboothd did not stop after SIGTERM";
-  }
+  if (done == 0) FAIL() << "faceboothd did not stop after SIGTERM";  // the reaper kills it
+  reaper.pid = -1;
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   std::printf("faceboothd stopped %.0f ms after SIGTERM (budget 2000 ms)\n", ms);

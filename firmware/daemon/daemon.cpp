@@ -773,7 +773,7 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
   // Frames the camera overwrote because this loop was late: gaps in the stream's index, as
   // the freenect backend's double buffer and the realtime synthetic camera leave them.
   long long dropped = 0;
-  std::uint64_t expected_index = 0;
+  std::uint64_t expected_index = 0, gap_check_index = 0;
   // A sensor that stops delivering (cable, power, a stalled USB stream) ends the take with an
   // error instead of a take that never finishes: 3 s without a frame mid-take, 10 s for the
   // first (a stream starting up; a rendering camera renders ahead before its first frame).
@@ -821,6 +821,16 @@ Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
         fusion_ready = true;
       }
     }
+    // Detecting the face on the first frame takes longer than a frame period on a busy board,
+    // so the sensor may have overwritten the frames after it: fusing across that gap would start
+    // the volume from a view the next frames no longer match. Start afresh from this frame.
+    if (fusion_ready && fused == 1 && recorded > 0 && frame.index > gap_check_index + 1) {
+      if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
+      if (auto ok = consistency.reset(info.depth_intrinsics); !ok) return ok.failure();
+      fused = 0;
+      rms_sum = 0;
+    }
+    gap_check_index = frame.index;
     const FrameReport report = fusion_ready ? fusion.process(frame.depth_mm) : FrameReport{};
     if (fusion_ready && !report.fused) ++fusion_dropped;
     if (report.fused) {

@@ -230,13 +230,14 @@ int bench_soak(const ParsedOptions& o) {
     load.kill(SIGKILL);
     std::ifstream(dir / "load-count") >> load_requests;
   }
+  const double rss_peak = rss_mb(pid, "VmHWM:");  // before the process is gone
   const int exit_status = daemon_proc.kill(SIGTERM);
   if (!(WIFEXITED(exit_status) && WEXITSTATUS(exit_status) == 0))
     errors.push_back("faceboothd did not exit cleanly on SIGTERM");
   if (samples.size() < 3) return report_failure({"fewer than 3 sessions ran: " + errors.front()});
 
-  const json out = soak_report(settings, samples, errors, frames_dropped, load_requests,
-                               rss_mb(pid, "VmHWM:"), ms_since(soak_t0) / 1000.0);
+  const json out = soak_report(settings, samples, errors, frames_dropped, load_requests, rss_peak,
+                               ms_since(soak_t0) / 1000.0);
   std::cout << out.dump(2) << "\n";
   return errors.empty() ? kExitOk : kExitFailure;
 }

@@ -17,6 +17,7 @@
 
 #include "algo/core/clock.hpp"
 #include "algo/core/result.hpp"
+#include "host/cli/scratch_directory.hpp"
 #include "sim/lab/daemon_harness.hpp"
 #include "sim/lab/lab_commands.hpp"
 
@@ -162,17 +163,9 @@ int bench_daemon(const ParsedOptions& o) {
   if (*captures < 1 || *captures > 20) return report_failure({"--captures must be 1..20"});
   if (*threads < 1) return report_failure({"--load-threads must be at least 1"});
 
-  const fs::path dir =
-      fs::temp_directory_path() / ("facebooth-bench-daemon-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  struct Cleanup {
-    fs::path dir;
-    ~Cleanup() {
-      std::error_code ec;
-      fs::remove_all(dir, ec);
-    }
-  } cleanup{dir};
+  auto scratch = ScratchDirectory::create("facebooth-bench-daemon-");
+  if (!scratch) return report_failure(scratch.error());
+  const fs::path dir = scratch->path();
 
   // The first N guide expressions keep the bench short; takes are real time (paced at 30 fps).
   {

@@ -18,6 +18,7 @@
 
 #include "algo/core/clock.hpp"
 #include "host/cli/export_summary.hpp"
+#include "host/cli/scratch_directory.hpp"
 #include "sim/lab/daemon_harness.hpp"
 #include "sim/lab/lab_commands.hpp"
 
@@ -165,17 +166,9 @@ int bench_soak(const ParsedOptions& o) {
   if (!parsed) return report_failure(parsed.error());
   const SoakSettings settings = *parsed;
 
-  const fs::path dir =
-      fs::temp_directory_path() / ("facebooth-bench-soak-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  struct Cleanup {
-    fs::path dir;
-    ~Cleanup() {
-      std::error_code ec;
-      fs::remove_all(dir, ec);
-    }
-  } cleanup{dir};
+  auto scratch = ScratchDirectory::create("facebooth-bench-soak-");
+  if (!scratch) return report_failure(scratch.error());
+  const fs::path dir = scratch->path();
   const int port = free_port();
   UdpCounter vmc;
   if (port <= 0 || vmc.port() <= 0) return report_failure({"cannot open loopback sockets"});

@@ -17,27 +17,6 @@
 #include "firmware/daemon/daemon_impl.hpp"
 
 namespace fb {
-namespace {
-
-// 2x downsample of the colour image with the face box outlined (the kiosk preview).
-void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out) {
-  const int w = frame.color.width / 2, h = frame.color.height / 2;
-  if (w <= 0 || h <= 0) return;
-  out.resize(w, h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) out.at(x, y) = frame.color.at(2 * x, 2 * y);
-  const Rgb8 green{40, 220, 90};
-  const int x0 = box.x / 2, y0 = box.y / 2, x1 = (box.x + box.width) / 2 - 1,
-            y1 = (box.y + box.height) / 2 - 1;
-  for (int x = x0; x <= x1; ++x)
-    for (int y : {y0, y1})
-      if (out.contains(x, y)) out.at(x, y) = green;
-  for (int y = y0; y <= y1; ++y)
-    for (int x : {x0, x1})
-      if (out.contains(x, y)) out.at(x, y) = green;
-}
-
-}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // Creation and lifetime
@@ -113,6 +92,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (auto ok = impl->setup_registration(); !ok) return ok.failure();
   if (auto ok = impl->preview_camera->start(); !ok)
     return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
+  impl->warm_up_take();
 
   impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
   if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
@@ -138,10 +118,16 @@ Result<void> Daemon::start() {
   if (d.started.exchange(true)) return success();
   d.refresh_led();
   d.worker_thread = std::thread([&d] { d.worker_loop(); });
-  d.fit_thread = std::thread([&d] { d.fit_loop(); });
+  d.fit_thread = std::thread([&d] {
+    run_in_background();
+    d.fit_loop();
+  });
   d.gpio_thread = std::thread([&d] { d.gpio_loop(); });
   if (d.http) {
-    d.http_thread = std::thread([&d] { d.http->listen_after_bind(); });
+    d.http_thread = std::thread([&d] {
+      run_in_background();  // and its pool's threads, started from this one
+      d.http->listen_after_bind();
+    });
     // The listener is bound already; wait until it accepts so READY=1 means reachable.
     for (int i = 0; i < 200 && !d.http->is_running(); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -698,235 +684,6 @@ Result<void> Daemon::Impl::show_next_guide() {
   }
   return fail("session " + std::to_string(session) + " has no capture left to record");
 }
-
-// Records one take and fuses it frame by frame. Returns false when cancelled or stopping (the
-// capture stays not done: begin_capture counted the attempt, nothing else is written).
-Result<bool> Daemon::Impl::record_take(QaReport& qa, CaptureCommit& commit) {
-  std::int64_t session;
-  int index;
-  {
-    std::lock_guard lock(status_mutex);
-    session = status.session;
-    index = status.capture_index;
-  }
-  if (index < 0 || index >= static_cast<int>(guide.size()))
-    return fail("no capture selected for recording");
-  // The peak resident memory (budget 256 MB) is reached while a take is fused. Heap pages freed
-  // by the last take's fit and by the HTTP threads stay resident inside glibc's arenas, more of
-  // them the more the threads interleave (a slower or busier CPU); hand them back first, so the
-  // peak is the take's working set and not that plus the fragmentation (~1 ms).
-  malloc_trim(0);
-  {
-    std::lock_guard lock(records_mutex);
-    if (auto ok = records->begin_capture(session, index); !ok) return ok.failure();
-  }
-  auto spool = FrameSpool::create(config.storage.data_dir / "spool");
-  if (!spool) return spool.failure();
-  commit.frames = std::move(*spool);
-  const int n = config.camera.capture_frames;
-  update_status([&](StatusData& s) {
-    ++s.attempts;
-    s.take_frames = 0;
-    s.message = "Recording: turn your head slowly left and right...";
-  });
-
-  // The camera for this take: a synthetic subject making the guide expression, or the live one.
-  // A camera that takes an expression control (the synthetic one, a module from sim/) is
-  // opened for the take with the guide's expression, a head turn and the take's length.
-  std::unique_ptr<DepthCamera> take_camera;
-  DepthCamera* camera = preview_camera.get();
-  if (config.camera.synthetic_imitates_guide &&
-      camera_has_control(config.camera.uri, kControlExpression)) {
-    CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
-                               {std::string(kControlMotion), "headturn"},
-                               {std::string(kControlFrames), std::to_string(n)}};
-    // A real sensor delivers on its own clock and overwrites what the loop is too late for;
-    // the rendering camera does the same when asked (it renders ahead on its own thread).
-    if (config.camera.realtime && camera_has_control(config.camera.uri, kControlRealtime))
-      controls.push_back({std::string(kControlRealtime), "1"});
-    // Rendered with the face model the fitter already holds (FaceModel is immutable after
-    // loading) instead of the module loading another 21 MB copy for every take.
-    CameraResources lent;
-    if (fitter) lent.face_model = &fitter->model();
-    auto opened = open_camera(config.camera.uri, controls, lent);
-    if (!opened) return opened.failure();
-    take_camera = std::move(*opened);
-    // The take renders the same unit as the preview: under the same calibration.
-    auto calibrated = with_active_calibration(std::move(take_camera));
-    if (!calibrated) return calibrated.failure();
-    take_camera = std::move(*calibrated);
-    if (auto ok = take_camera->start(); !ok) return ok.failure();
-    camera = take_camera.get();
-  }
-  const CameraInfo& info = camera->info();
-  // The face box comes from the face dlib finds on the take's first frames (up to
-  // kDetectFrames of them, not fused until it is found); without a face the kiosk's fixed
-  // rectangle, and the log says why.
-  constexpr int kDetectFrames = 3;
-  FaceBox box = default_face_box(info.width, info.height);
-  bool box_detected = false, fusion_ready = false;
-  std::string box_note;
-
-  double rms_sum = 0;
-  int fused = 0, recorded = 0;
-  RigidPose frontal_pose;
-  // Frames the camera overwrote because this loop was late: gaps in the stream's index, as
-  // the freenect backend's double buffer and the realtime synthetic camera leave them.
-  long long dropped = 0;
-  std::uint64_t expected_index = 0, gap_check_index = 0;
-  // A sensor that stops delivering (cable, power, a stalled USB stream) ends the take with an
-  // error instead of a take that never finishes: 3 s without a frame mid-take, 10 s for the
-  // first (a stream starting up; a rendering camera renders ahead before its first frame).
-  constexpr long long kStallMs = 3000, kFirstFrameMs = 10000;
-  auto last_frame_at = Clock::now();
-  int fusion_dropped = 0;  // frames fusion could not follow (lost): kept out, counted
-  RgbdFrame frame;
-  while (recorded < n) {
-    watchdog_ping();
-    if (stopping || cancel_pending()) {
-      std::lock_guard lock(status_mutex);
-      status.frames_dropped += dropped;
-      return false;
-    }
-    auto got = camera->next_frame(frame, std::chrono::milliseconds(500));
-    if (!got)
-      return fail("the camera failed after " + std::to_string(recorded) + " frames of the take (" +
-                  got.error().message + "); check its cable and power, then retry the capture");
-    if (*got == FrameStatus::kEndOfStream) break;
-    if (*got == FrameStatus::kTimeout) {
-      const long long allowed = recorded == 0 ? kFirstFrameMs : kStallMs;
-      if (ms_since(last_frame_at) > static_cast<double>(allowed))
-        return fail("the camera stopped delivering frames after " + std::to_string(recorded) +
-                    " frames of the take (none for " + std::to_string(allowed / 1000) +
-                    " s); check its cable and power, then retry the capture");
-      continue;
-    }
-    last_frame_at = Clock::now();
-    if (recorded > 0 && frame.index > expected_index)
-      dropped += static_cast<long long>(frame.index - expected_index);
-    expected_index = frame.index + 1;
-    // No live registration check here: the take's own frames are checked after it, on the fit
-    // thread (registration_allows_fit), so the check never competes with fusion for the CPU.
-    if (!fusion_ready) {
-      auto detected = detect_take_face_box(frame, info);
-      if (detected) {
-        box = *detected;
-        box_detected = true;
-      } else {
-        box_note = detected.error().message;
-      }
-      if (box_detected || recorded + 1 >= kDetectFrames) {
-        if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
-        if (auto ok = consistency.reset(info.depth_intrinsics); !ok) return ok.failure();
-        fusion_ready = true;
-      }
-    }
-    // Detecting the face on the first frame takes longer than a frame period on a busy board,
-    // so the sensor may have overwritten the frames after it: fusing across that gap would start
-    // the volume from a view the next frames no longer match. Start afresh from this frame.
-    if (fusion_ready && fused == 1 && recorded > 0 && frame.index > gap_check_index + 1) {
-      if (auto ok = fusion.reset(info.depth_intrinsics, box); !ok) return ok.failure();
-      if (auto ok = consistency.reset(info.depth_intrinsics); !ok) return ok.failure();
-      fused = 0;
-      rms_sum = 0;
-    }
-    gap_check_index = frame.index;
-    const FrameReport report = fusion_ready ? fusion.process(frame.depth_mm) : FrameReport{};
-    if (fusion_ready && !report.fused) ++fusion_dropped;
-    if (report.fused) {
-      if (fused == 0) {
-        // The frontal frame: its colour image gets the landmarks, its pose the fused view.
-        frontal_pose = report.world_from_camera;
-        pending_view.color = frame.color;
-      }
-      ++fused;
-      rms_sum += report.rms_mm;
-      consistency.add(frame.depth_mm, fusion.model_view().levels[0].depth,
-                      relative_pose(frontal_pose, report.world_from_camera), fusion.face_box());
-    }
-    if (recorded % config.camera.stored_frame_stride == 0) {
-      if (auto ok = commit.frames->append(frame); !ok) return ok.failure();
-    }
-    ++recorded;
-    if (recorded % 5 == 0 || recorded == n) {
-      std::lock_guard lock(preview_mutex);
-      make_preview(frame, fusion_ready ? fusion.face_box() : box, preview);
-    }
-    update_status([&](StatusData& s) {
-      s.take_frames = recorded;
-      ++s.frames_total;
-    });
-  }
-  update_status([&](StatusData& s) { s.frames_dropped += dropped; });
-  if (recorded == 0) return fail("the camera delivered no frames for the take");
-
-  // Quality: how much of the face box the fused surface covers, how well frames aligned, and how
-  // many frames could be fused at all.
-  if (!fusion_ready) return fail("the take ended before fusion could start");
-  SurfaceView view = fusion.render(frontal_pose);
-  pending_view.intrinsics = info.depth_intrinsics;
-  pending_view.calibration = info.calibration;
-  long long covered = 0;
-  const FaceBox clipped =
-      fusion.box_for(frontal_pose).clipped(view.depth_mm.width, view.depth_mm.height);
-  commit.fused_depth.resize(view.depth_mm.width, view.depth_mm.height);
-  for (int y = 0; y < view.depth_mm.height; ++y)
-    for (int x = 0; x < view.depth_mm.width; ++x) {
-      const float z = view.depth_mm.at(x, y);
-      commit.fused_depth.at(x, y) = z > 0 && z < 65535 ? static_cast<std::uint16_t>(z + 0.5f) : 0;
-      if (z > 0 && clipped.contains(x, y)) ++covered;
-    }
-  qa.coverage = clipped.empty() ? 0.0
-                                : static_cast<double>(covered) /
-                                      (static_cast<double>(clipped.width) * clipped.height);
-  qa.residual_mm = fused > 0 ? rms_sum / fused : 0.0;
-  qa.fused_fraction = static_cast<double>(fused) / recorded;
-  const auto& th = config.session;
-  if (qa.coverage < th.min_coverage)
-    qa.reason = "face coverage " + std::to_string(qa.coverage).substr(0, 4) + " below " +
-                std::to_string(th.min_coverage).substr(0, 4);
-  else if (qa.fused_fraction < th.min_fused_fraction)
-    qa.reason = "only " + std::to_string(fused) + " of " + std::to_string(recorded) +
-                " frames could be aligned";
-  else if (fused == 0 || qa.residual_mm > th.max_residual_mm)
-    qa.reason = "alignment residual " + std::to_string(qa.residual_mm).substr(0, 4) + " mm";
-  qa.passed = qa.reason.empty();
-  pending_view.depth_mm = std::move(view.depth_mm);
-  pending_view.normals = std::move(view.normals);
-  consistency.confidence(pending_view.confidence);
-  commit.calibration_json = to_device_json(info.calibration);
-  commit.qa_scores = {{"coverage", qa.coverage},
-                      {"residual_mm", qa.residual_mm},
-                      {"fused_fraction", qa.fused_fraction},
-                      {"frames_recorded", recorded},
-                      {"frames_dropped", static_cast<double>(dropped)},
-                      {"frames_fused", fused},
-                      {"frames_fusion_dropped", fusion_dropped},
-                      {"face_box_detected", box_detected ? 1.0 : 0.0}};
-  // The take keeps the frames it fused; the log says how many it could not follow and where
-  // the face box came from.
-  std::fprintf(stderr,
-               "faceboothd: take: %d of %d frames fused, %d dropped (fusion could not follow "
-               "the face), %lld missed (read too late); face box %d,%d %dx%d %s%s\n",
-               fused, recorded, fusion_dropped, dropped, clipped.x, clipped.y, clipped.width,
-               clipped.height, box_detected ? "from dlib" : "fixed (no face found: ",
-               box_detected ? "" : (box_note + ")").c_str());
-  return true;
-}
-
-Result<FaceBox> Daemon::Impl::detect_take_face_box(const RgbdFrame& frame, const CameraInfo& info) {
-  if (!fitter) return fail("no landmark detector (" + fitter_error + ")");
-  if (!take_detector) take_detector.emplace(fitter->share_landmark_detector());
-  if (!take_proportions) take_proportions = face_proportions(fitter->model());
-  auto region = detect_face_region(*take_detector, frame.color, frame.depth_mm,
-                                   KinectRegistration(info.calibration), *take_proportions);
-  if (!region) return region.failure();
-  return region->box;
-}
-
-}  // namespace fb
-
-namespace fb {
 
 Result<HeadlessResult> Daemon::run_headless_session(const std::string& subject, int max_attempts) {
   if (auto ok = start(); !ok) return ok.failure();

@@ -29,6 +29,7 @@
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
+#include "firmware/daemon/take_fusion.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 
 // After every Eigen header: httplib pulls in <resolv.h>, whose `_res` macro breaks Eigen.
@@ -137,6 +138,16 @@ struct StatusData {
 // The status JSON's "registration" object (daemon_calibration.cpp).
 nlohmann::json registration_json(const StatusData& s);
 
+// 2x downsample of the colour image with the face box outlined (the kiosk preview;
+// daemon_util.cpp).
+void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out);
+
+// Lowers the calling thread's scheduling priority (nice) by `nice_increment`. The take's frame
+// loop is the one thread with a deadline (the sensor overwrites a frame it reads late); the fit,
+// HTTP, registration-check and face-detection threads yield to it (daemon_util.cpp).
+constexpr int kBackgroundNice = 5;
+void run_in_background(int nice_increment = kBackgroundNice);
+
 // The booth's id, kept in `data_dir/booth-id` (created once, random): hosts key the sessions
 // they sync by it, so two booths' session ids never collide (daemon_util.cpp).
 Result<std::string> load_booth_id(const std::filesystem::path& data_dir);
@@ -158,7 +169,8 @@ struct Daemon::Impl {
   FaceFusion fusion;                            // worker only
   ViewConsistency consistency;                  // worker only: the take's depth confidence
   // A take's face box: dlib (the fitter's shape predictor, shared) on the take's first frames,
-  // grown by the face model's proportions. Worker only; made at the first take.
+  // grown by the face model's proportions. Made with the fitter (dlib's HOG detector takes
+  // 0.5-1 s to build); then used by one take's detection thread at a time.
   std::optional<LandmarkDetector> take_detector;
   std::optional<FaceProportions> take_proportions;
   QaReport pending_qa;  // the last take, between record and process
@@ -251,10 +263,12 @@ struct Daemon::Impl {
   KioskInput do_action(KioskAction action, const QueuedInput& in, bool* has_followup);
   Result<void> enroll(const std::string& subject);
   Result<void> show_next_guide();
+  // capture_take.cpp
   Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
-  // The face box of a take from its frame (dlib, through the camera's registration); fails
-  // when there is no detector or no face (the caller keeps the fixed box and says why).
-  Result<FaceBox> detect_take_face_box(const RgbdFrame& frame, const CameraInfo& info);
+  Result<std::unique_ptr<DepthCamera>> open_take_camera(int index, int frames);
+  void warm_up_take();
+  void assess_take(const TakeTally& tally, const CameraInfo& info, QaReport& qa,
+                   CaptureCommit& commit);
   void preview_tick();
   void tracking_tick();
   // At the end of a recording or synthetic take: starts it over (see daemon.cpp).

@@ -50,6 +50,10 @@ Result<void> Daemon::Impl::start_fitter() {
   fitter = std::move(*f);
   std::fprintf(stderr, "faceboothd: landmark model loaded in %.0f ms (%s)\n",
                fitter->landmark_model_load_ms(), paths.shape_predictor.c_str());
+  // The take's face detector is built now, not at the first take, where building dlib's HOG
+  // detector (0.5-1 s) made the sensor overwrite the take's first 20 frames.
+  take_detector.emplace(fitter->share_landmark_detector());
+  take_proportions = face_proportions(fitter->model());
   // Tracking after a restart uses the newest session's stored neutral.
   post_fit_job([this](bool run) {
     if (!run) return;

@@ -146,6 +146,19 @@ Result<SessionRun> run_daemon_session(const fs::path& daemon, const fs::path& di
   return out;
 }
 
+// The daemon's log lives in the scratch folder, which goes at the end; --keep-logs copies it out
+// (each take's frames missed and the camera's late frames are there).
+void keep_log(const fs::path& dir, const fs::path& keep_dir, const std::string& label) {
+  if (keep_dir.empty()) return;
+  std::error_code ec;
+  fs::create_directories(keep_dir, ec);
+  fs::copy_file(dir / "faceboothd.log", keep_dir / ("faceboothd-" + label + ".log"),
+                fs::copy_options::overwrite_existing, ec);
+  if (ec)
+    std::cerr << "bench daemon: cannot keep the log in " << keep_dir << ": " << ec.message()
+              << "\n";
+}
+
 int bench_daemon(const ParsedOptions& o) {
   const fs::path daemon = find_daemon(o.get("daemon"));
   if (daemon.empty())
@@ -191,10 +204,12 @@ int bench_daemon(const ParsedOptions& o) {
   std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (no load)\n";
   auto quiet = run_daemon_session(daemon, dir, port, 0, /*stop_during_export=*/true);
   if (!quiet) return report_failure(quiet.error());
+  keep_log(dir, o.get("keep-logs"), "no-load");
   std::cerr << "bench daemon: starting " << daemon << " on port " << port << " (under load)\n";
   auto loaded = run_daemon_session(daemon, dir, port, static_cast<int>(*threads), false,
                                    static_cast<int>(*track_seconds), &vmc);
   if (!loaded) return report_failure(loaded.error());
+  keep_log(dir, o.get("keep-logs"), "under-load");
   const SessionRun& r = *loaded;
 
   json out = {
@@ -287,7 +302,8 @@ std::vector<Command> daemon_bench_commands() {
              {"frames", "N", "frames per take (90 = 3 s at 30 fps)", "90"},
              {"load-threads", "N", "concurrent HTTP clients of the load process", "4"},
              {"track-seconds", "N",
-              "then track the session's subject in tracking mode for N s (0 = skip)", "15"}}},
+              "then track the session's subject in tracking mode for N s (0 = skip)", "15"},
+             {"keep-logs", "DIR", "copy the daemon's logs of both runs into DIR", ""}}},
            &bench_daemon}};
 }
 

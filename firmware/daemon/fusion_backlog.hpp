@@ -44,6 +44,10 @@ class FusionBacklog {
     }
     return before;
   }
+  // Gives the slots' memory back (once the take has caught up: it is not needed again).
+  void release() {
+    if (count_ == 0) slots_.assign(slots_.size(), Slot{});
+  }
   void pop() {
     head_ = (head_ + 1) % slots_.size();
     --count_;

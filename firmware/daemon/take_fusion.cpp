@@ -93,7 +93,11 @@ Result<void> TakeFusion::add(const RgbdFrame& frame, Clock::time_point arrived) 
     if (start_.poll())
       if (auto ok = take_over(); !ok) return ok;
   }
-  if (fusion_ready_ && !backlog_.empty()) fuse_backlog(arrived, kFuseBudgetMs);
+  if (fusion_ready_ && !backlog_.empty()) {
+    fuse_backlog(arrived, kFuseBudgetMs);
+    // Caught up: the held frames' memory goes back before the take's peak (256 MB budget).
+    if (backlog_.empty()) backlog_.release();
+  }
   return success();
 }
 

@@ -149,6 +149,10 @@ TEST(FusionBacklog, HoldsInOrderTurnsAwayWhenFullAndDropsThroughAFrame) {
   EXPECT_EQ(backlog.front_depth().at(1, 1), 510);
   backlog.pop();
   EXPECT_TRUE(backlog.empty());
+  // Memory given back once caught up; the backlog still holds frames after it.
+  backlog.release();
+  backlog.push(frame_numbered(11));
+  EXPECT_EQ(backlog.front_depth().at(1, 1), 511);
 }
 
 }  // namespace

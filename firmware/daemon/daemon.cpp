@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <systemd/sd-daemon.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstring>
 #include <ctime>
@@ -249,6 +250,8 @@ nlohmann::json Daemon::Impl::status_json() const {
       {"take_length", d.config.camera.capture_frames},
       {"frames_total", s.frames_total},
       {"frames_dropped", s.frames_dropped},
+      {"clock_steps", s.clock_steps},
+      {"last_clock_step_s", s.last_clock_step_s},
       {"tracking_frames", s.tracking_frames},
       {"led", to_string(d.gpio->pattern())},
       {"registration", registration_json(s)},
@@ -349,6 +352,19 @@ void Daemon::Impl::watchdog_ping() {
   }
 }
 
+void Daemon::Impl::check_wall_clock() {
+  const auto step = wall_clock.check();
+  if (!step) return;
+  std::fprintf(stderr,
+               "faceboothd: the wall clock was set %s by %.0f s (NTP or an operator); takes and "
+               "timeouts keep to the monotonic clock, stored times follow the new one\n",
+               *step > 0 ? "forward" : "back", std::abs(*step));
+  update_status([&](StatusData& s) {
+    ++s.clock_steps;
+    s.last_clock_step_s = *step;
+  });
+}
+
 void Daemon::Impl::gpio_loop() {
   while (!stopping) {
     auto events = gpio->wait_events(std::chrono::milliseconds(100));
@@ -377,6 +393,7 @@ void Daemon::Impl::worker_loop() {
   auto last_preview = Clock::now() - std::chrono::hours(1);
   while (!stopping) {
     watchdog_ping();
+    check_wall_clock();
     std::optional<QueuedInput> input;
     std::function<void(bool)> job;
     KioskState state;

@@ -30,6 +30,7 @@
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
 #include "firmware/daemon/take_fusion.hpp"
+#include "firmware/daemon/wall_clock_watch.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 
 // After every Eigen header: httplib pulls in <resolv.h>, whose `_res` macro breaks Eigen.
@@ -110,6 +111,8 @@ struct StatusData {
   bool resumed = false;
   long long frames_total = 0;    // frames the frame loop took from the camera (all modes)
   long long frames_dropped = 0;  // frames a real-time sensor would have overwritten
+  int clock_steps = 0;           // times the wall clock was set while the daemon ran
+  double last_clock_step_s = 0;  // the last such step (positive: set forward)
   long long tracking_frames = 0;
   std::string tracking_state;     // the tracker's state of the last frame
   std::string tracking_reason;    // why it has no face then (TrackReport::loss_reason), or ""
@@ -252,6 +255,8 @@ struct Daemon::Impl {
   int http_port = 0;
   std::thread worker_thread, gpio_thread, http_thread;
 
+  WallClockWatch wall_clock;  // worker only
+  void check_wall_clock();
   std::uint64_t watchdog_usec = 0;
   std::chrono::steady_clock::time_point last_watchdog;
 

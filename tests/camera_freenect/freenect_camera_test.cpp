@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -434,6 +435,44 @@ TEST_F(FakenectPlayback, SlowConsumerLosesNoFrameOfADump) {
     ++played;
   }
   EXPECT_EQ(played, 5);
+}
+
+// The wall clock set mid-stream (NTP stepping it, an operator): frame host times keep the
+// sensor's spacing. Needs tests/faults' clock shim preloaded (ctest does it for this test).
+using FakenectClockJump = FakenectTest;
+TEST_F(FakenectClockJump, FrameTimesKeepTheirSpacingWhenTheWallClockIsSet) {
+  using JumpFn = void (*)(double);
+  auto jump = reinterpret_cast<JumpFn>(dlsym(RTLD_DEFAULT, "fb_fault_clock_jump"));
+  if (jump == nullptr)
+    GTEST_SKIP() << "needs the clock shim (tests/faults/clock_jump_preload.c) in LD_PRELOAD: "
+                    "run through ctest";
+  CLAIM_FAKENECT_INDEX();
+  std::vector<double> times;
+  for (int i = 0; i < 10; ++i) times.push_back(1.0 + i / 30.0);
+  use_dump(make_dump(times));
+  auto opened = open_freenect("0");
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  DepthCamera& camera = **opened;
+  ASSERT_TRUE(camera.start().ok());
+  RgbdFrame frame;
+  std::vector<double> host_times;
+  const std::time_t wall_before = std::time(nullptr);
+  for (;;) {
+    const auto status = camera.next_frame(frame, 2000ms);
+    ASSERT_TRUE(status.ok()) << status.error().message;
+    ASSERT_NE(*status, FrameStatus::kTimeout);
+    if (*status == FrameStatus::kEndOfStream) break;
+    host_times.push_back(frame.depth_host_time_s);
+    if (host_times.size() == 4) jump(-3600.0);  // an hour back, mid-stream
+  }
+  // The shim did set the clock back (else this test proves nothing).
+  EXPECT_LT(std::time(nullptr), wall_before - 3000);
+  ASSERT_EQ(host_times.size(), 10u);
+  for (std::size_t i = 1; i < host_times.size(); ++i) {
+    const double step = host_times[i] - host_times[i - 1];
+    EXPECT_GT(step, 0.0) << "frame " << i << " is stamped before the one before it";
+    EXPECT_LT(step, 60.0) << "frame " << i << " jumped with the wall clock";
+  }
 }
 
 TEST_F(FakenectPlayback, SecondPlaybackInOneProcessIsAClearError) {

@@ -2,7 +2,8 @@
 // stalls or fails mid-take (the synthetic camera's stall_after / fail_after), and a full disk
 // (enospc_preload.c under the real faceboothd binary) during a capture commit and during the
 // end-of-session export. Each must leave the store verifiable with no partial files, say what
-// happened, and let the session go on once the fault is gone.
+// happened, and let the session go on once the fault is gone. A wall clock set back and forward
+// mid-session (clock_jump_preload.c) must not disturb the session, and the log says it happened.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -213,6 +214,34 @@ TEST_F(DaemonFaults, FullDiskDuringExportPublishesNothingAndKeepsTheSession) {
   auto out = (*records)->export_session(session, dir_ / "data" / "exports");
   ASSERT_TRUE(out) << out.error().message;
   EXPECT_TRUE(fs::exists(*out / "manifest.json") || !fs::is_empty(*out));
+}
+
+TEST_F(DaemonFaults, WallClockSetMidSessionIsReportedAndChangesNothing) {
+  std::string log;
+  // An hour back soon after start-up (during the landmark model's load or the session), then,
+  // in a second run, a day forward: NTP stepping the clock of a booth without a battery-backed
+  // clock, an operator fixing it.
+  const std::string clock = "LD_PRELOAD=" + std::string(FB_CLOCK_PRELOAD) +
+                            " FB_FAULT_CLOCK_JUMP_AFTER_S=0.3 FB_FAULT_CLOCK_JUMP_S=";
+  ASSERT_EQ(run_headless(clock + "-3600", log), 0) << log;
+  EXPECT_NE(log.find("the wall clock was set back by 3600 s"), std::string::npos) << log;
+  expect_store_consistent();
+  ASSERT_EQ(run_headless(clock + "86400", log), 0) << log;
+  EXPECT_NE(log.find("the wall clock was set forward by 86400 s"), std::string::npos) << log;
+  expect_store_consistent();
+  StoreOptions ro;
+  ro.read_only = true;
+  auto store = SessionStore::open(dir_ / "data" / "store", ro);
+  ASSERT_TRUE(store);
+  auto sessions = store->sessions();
+  ASSERT_TRUE(sessions);
+  ASSERT_EQ(sessions->size(), 2u);
+  for (const auto& s : *sessions) {
+    EXPECT_TRUE(s.complete) << "session " << s.id;
+    EXPECT_EQ(s.done_count, 2) << "session " << s.id;
+    EXPECT_TRUE(fs::exists(dir_ / "data" / "exports" / ("session-" + std::to_string(s.id))))
+        << "session " << s.id << " was not exported";
+  }
 }
 
 }  // namespace

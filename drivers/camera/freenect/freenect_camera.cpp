@@ -21,6 +21,7 @@
 
 #include "drivers/camera/common/camera_uri.hpp"
 #include "drivers/camera/common/device_json.hpp"
+#include "drivers/camera/common/host_clock.hpp"
 
 namespace fb {
 namespace {
@@ -283,11 +284,6 @@ Result<Options> parse_options(std::string_view arguments) {
   return options;
 }
 
-double wall_seconds() {
-  timeval now{};
-  gettimeofday(&now, nullptr);
-  return static_cast<double>(now.tv_sec) + static_cast<double>(now.tv_usec) * 1e-6;
-}
 
 Result<ContextPtr> init_context() {
   freenect_context* raw = nullptr;
@@ -386,6 +382,7 @@ class FreenectCamera final : public DepthCamera {
   double pending_color_time_ = 0.0;
   std::uint32_t latched_color_timestamp_ = 0;
   double latched_color_time_ = 0.0;
+  const HostClock host_clock_;  // frame host times (wall-like, never jumping)
   bool events_ended_ = false;
   int events_rc_ = 0;
 
@@ -503,7 +500,7 @@ Result<std::unique_ptr<DepthCamera>> FreenectCamera::open(std::string_view argum
 
 void FreenectCamera::on_depth(freenect_device* device, void* data, std::uint32_t timestamp) {
   auto* self = static_cast<FreenectCamera*>(freenect_get_user(device));
-  const double now = wall_seconds();
+  const double now = self->host_clock_.now_s();
   {
     std::unique_lock lock(self->mu_);
     // A looping fakenect (upstream >= 0.5.7 restarts INDEX.txt by default) would replay the
@@ -535,7 +532,7 @@ void FreenectCamera::on_depth(freenect_device* device, void* data, std::uint32_t
 
 void FreenectCamera::on_video(freenect_device* device, void* data, std::uint32_t timestamp) {
   auto* self = static_cast<FreenectCamera*>(freenect_get_user(device));
-  const double now = wall_seconds();
+  const double now = self->host_clock_.now_s();
   std::lock_guard lock(self->mu_);
   std::memcpy(self->pending_color_.pixels.data(), data, kColorBytes);
   self->pending_color_timestamp_ = timestamp;

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "drivers/camera/common/camera_uri.hpp"
+#include "drivers/camera/common/host_clock.hpp"
 #include "drivers/camera/openni2/oni_writer.hpp"
 
 namespace fb {
@@ -606,11 +607,11 @@ class Openni2Camera final : public DepthCamera {
     return static_cast<std::uint32_t>(microseconds * 60u);
   }
   // Recordings carry no host time, so their timeline is the recorded timestamp; live frames are
-  // stamped with the host's wall clock when read (as fakenect dumps name their files).
+  // stamped with the host's time when read (as fakenect dumps name their files; HostClock: a
+  // clock set mid-stream does not make the frame times jump).
   double host_time(std::uint64_t microseconds) const {
     if (playback_) return static_cast<double>(microseconds) * 1e-6;
-    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-        .count();
+    return host_clock_.now_s();
   }
 
   // libOniFile's player thread sets its own "running" flag when it starts, so a device closed
@@ -655,6 +656,7 @@ class Openni2Camera final : public DepthCamera {
   CameraInfo info_;
   std::string device_uri_;
   RecordingOptions options_;  // loop, realtime (recordings only)
+  const HostClock host_clock_;
   bool pacing_started_ = false;
   std::chrono::steady_clock::time_point pacing_wall_start_{};
   std::uint64_t pacing_recorded_start_us_ = 0;

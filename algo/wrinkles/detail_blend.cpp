@@ -1,0 +1,141 @@
+#include "algo/wrinkles/detail_blend.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/Dense>
+
+namespace fb {
+
+namespace {
+
+bool same_size(DetailLayerView a, int w, int h) {
+  return a.displacement_mm != nullptr && a.normal_map != nullptr && a.displacement_mm->width == w &&
+         a.displacement_mm->height == h && a.normal_map->width == w && a.normal_map->height == h;
+}
+
+bool has_detail(DetailLayerView a, std::size_t i) {
+  const Rgb8 n = a.normal_map->pixels[i];
+  return a.displacement_mm->pixels[i] != 0.0f || n.r != 128 || n.g != 128 || n.b != 255;
+}
+
+}  // namespace
+
+void DetailBlend::channels_of(DetailLayerView layer, std::size_t texel, float* out) {
+  const Rgb8 n = layer.normal_map->pixels[texel];
+  const float x = n.r / 127.5f - 1.0f, y = n.g / 127.5f - 1.0f;
+  const float z = std::max(0.2f, n.b / 127.5f - 1.0f);  // a steep texel keeps a finite slope
+  out[0] = layer.displacement_mm->pixels[texel];
+  out[1] = x / z;
+  out[2] = y / z;
+}
+
+Rgb8 DetailBlend::normal_byte(float sx, float sy) {
+  const float inv = 1.0f / std::sqrt(sx * sx + sy * sy + 1.0f);
+  auto byte = [](float v) {
+    return static_cast<std::uint8_t>(std::clamp(std::lround(127.5f * (v + 1.0f)), 0L, 255L));
+  };
+  return {byte(sx * inv), byte(sy * inv), byte(inv)};
+}
+
+Result<DetailBlend> DetailBlend::build(DetailLayerView neutral,
+                                       std::span<const DetailLayerView> expressions,
+                                       std::span<const std::vector<float>> expression_weights,
+                                       int shape_count) {
+  if (neutral.displacement_mm == nullptr || neutral.normal_map == nullptr)
+    return fail("the detail blend needs the neutral's maps");
+  if (expressions.size() != expression_weights.size())
+    return fail("the detail blend needs one weight recipe per expression");
+  if (shape_count <= 0) return fail("the detail blend needs the rig's shapes");
+  DetailBlend b;
+  b.width_ = neutral.displacement_mm->width;
+  b.height_ = neutral.displacement_mm->height;
+  for (const auto& e : expressions)
+    if (!same_size(e, b.width_, b.height_) || !same_size(neutral, b.width_, b.height_))
+      return fail("every detail map of a rig must have the same size");
+  for (const auto& w : expression_weights)
+    if (w.size() != static_cast<std::size_t>(shape_count))
+      return fail("a weight recipe does not have one weight per shape");
+  const std::size_t texels = neutral.displacement_mm->pixels.size();
+  for (std::size_t i = 0; i < texels; ++i) {
+    bool any = has_detail(neutral, i);
+    for (const auto& e : expressions) any = any || has_detail(e, i);
+    if (any) b.support_.push_back(static_cast<std::uint32_t>(i));
+  }
+  const std::size_t n = b.support_.size() * kChannels;
+  b.neutral_.resize(n);
+  for (std::size_t s = 0; s < b.support_.size(); ++s)
+    channels_of(neutral, b.support_[s], &b.neutral_[kChannels * s]);
+  b.shape_count_ = shape_count;
+  b.deltas_.assign(expressions.size(), std::vector<float>(n));
+  for (std::size_t e = 0; e < expressions.size(); ++e)
+    for (std::size_t s = 0; s < b.support_.size(); ++s) {
+      float* d = &b.deltas_[e][kChannels * s];
+      channels_of(expressions[e], b.support_[s], d);
+      for (int c = 0; c < kChannels; ++c) d[c] -= b.neutral_[kChannels * s + c];
+    }
+  b.coeff_.assign(static_cast<std::size_t>(shape_count) * expressions.size(), 0.0f);
+  if (expressions.empty()) return b;
+  // P = pinv(W), shapes x captures.
+  const auto ne = static_cast<Eigen::Index>(expressions.size());
+  Eigen::MatrixXd w(ne, shape_count);
+  for (Eigen::Index e = 0; e < ne; ++e)
+    for (int s = 0; s < shape_count; ++s)
+      w(e, s) = expression_weights[static_cast<std::size_t>(e)][static_cast<std::size_t>(s)];
+  const Eigen::MatrixXd pinv = w.completeOrthogonalDecomposition().pseudoInverse();
+  for (int s = 0; s < shape_count; ++s)
+    for (Eigen::Index e = 0; e < ne; ++e) {
+      const double p = std::abs(pinv(s, e)) < 1e-9 ? 0.0 : pinv(s, e);
+      b.coeff_[static_cast<std::size_t>(s) * expressions.size() + static_cast<std::size_t>(e)] =
+          static_cast<float>(p);
+    }
+  return b;
+}
+
+int DetailBlend::detailed_shapes() const {
+  int out = 0;
+  for (int s = 0; s < shape_count_; ++s) {
+    bool any = false;
+    for (int e = 0; e < capture_count(); ++e) any = any || coefficient(s, e) != 0.0f;
+    out += any;
+  }
+  return out;
+}
+
+void DetailBlend::prepare(BlendedDetail& out) const {
+  out.displacement_mm.resize(width_, height_);
+  std::fill(out.displacement_mm.pixels.begin(), out.displacement_mm.pixels.end(), 0.0f);
+  out.normal_map.resize(width_, height_);
+  std::fill(out.normal_map.pixels.begin(), out.normal_map.pixels.end(), Rgb8{128, 128, 255});
+  out.channels.resize(neutral_.size());
+  out.capture_weights.resize(deltas_.size());
+}
+
+void DetailBlend::apply(std::span<const float> weights, BlendedDetail& out) const {
+  // c = P^T a: each capture's share of the frame.
+  const std::size_t ne = deltas_.size();
+  std::fill(out.capture_weights.begin(), out.capture_weights.end(), 0.0f);
+  const std::size_t ns = std::min(weights.size(), static_cast<std::size_t>(shape_count_));
+  for (std::size_t s = 0; s < ns; ++s) {
+    const float a = weights[s];
+    if (a == 0.0f) continue;
+    const float* row = coeff_.data() + s * ne;
+    for (std::size_t e = 0; e < ne; ++e) out.capture_weights[e] += a * row[e];
+  }
+  std::copy(neutral_.begin(), neutral_.end(), out.channels.begin());
+  float* acc = out.channels.data();
+  for (std::size_t e = 0; e < ne; ++e) {
+    const float c = out.capture_weights[e];
+    if (c == 0.0f) continue;
+    const float* src = deltas_[e].data();
+    for (std::size_t i = 0, m = deltas_[e].size(); i < m; ++i) acc[i] += c * src[i];
+  }
+  for (std::size_t s = 0; s < support_.size(); ++s) {
+    const float* c = acc + kChannels * s;
+    out.displacement_mm.pixels[support_[s]] = c[0];
+    out.normal_map.pixels[support_[s]] = normal_byte(c[1], c[2]);
+  }
+}
+
+}  // namespace fb

@@ -201,8 +201,9 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   for (const auto& p : truth.landmarks_3d) c.face_depth_mm += p.z() / 68.0;
   for (int l = 0; l < 68; ++l) c.landmarks_3d[l] = truth.landmarks_3d[l];
   c.camera_from_model = truth.camera_from_model;
-  for (const auto& v : verts)
-    for (int a = 0; a < 3; ++a) c.vertices.push_back(v[a]);
+  // The skin only (the camera's scene may hold more): the model's topology, its UV layout.
+  for (int v = 0; v < model.vertex_count; ++v)
+    for (int a = 0; a < 3; ++a) c.vertices.push_back(verts[static_cast<std::size_t>(v)][a]);
   PinholeIntrinsics k = c.intrinsics;
   k.width *= kSuper, k.height *= kSuper, k.fx *= kSuper, k.fy *= kSuper;
   k.cx = kSuper * k.cx + (kSuper - 1) / 2.0, k.cy = kSuper * k.cy + (kSuper - 1) / 2.0;

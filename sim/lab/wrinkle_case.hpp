@@ -52,7 +52,7 @@ struct WrinkleCase {
   std::array<Eigen::Vector2d, 68> landmarks;  // the true 68 points in this image
   PinholeIntrinsics intrinsics;
   double face_depth_mm = 0.0;  // depth of the landmarks' centroid
-  // The subject's mesh (model frame, 3 floats per vertex; the model's triangles), where it is
+  // The subject's skin mesh (model frame, 3 floats per vertex; the model's triangles), where it is
   // in the depth camera, and the 68 landmarks' 3D points there.
   std::vector<float> vertices;
   RigidPose camera_from_model;

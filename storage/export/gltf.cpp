@@ -70,6 +70,23 @@ nlohmann::json skin_material(const GlbOptions& options, bool with_texture) {
   return material;
 }
 
+// The glTF document of one mesh in one node, one material and one buffer.
+nlohmann::json document(const GlbOptions& options, const nlohmann::json& mesh,
+                        const nlohmann::json& material, std::size_t buffer_bytes,
+                        const nlohmann::json& views, const nlohmann::json& accessors) {
+  return {
+      {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
+      {"scene", 0},
+      {"scenes", {{{"nodes", {0}}}}},
+      {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
+      {"meshes", {mesh}},
+      {"materials", {material}},
+      {"buffers", {{{"byteLength", buffer_bytes}}}},
+      {"bufferViews", views},
+      {"accessors", accessors},
+  };
+}
+
 }  // namespace
 
 std::vector<float> vertex_tangents(const std::vector<float>& positions,
@@ -231,27 +248,16 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   // The base colour texture (a PNG in the UV layout), embedded in the binary chunk.
   const bool with_texture =
       textured && options.base_color_png != nullptr && !options.base_color_png->empty();
-  const int image_view =
-      with_texture ? add_view(options.base_color_png->data(), options.base_color_png->size(), 0)
-                   : -1;
   nlohmann::json material = skin_material(options, with_texture);
   std::vector<int> image_views;
-  if (with_texture) image_views.push_back(image_view);
+  if (with_texture)
+    image_views.push_back(
+        add_view(options.base_color_png->data(), options.base_color_png->size(), 0));
   if (with_normal_map) {
     image_views.push_back(add_view(options.normal_png->data(), options.normal_png->size(), 0));
     material["normalTexture"] = {{"index", image_views.size() - 1}, {"texCoord", 0}};
   }
-  nlohmann::json gltf = {
-      {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
-      {"scene", 0},
-      {"scenes", {{{"nodes", {0}}}}},
-      {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
-      {"meshes", {mesh}},
-      {"materials", {material}},
-      {"buffers", {{{"byteLength", bin.size()}}}},
-      {"bufferViews", views},
-      {"accessors", accessors},
-  };
+  nlohmann::json gltf = document(options, mesh, material, bin.size(), views, accessors);
   if (!image_views.empty()) add_textures(gltf, image_views);
   return pack_glb(gltf.dump(), std::move(bin));
 }

@@ -25,10 +25,33 @@ float luma(const ColorImage& c, double x, double y) {
 
 }  // namespace
 
+void feather_heights(FloatImage& height_mm, const Image<std::uint8_t>& domain, int px) {
+  if (px <= 0) return;
+  const int w = domain.width, h = domain.height;
+  // City-block distance (in pixels, capped) to the nearest pixel outside the domain.
+  std::vector<int> d(domain.pixels.size());
+  for (std::size_t i = 0; i < d.size(); ++i) d[i] = domain.pixels[i] ? px : 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      int& v = d[static_cast<std::size_t>(y) * w + x];
+      if (x > 0) v = std::min(v, d[static_cast<std::size_t>(y) * w + x - 1] + 1);
+      if (y > 0) v = std::min(v, d[static_cast<std::size_t>(y - 1) * w + x] + 1);
+      if (x == 0 || y == 0) v = std::min(v, 1);
+    }
+  for (int y = h - 1; y >= 0; --y)
+    for (int x = w - 1; x >= 0; --x) {
+      int& v = d[static_cast<std::size_t>(y) * w + x];
+      if (x + 1 < w) v = std::min(v, d[static_cast<std::size_t>(y) * w + x + 1] + 1);
+      if (y + 1 < h) v = std::min(v, d[static_cast<std::size_t>(y + 1) * w + x] + 1);
+    }
+  for (std::size_t i = 0; i < d.size(); ++i)
+    height_mm.pixels[i] *= static_cast<float>(std::min(d[i], px)) / static_cast<float>(px);
+}
+
 Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
                                      const KinectRegistration& registration,
                                      std::span<const WrinkleExemplar> exemplars,
-                                     const WrinkleDetailOptions& options) {
+                                     const CaptureDetailOptions& options) {
   if (in.color == nullptr || in.color->width <= 0 || in.color->height <= 0)
     return fail("the capture has no colour frame to find wrinkles in");
   if (in.map == nullptr) return fail("wrinkle detail needs a UV layout");
@@ -71,9 +94,11 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
   if (on_face < 1000)
     return fail("the fitted mesh covers too little of the colour frame (" +
                 std::to_string(on_face) + " pixels); refit the capture");
-  auto detail = wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars, options);
+  auto detail =
+      wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars, options.detail);
   if (!detail) return detail.failure();
   out.detail = std::move(*detail);
+  feather_heights(out.detail.synthesis.height_mm, out.detail.synthesis.domain, options.feather_px);
   HeightView view;
   view.height_mm = &out.detail.synthesis.height_mm;
   view.domain = &out.detail.synthesis.domain;

@@ -32,6 +32,11 @@ struct CaptureDetailInput {
   std::span<const std::uint32_t> triangle_uvs;
 };
 
+struct CaptureDetailOptions {
+  WrinkleDetailOptions detail;
+  int feather_px = 3;  // feather_heights() before the maps (0 = off)
+};
+
 struct CaptureDetail {
   FloatImage luminance;  // the colour frame's luma in the depth camera's grid, 0..1
   std::array<Eigen::Vector2d, 68> landmarks;  // in that grid
@@ -39,9 +44,13 @@ struct CaptureDetail {
   DetailMaps maps;                            // in the UV layout
 };
 
+// Heights faded to 0 over `px` pixels towards the edge of the synthesis domain (chamfer
+// distance), so the maps show no step where a region's box or a feature mask ends.
+void feather_heights(FloatImage& height_mm, const Image<std::uint8_t>& domain, int px);
+
 Result<CaptureDetail> capture_detail(const CaptureDetailInput& input,
                                      const KinectRegistration& registration,
                                      std::span<const WrinkleExemplar> exemplars,
-                                     const WrinkleDetailOptions& options = {});
+                                     const CaptureDetailOptions& options = {});
 
 }  // namespace fb

@@ -112,17 +112,22 @@ void DetailBlend::prepare(BlendedDetail& out) const {
   out.capture_weights.resize(deltas_.size());
 }
 
-void DetailBlend::apply(std::span<const float> weights, BlendedDetail& out) const {
-  // c = P^T a: each capture's share of the frame.
-  const std::size_t ne = deltas_.size();
-  std::fill(out.capture_weights.begin(), out.capture_weights.end(), 0.0f);
+void DetailBlend::map_weights(std::span<const float> weights, std::span<float> out) const {
+  const std::size_t ne = std::min(deltas_.size(), out.size());
+  std::fill(out.begin(), out.end(), 0.0f);
   const std::size_t ns = std::min(weights.size(), static_cast<std::size_t>(shape_count_));
   for (std::size_t s = 0; s < ns; ++s) {
     const float a = weights[s];
     if (a == 0.0f) continue;
-    const float* row = coeff_.data() + s * ne;
-    for (std::size_t e = 0; e < ne; ++e) out.capture_weights[e] += a * row[e];
+    const float* row = coeff_.data() + s * deltas_.size();
+    for (std::size_t e = 0; e < ne; ++e) out[e] += a * row[e];
   }
+}
+
+void DetailBlend::apply(std::span<const float> weights, BlendedDetail& out) const {
+  // c = P^T a: each capture's share of the frame.
+  const std::size_t ne = deltas_.size();
+  map_weights(weights, out.capture_weights);
   std::copy(neutral_.begin(), neutral_.end(), out.channels.begin());
   float* acc = out.channels.data();
   for (std::size_t e = 0; e < ne; ++e) {

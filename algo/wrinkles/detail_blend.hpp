@@ -56,6 +56,9 @@ class DetailBlend {
   // E = N + sum a_i B_i on the support texels of `out` (prepared); no allocation. Weights
   // beyond shape_count() are ignored, missing ones are 0.
   void apply(std::span<const float> weights, BlendedDetail& out) const;
+  // Only the frame's map weights c = P^T a (`out`: capture_count() floats): what a renderer
+  // that holds the captures' maps needs per frame to blend them itself.
+  void map_weights(std::span<const float> weights, std::span<float> out) const;
 
   int width() const { return width_; }
   int height() const { return height_; }

@@ -81,8 +81,8 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
                 " has no fitted neutral (capture 0); finish or refit the session first");
   auto captures = store.captures(session);
   if (!captures) return captures.failure();
-  WrinkleDetailOptions detail_options;
-  detail_options.exemplar_mm_per_px = options.exemplar_mm_per_px;
+  CaptureDetailOptions detail_options;
+  detail_options.detail.exemplar_mm_per_px = options.exemplar_mm_per_px;
   std::vector<CaptureWrinkleReport> out;
   for (const auto& [index, mesh_id] : *meshes) {
     const auto t0 = Clock::now();

@@ -3,7 +3,8 @@
 // rasterizer at twice the frame's resolution under a raking light from above: the booth's colour
 // frame it started from, the fitted mesh alone (before), and the mesh with the synthesised
 // detail as the exports carry it (after: the tangent-space normal map in the face model's UV
-// layout, looked up per pixel through each triangle's UV frame).
+// layout, looked up per pixel through each triangle's UV frame), and the same maps made from the
+// case's true relief (what a perfect synthesis would give).
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -16,6 +17,7 @@
 #include "algo/core/mesh_normals.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "algo/texture/texel_map.hpp"
+#include "algo/wrinkles/capture_detail.hpp"
 #include "algo/wrinkles/wrinkle_geometry.hpp"
 #include "host/cli/wrinkle_exemplar_files.hpp"
 #include "sim/lab/lab_commands.hpp"
@@ -26,7 +28,7 @@ namespace fb::cli {
 
 namespace {
 
-constexpr int kZoom = 2;
+constexpr int kZoom = 3;
 
 struct Scene {
   const FaceModel* model = nullptr;
@@ -97,7 +99,7 @@ cv::Mat shade(const Scene& s, const DetailMaps* maps, const cv::Rect& crop) {
 }
 
 void label(cv::Mat& m, const std::string& text) {
-  cv::putText(m, text, {8, 22}, cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 220, 255), 1,
+  cv::putText(m, text, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 220, 255), 1,
               cv::LINE_AA);
 }
 
@@ -119,6 +121,7 @@ int run_render_wrinkles(const ParsedOptions& options) {
   auto d = wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx,
                           set->exemplars, wo);
   if (!d) return report_failure(d.error());
+  feather_heights(d->synthesis.height_mm, d->synthesis.domain, CaptureDetailOptions{}.feather_px);
   Scene s;
   s.model = &*model;
   s.c = &*c;
@@ -129,6 +132,14 @@ int run_render_wrinkles(const ParsedOptions& options) {
                   c->intrinsics};
   auto maps = detail_maps(*map, s.uvs, model->triangle_uvs, c->vertices, model->triangles, view);
   if (!maps) return report_failure(maps.error());
+  // The same maps from the true relief (what a perfect synthesis would give).
+  Image<std::uint8_t> everywhere;
+  everywhere.resize(c->true_height_mm.width, c->true_height_mm.height);
+  std::fill(everywhere.pixels.begin(), everywhere.pixels.end(), std::uint8_t{1});
+  HeightView true_view{&c->true_height_mm, &everywhere, c->camera_from_model, c->intrinsics};
+  auto true_maps =
+      detail_maps(*map, s.uvs, model->triangle_uvs, c->vertices, model->triangles, true_view);
+  if (!true_maps) return report_failure(true_maps.error());
   s.normals = vertex_normals(c->vertices, model->triangles);
   s.k = c->intrinsics;
   s.k.width *= kZoom, s.k.height *= kZoom, s.k.fx *= kZoom, s.k.fy *= kZoom;
@@ -141,7 +152,7 @@ int run_render_wrinkles(const ParsedOptions& options) {
     return report_failure(ok.error());
   // The upper face: jaw-line width, from above the forehead lines to the nose's middle.
   const auto& lm = c->landmarks;
-  const double top = std::min(lm[19].y(), lm[24].y()) - 0.9 * (lm[30].y() - lm[27].y());
+  const double top = std::min(lm[19].y(), lm[24].y()) - 1.5 * (lm[30].y() - lm[27].y());
   cv::Rect crop(static_cast<int>(kZoom * (lm[0].x() - 4)), static_cast<int>(kZoom * top),
                 static_cast<int>(kZoom * (lm[16].x() - lm[0].x() + 8)),
                 static_cast<int>(kZoom * (lm[29].y() - top)));
@@ -154,12 +165,14 @@ int run_render_wrinkles(const ParsedOptions& options) {
     }
   cv::Mat big;
   cv::resize(frame, big, {s.k.width, s.k.height}, 0, 0, cv::INTER_NEAREST);
-  cv::Mat panels[3] = {big(crop).clone(), shade(s, nullptr, crop), shade(s, &*maps, crop)};
+  cv::Mat panels[4] = {big(crop).clone(), shade(s, nullptr, crop), shade(s, &*maps, crop),
+                       shade(s, &*true_maps, crop)};
   label(panels[0], "colour frame (input)");
-  label(panels[1], "before: fitted mesh");
-  label(panels[2], "after: + wrinkle normal map");
+  label(panels[1], "before: the mesh");
+  label(panels[2], "after: synthesised detail");
+  label(panels[3], "true relief, same maps");
   cv::Mat all;
-  cv::hconcat(panels, 3, all);
+  cv::hconcat(panels, 4, all);
   if (!cv::imwrite(png, all)) return report_failure({"cannot write " + png});
   nlohmann::json out = {{"png", png},
                         {"seed", *seed},
@@ -176,8 +189,8 @@ std::vector<Command> wrinkle_render_commands() {
   return {{{"render wrinkles",
             "before/after picture of a synthetic raised-brow expression with its wrinkle detail",
             "The grooves case of eval wrinkles (subject SEED): its colour frame, the mesh shaded "
-            "under a raking light, and the same with the synthesised normal map in the UV "
-            "layout. Upper face, twice the frame's resolution.",
+            "under a raking light, the same with the synthesised normal map in the UV layout, "
+            "and with the maps of the true relief. Upper face, 3x the frame's resolution.",
             {{"png", "FILE", "where to write the picture", ""}, {"seed", "N", "subject", "1"}}},
            run_render_wrinkles}};
 }

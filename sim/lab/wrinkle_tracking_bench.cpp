@@ -6,6 +6,7 @@
 #include "algo/core/clock.hpp"
 #include "algo/core/mix64.hpp"
 #include "algo/texture/texel_map.hpp"
+#include "algo/wrinkles/capture_detail.hpp"
 #include "algo/wrinkles/detail_blend.hpp"
 #include "algo/wrinkles/wrinkle_geometry.hpp"
 
@@ -46,8 +47,10 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
   const std::vector<float> uvs = model.atlas_uvs();
   auto map = make_texel_map(uvs, model.triangle_uvs, map_height * model.uv_tiles(), map_height);
   if (!map) return map.failure();
+  FloatImage feathered = detail.synthesis.height_mm;  // as capture_detail stores it
+  feather_heights(feathered, detail.synthesis.domain, CaptureDetailOptions{}.feather_px);
   HeightView view;
-  view.height_mm = &detail.synthesis.height_mm;
+  view.height_mm = &feathered;
   view.domain = &detail.synthesis.domain;
   view.camera_from_model = c.camera_from_model;
   view.intrinsics = c.intrinsics;
@@ -91,6 +94,14 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
   auto t0 = Clock::now();
   for (int f = 0; f < frames; ++f) blend->apply(frame(f), ours);
   const double ours_ms = ms_since(t0) / frames;
+  std::vector<float> streamed(views.size());
+  double checksum = 0.0;
+  t0 = Clock::now();
+  for (int f = 0; f < frames; ++f) {
+    blend->map_weights(frame(f), streamed);
+    checksum += streamed[0];
+  }
+  const double weights_ms = ms_since(t0) / frames;
 
   DenseBlend dense;
   const std::size_t texels = flat.displacement_mm.pixels.size();
@@ -124,6 +135,11 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
       {"peer_ms", dense_ms},
       {"speedup_vs_peer", ours_ms > 0 ? dense_ms / ours_ms : 0.0},
       {"max_difference_mm", max_diff},
+      {"map_weights_ms", weights_ms},
+      {"map_weights_note",
+       "c = P^T a alone: what a renderer holding the captures' maps needs per frame (the "
+       "blend then runs on its side; not built: no exporter carries per-frame map weights)"},
+      {"map_weights_checksum", checksum},
       {"map", std::to_string(map->width) + "x" + std::to_string(map->height)},
       {"support_texels", blend->support().size()},
       {"texels", texels},

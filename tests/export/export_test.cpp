@@ -116,7 +116,9 @@ struct Glb {
   std::vector<float> floats(int accessor) const {
     const auto& a = json["accessors"][accessor];
     const auto& v = json["bufferViews"][a["bufferView"].get<int>()];
-    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2" ? 2 : 3);
+    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2"   ? 2
+                                                               : a["type"] == "VEC4" ? 4
+                                                                                     : 3);
     std::vector<float> out(count);
     std::memcpy(out.data(), bytes.data() + bin_offset + v["byteOffset"].get<std::size_t>(),
                 count * sizeof(float));

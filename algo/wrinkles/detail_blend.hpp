@@ -14,7 +14,10 @@
 // the layout) are stored and blended; the rest of the output stays flat. Since B = P (D - N)
 // with P = pinv(W), a frame blends in capture space: c = P^T a (shapes x captures
 // multiply-adds), then E = N + sum_e c_e (D_e - N): as many map layers as captures with detail
-// (19 at most with the guide) instead of one per blendshape (53).
+// (19 at most with the guide) instead of one per blendshape (53). The layers D_e - N are kept
+// as 8-bit steps of 1/127 of each channel's largest |delta| (a quarter of the floats' memory
+// traffic, which is what a frame's blend costs; the error, <= half a step per capture, is far
+// under the synthesis's).
 #pragma once
 
 #include <cstdint>
@@ -37,8 +40,9 @@ struct DetailLayerView {
 struct BlendedDetail {
   FloatImage displacement_mm;
   ColorImage normal_map;
-  std::vector<float> channels;         // 3 per support texel
+  std::vector<float> channels;         // 3 planes of support texels: displacement, sx, sy
   std::vector<float> capture_weights;  // c = P^T a
+  std::vector<std::uint8_t> bytes;     // 3 planes of support texels: the normal map's bytes
 };
 
 class DetailBlend {
@@ -67,11 +71,7 @@ class DetailBlend {
   // Shapes that carry detail (a non-zero delta).
   int detailed_shapes() const;
   const std::vector<std::uint32_t>& support() const { return support_; }
-  const std::vector<float>& neutral_channels() const { return neutral_; }
-  // Capture e's channels minus the neutral's on the support, and P (shape s, capture e).
-  const std::vector<float>& capture_delta(int e) const {
-    return deltas_[static_cast<std::size_t>(e)];
-  }
+  // P (shape s, capture e).
   float coefficient(int s, int e) const {
     return coeff_[static_cast<std::size_t>(s) * deltas_.size() + static_cast<std::size_t>(e)];
   }
@@ -83,9 +83,10 @@ class DetailBlend {
  private:
   int width_ = 0, height_ = 0, shape_count_ = 0;
   std::vector<std::uint32_t> support_;
-  std::vector<float> neutral_;
-  std::vector<std::vector<float>> deltas_;  // per capture, 3 per support texel
-  std::vector<float> coeff_;                // P, shapes x captures, row-major
+  std::vector<float> neutral_;                    // 3 planes of support texels
+  std::vector<std::vector<std::int8_t>> deltas_;  // per capture, 3 planes, quantised
+  std::vector<float> scales_;                     // per capture and plane: mm or slope a step
+  std::vector<float> coeff_;                      // P, shapes x captures, row-major
 };
 
 }  // namespace fb

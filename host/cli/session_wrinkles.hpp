@@ -26,7 +26,7 @@ struct CaptureWrinkleReport {
 };
 
 struct WrinkleSessionOptions {
-  int size = 512;  // map height; width = size x the layout's tiles
+  int size = 256;  // map height; width = size x the layout's tiles
   bool save = true;
   std::vector<WrinkleExemplar> exemplars;
   double exemplar_mm_per_px = 0.25;

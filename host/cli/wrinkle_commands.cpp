@@ -78,7 +78,10 @@ std::vector<Command> wrinkle_commands() {
             "synthesis does and does not reach. JSON report on stdout, progress on stderr.",
             {{"store", "DIR", "session store", ""},
              {"session", "ID", "the session (needs a rig and its fitted captures)", ""},
-             {"size", "PX", "map height; its width is one square per tile of the UV layout", "512"},
+             {"size", "PX",
+              "map height; its width is one square per tile of the UV layout (256: finer than "
+              "the colour frame's 1.2 mm pixels on the face)",
+              "256"},
              {"exemplars", "DIR",
               "an exemplar set in data/wrinkle_exemplars' format (exemplars.json + PNGs)", ""},
              {"no-save", "", "build and report only; the store is opened read-only", ""}}},

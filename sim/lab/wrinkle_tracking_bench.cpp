@@ -102,6 +102,11 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
     checksum += streamed[0];
   }
   const double weights_ms = ms_since(t0) / frames;
+  // All weights 0: no layer is blended, only the neutral copied and the maps written.
+  const std::vector<float> zeros(static_cast<std::size_t>(ns), 0.0f);
+  t0 = Clock::now();
+  for (int f = 0; f < frames; ++f) blend->apply(zeros, ours);
+  const double write_ms = ms_since(t0) / frames;
 
   DenseBlend dense;
   const std::size_t texels = flat.displacement_mm.pixels.size();
@@ -136,6 +141,7 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
       {"speedup_vs_peer", ours_ms > 0 ? dense_ms / ours_ms : 0.0},
       {"max_difference_mm", max_diff},
       {"map_weights_ms", weights_ms},
+      {"write_only_ms", write_ms},
       {"map_weights_note",
        "c = P^T a alone: what a renderer holding the captures' maps needs per frame (the "
        "blend then runs on its side; not built: no exporter carries per-frame map weights)"},

@@ -307,7 +307,8 @@ std::vector<Command> wrinkles_eval_commands() {
             "frame over 1000 frames of random weights (tracking_overhead_ms) against the same "
             "blend over every texel of the full maps.",
             {{"seed", "N", "subject", "1"},
-             {"map-size", "PX", "detail map height for the tracking blend", "512"},
+             {"map-size", "PX",
+              "detail map height for the tracking blend (facebooth wrinkles' default)", "256"},
              exemplars,
              json}},
            run_bench_wrinkles}};

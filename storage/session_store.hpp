@@ -28,7 +28,7 @@
 
 namespace fb {
 
-inline constexpr int kSessionStoreSchemaVersion = 5;
+inline constexpr int kSessionStoreSchemaVersion = 6;
 inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
 
 using SubjectId = std::int64_t;
@@ -143,6 +143,27 @@ struct TextureInfo {
   std::string params_json;  // how it was built (views, coverage), free JSON
   std::int64_t bytes = 0;
   std::string created_at;
+};
+
+// One capture's wrinkle detail in the face model's UV layout (schema v6, `facebooth wrinkles`):
+// a displacement map (mm along the surface normal, + outwards, 0 where nothing was synthesised)
+// and its tangent-space normal map (x along +u, y along +v, PNG).
+using WrinkleDetailId = std::int64_t;
+struct WrinkleDetailInfo {
+  WrinkleDetailId id = 0;
+  SessionId session = 0;
+  int capture_index = 0;
+  std::optional<RigId> rig;  // the rig serving the session when the detail was made
+  int width = 0;
+  int height = 0;
+  std::string params_json;  // how it was built (regions, texels with detail), free JSON
+  std::string created_at;
+};
+struct WrinkleDetailData {
+  int width = 0;
+  int height = 0;
+  std::vector<float> displacement_mm;  // width * height, row-major, row 0 at the top
+  std::vector<std::uint8_t> normal_png;
 };
 
 struct MeshInfo {
@@ -307,6 +328,16 @@ class SessionStore {
                                 const std::string& params_json);
   Result<std::vector<TextureInfo>> textures(SessionId session) const;
   Result<std::vector<std::uint8_t>> read_texture(TextureId id) const;
+
+  // Wrinkle detail maps (schema v6): both files written durably, then one row in one
+  // transaction, so a crash leaves the whole detail or none of it. wrinkle_details() lists a
+  // session's oldest first (a capture's newest detail is its last row).
+  Result<WrinkleDetailId> add_wrinkle_detail(SessionId session, int capture_index,
+                                             std::optional<RigId> rig,
+                                             const WrinkleDetailData& detail,
+                                             const std::string& params_json);
+  Result<std::vector<WrinkleDetailInfo>> wrinkle_details(SessionId session) const;
+  Result<WrinkleDetailData> read_wrinkle_detail(WrinkleDetailId id) const;
 
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first

@@ -17,6 +17,24 @@ CREATE UNIQUE INDEX sessions_by_origin ON sessions(origin_booth, origin_id)
   WHERE origin_booth IS NOT NULL;
 )sql";
 
+// v6: wrinkle detail (`facebooth wrinkles`, issue 40): per capture of a session, a
+// displacement map (mm, float32 file) and a tangent-space normal map (PNG) in the face model's UV
+// layout, tied to the rig that served the session when it was built.
+constexpr const char* kV6WrinkleDetail = R"sql(
+CREATE TABLE wrinkle_details(
+  id INTEGER PRIMARY KEY,
+  session_id INTEGER NOT NULL REFERENCES sessions(id),
+  capture_idx INTEGER NOT NULL,
+  rig_id INTEGER REFERENCES rigs(id),
+  width INTEGER NOT NULL CHECK(width > 0),
+  height INTEGER NOT NULL CHECK(height > 0),
+  params_json TEXT NOT NULL DEFAULT '{}',
+  displacement_file_id INTEGER NOT NULL REFERENCES files(id),
+  normal_file_id INTEGER NOT NULL REFERENCES files(id),
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')));
+CREATE INDEX wrinkle_details_by_session ON wrinkle_details(session_id);
+)sql";
+
 // Each migration moves the schema from version (index) to version (index + 1). Never edit a
 // released migration: add a new one, so every store upgrades along the same path.
 const std::vector<std::string>& migrations() {
@@ -140,6 +158,7 @@ CREATE TABLE textures(
 CREATE INDEX textures_by_session ON textures(session_id);
 )sql",
       kV5ImportedFromBooths,
+      kV6WrinkleDetail,
   };
   return list;
 }

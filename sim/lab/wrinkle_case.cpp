@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include "algo/core/mix64.hpp"
 #include "algo/render/rasterizer.hpp"
@@ -93,7 +94,9 @@ Result<std::vector<ReliefWindow>> relief_windows(std::span<const Eigen::Vector3f
                     3.0f,
                     {}});
   }
-  if (o.relief == WrinkleRelief::kGrooves) {
+  if (o.relief == WrinkleRelief::kNone) {
+    return out;
+  } else if (o.relief == WrinkleRelief::kGrooves) {
     // Four forehead lines 6 mm apart, 0.2-1.0 mm deep (order from the seed), gently waving.
     std::array<float, 4> depth = {0.2f, 0.45f, 0.7f, 1.0f};
     for (int i = 3; i > 0; --i)
@@ -162,10 +165,12 @@ Result<SyntheticOptions> camera_options(const FaceModel& model, const WrinkleCas
   so.world.texture = true;
   so.world.light_vary = o.light_vary;
   so.distance_mm = o.distance_mm;
-  auto brows = parse_expression_spec(
-      "browInnerUp_L+browInnerUp_R+browOuterUp_L:0.8+browOuterUp_R:0.8", model);
-  if (!brows) return brows.failure();
-  so.expression_weights = *brows;
+  if (o.raised_brows) {
+    auto brows = parse_expression_spec(
+        "browInnerUp_L+browInnerUp_R+browOuterUp_L:0.8+browOuterUp_R:0.8", model);
+    if (!brows) return brows.failure();
+    so.expression_weights = *brows;
+  }
   return so;
 }
 
@@ -194,6 +199,11 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   c.intrinsics = so.calibration.depth_intrinsics();
   for (int l = 0; l < 68; ++l) c.landmarks[l] = truth.landmarks_depth_px[l];
   for (const auto& p : truth.landmarks_3d) c.face_depth_mm += p.z() / 68.0;
+  for (int l = 0; l < 68; ++l) c.landmarks_3d[l] = truth.landmarks_3d[l];
+  c.camera_from_model = truth.camera_from_model;
+  // The skin only (the camera's scene may hold more): the model's topology, its UV layout.
+  for (int v = 0; v < model.vertex_count; ++v)
+    for (int a = 0; a < 3; ++a) c.vertices.push_back(verts[static_cast<std::size_t>(v)][a]);
   PinholeIntrinsics k = c.intrinsics;
   k.width *= kSuper, k.height *= kSuper, k.fx *= kSuper, k.fy *= kSuper;
   k.cx = kSuper * k.cx + (kSuper - 1) / 2.0, k.cy = kSuper * k.cy + (kSuper - 1) / 2.0;
@@ -281,6 +291,72 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   for (const auto& b : boxes)
     if (b[2] >= b[0]) c.true_regions.push_back({b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1});
   return c;
+}
+
+Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& model,
+                                     const KinectRegistration& registration) {
+  const PinholeIntrinsics k = c.intrinsics;
+  std::vector<Eigen::Vector3f> posed(c.vertices.size() / 3);
+  for (std::size_t v = 0; v < posed.size(); ++v)
+    posed[v] =
+        c.camera_from_model
+            .apply(Eigen::Vector3d(c.vertices[3 * v], c.vertices[3 * v + 1], c.vertices[3 * v + 2]))
+            .cast<float>();
+  PinholeIntrinsics ks = k;
+  ks.width *= kSuper, ks.height *= kSuper, ks.fx *= kSuper, ks.fy *= kSuper;
+  ks.cx = kSuper * k.cx + (kSuper - 1) / 2.0, ks.cy = kSuper * k.cy + (kSuper - 1) / 2.0;
+  RasterBuffers raster;
+  raster.reset(ks.width, ks.height);
+  if (auto ok = rasterize(ks, posed, model.triangles, {}, raster); !ok) return ok.failure();
+  RgbdFrame f;
+  f.depth_mm.resize(k.width, k.height);
+  std::fill(f.depth_mm.pixels.begin(), f.depth_mm.pixels.end(), std::uint16_t{0});
+  f.color = c.color;  // off the face: the unregistered frame (the wall is flat colour anyway)
+  std::vector<float> zbuf(f.color.pixels.size(), std::numeric_limits<float>::infinity());
+  std::vector<std::uint8_t> hit(f.color.pixels.size(), 0);
+  auto sample = [&](double x, double y) {
+    x = std::clamp(x, 0.0, c.color.width - 1.001);
+    y = std::clamp(y, 0.0, c.color.height - 1.001);
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const double ax = x - x0, ay = y - y0;
+    Rgb8 out;
+    std::uint8_t* o[3] = {&out.r, &out.g, &out.b};
+    for (int ch = 0; ch < 3; ++ch) {
+      auto v = [&](int px, int py) {
+        const Rgb8 p = c.color.at(px, py);
+        return ch == 0 ? p.r : ch == 1 ? p.g : p.b;
+      };
+      *o[ch] = static_cast<std::uint8_t>(
+          std::lround((1 - ay) * ((1 - ax) * v(x0, y0) + ax * v(x0 + 1, y0)) +
+                      ay * ((1 - ax) * v(x0, y0 + 1) + ax * v(x0 + 1, y0 + 1))));
+    }
+    return out;
+  };
+  for (int y = 0; y < ks.height; ++y)
+    for (int x = 0; x < ks.width; ++x) {
+      const std::size_t i = raster.index(x, y);
+      if (raster.triangle[i] == kNoTriangle) continue;
+      const float z = raster.depth[i];
+      const double dx = (x - (kSuper - 1) / 2.0) / kSuper, dy = (y - (kSuper - 1) / 2.0) / kSuper;
+      if (x % kSuper == 1 && y % kSuper == 1)
+        f.depth_mm.at(x / kSuper, y / kSuper) = static_cast<std::uint16_t>(std::lround(z));
+      double cx = 0.0, cy = 0.0;
+      if (!registration.depth_to_color_interpolated(dx, dy, std::round(z), cx, cy)) continue;
+      const int px = static_cast<int>(std::lround(cx)), py = static_cast<int>(std::lround(cy));
+      if (px < 0 || py < 0 || px >= f.color.width || py >= f.color.height) continue;
+      const std::size_t j = static_cast<std::size_t>(py) * f.color.width + px;
+      if (z >= zbuf[j]) continue;
+      zbuf[j] = z;
+      hit[j] = 1;
+      f.color.pixels[j] = sample(dx, dy);
+    }
+  // Colour pixels inside the face no sub-sample landed on: the nearest hit along the row.
+  for (int y = 0; y < f.color.height; ++y)
+    for (int x = 1; x + 1 < f.color.width; ++x) {
+      const std::size_t j = static_cast<std::size_t>(y) * f.color.width + x;
+      if (!hit[j] && hit[j - 1] && hit[j + 1]) f.color.pixels[j] = f.color.pixels[j - 1];
+    }
+  return f;
 }
 
 WrinkleScore score_wrinkles(const WrinkleCase& c, const WrinkleDetail& d, int margin) {

@@ -17,9 +17,11 @@
 #include <Eigen/Core>
 
 #include "algo/core/camera_model.hpp"
+#include "algo/core/frame.hpp"
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/sensor/kinect_calibration.hpp"
 #include "algo/wrinkles/wrinkle_detail.hpp"
 
 namespace fb::cli {
@@ -27,6 +29,7 @@ namespace fb::cli {
 enum class WrinkleRelief {
   kGrooves,  // synthetic grooves of known depth 0.2-1.0 mm (forehead lines, crow's feet)
   kScan,     // the scan's own forehead and crow's-feet relief (exemplar crops at angle 0)
+  kNone,     // no relief (a neutral capture's frame)
 };
 
 struct WrinkleCaseOptions {
@@ -38,6 +41,7 @@ struct WrinkleCaseOptions {
   // their pixel size.
   std::vector<WrinkleExemplar> scan_crops;
   double scan_mm_per_px = 0.25;
+  bool raised_brows = true;  // false: the neutral face
 };
 
 struct WrinkleCase {
@@ -48,9 +52,21 @@ struct WrinkleCase {
   std::array<Eigen::Vector2d, 68> landmarks;  // the true 68 points in this image
   PinholeIntrinsics intrinsics;
   double face_depth_mm = 0.0;  // depth of the landmarks' centroid
+  // The subject's skin mesh (model frame, 3 floats per vertex; the model's triangles), where it is
+  // in the depth camera, and the 68 landmarks' 3D points there.
+  std::vector<float> vertices;
+  RigidPose camera_from_model;
+  std::array<Eigen::Vector3d, 68> landmarks_3d;
 };
 
 Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseOptions& options);
+
+// The case as the Kinect delivers it (what a stored capture holds): depth in mm in the depth
+// camera's image, and `color` moved into the colour camera's image through the unit's
+// registration at the surface's depth (each depth pixel's 3 x 3 sub-samples splatted, holes
+// filled from the row's neighbours), as the synthetic camera renders colour.
+Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& model,
+                                     const KinectRegistration& registration);
 
 struct WrinkleScore {
   double height_mae_mm = 0, zero_field_mae_mm = 0, wrinkle_pixel_mae_mm = 0, height_correlation = 0;

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -17,10 +18,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "algo/wrinkles/wrinkle_detail.hpp"
+#include "host/cli/guide_files.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/wrinkle_exemplar_files.hpp"
 #include "sim/lab/lab_commands.hpp"
 #include "sim/lab/wrinkle_case.hpp"
+#include "sim/lab/wrinkle_tracking_bench.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -227,6 +230,7 @@ int run_bench_wrinkles(const ParsedOptions& options) {
   wo.exemplar_mm_per_px = setup->exemplars.mm_per_px;
   nlohmann::json methods = nlohmann::json::object();
   double seconds[2] = {0, 0};
+  std::optional<WrinkleDetail> kept;
   for (const auto search : {PatchSearch::kPatchMatch, PatchSearch::kBruteForce}) {
     wo.synthesis.search = search;
     const auto t0 = Clock::now();
@@ -243,7 +247,15 @@ int run_bench_wrinkles(const ParsedOptions& options) {
         {"patch_distances", d->synthesis.distance_evaluations},
         {"height_mae_mm", sc.height_mae_mm}};
     if (pm) methods["patchmatch"]["patches"] = d->synthesis.patches;
+    if (pm) kept = std::move(*d);
   }
+  auto guide = load_guide(setup->model, "");
+  if (!guide) return report_failure(guide.error());
+  auto map_size = options.get_int("map-size");
+  if (!map_size) return report_failure(map_size.error());
+  auto tracking =
+      bench_detail_blend(setup->model, *guide, *c, *kept, static_cast<int>(*map_size), 1000);
+  if (!tracking) return report_failure(tracking.error());
   nlohmann::json out = {
       {"per_expression_s", seconds[0]},
       {"peer", "brute_force (exact nearest patch over all 24 exemplars, same input and regions)"},
@@ -254,7 +266,9 @@ int run_bench_wrinkles(const ParsedOptions& options) {
       {"threads", 1},
       {"budget", {{"per_expression_s", "<= 1.0 (one core)"}}},
       {"timed", "salient regions + exemplar resampling + EM synthesis (4 iterations)"},
-      {"methods", methods}};
+      {"methods", methods},
+      {"tracking_overhead_ms", (*tracking)["tracking_overhead_ms"]},
+      {"tracking", *tracking}};
   std::cout << out.dump(2) << "\n";
   return kExitOk;
 }
@@ -289,8 +303,14 @@ std::vector<Command> wrinkles_eval_commands() {
           {{"bench wrinkles",
             "time one expression's wrinkle detail, PatchMatch against brute force (JSON)",
             "One 640x480 frontal frame (grooves case), one thread, both searches on the same "
-            "input and regions.",
-            {{"seed", "N", "subject", "1"}, exemplars, json}},
+            "input and regions. Then section 4's tracked-frame detail: the maps blended per "
+            "frame over 1000 frames of random weights (tracking_overhead_ms) against the same "
+            "blend over every texel of the full maps.",
+            {{"seed", "N", "subject", "1"},
+             {"map-size", "PX",
+              "detail map height for the tracking blend (facebooth wrinkles' default)", "256"},
+             exemplars,
+             json}},
            run_bench_wrinkles}};
 }
 

@@ -2,8 +2,10 @@
 
 #include <map>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 
@@ -11,6 +13,7 @@
 #include "storage/export/facewarehouse.hpp"
 #include "storage/export/gltf.hpp"
 #include "storage/export/mesh_files.hpp"
+#include "storage/export/png_file.hpp"
 
 namespace fb {
 
@@ -82,8 +85,10 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
   std::map<int, TextureId> capture_texture;
   std::optional<TextureId> subject_texture;
   for (const auto& t : *textures) {
-    if (t.capture_index) capture_texture[*t.capture_index] = t.id;
-    else subject_texture = t.id;
+    if (t.capture_index)
+      capture_texture[*t.capture_index] = t.id;
+    else
+      subject_texture = t.id;
   }
   if (subject_texture) {
     auto png = store.read_texture(*subject_texture);
@@ -91,6 +96,12 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     content.texture_png = std::move(*png);
     content.source["texture"] = std::to_string(*subject_texture);
   }
+
+  // The newest wrinkle detail per capture.
+  auto details = store.wrinkle_details(session);
+  if (!details) return details.failure();
+  std::map<int, WrinkleDetailId> capture_detail;
+  for (const auto& d : *details) capture_detail[d.capture_index] = d.id;
 
   auto captures = store.captures(session);
   if (!captures) return captures.failure();
@@ -122,6 +133,14 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
       texture = content.texture_png;  // the subject texture is the neutral's
     }
     content.pose_textures.push_back(std::move(texture));
+    WrinkleDetailData detail;
+    if (auto d = capture_detail.find(c.index); d != capture_detail.end()) {
+      auto read = store.read_wrinkle_detail(d->second);
+      if (!read) return read.failure();
+      detail = std::move(*read);
+      content.source["wrinkles_" + std::to_string(c.index)] = std::to_string(d->second);
+    }
+    content.pose_details.push_back(std::move(detail));
     content.pose_colors.push_back(std::move(color));
     content.pose_landmarks.push_back(std::move(landmarks));
   }
@@ -160,7 +179,17 @@ constexpr const char* kTextureFile = "face.png";
 
 // A plain skin-tone material (Kd matches the glTF baseColorFactor), with the texture when there
 // is one (white Kd then, as glTF's factor, so the texture is not tinted).
-std::string skin_mtl(bool texture) {
+constexpr const char* kNormalFile = "face_normal.png";
+
+// The neutral's wrinkle normal map, when there is one (pose 0 is the neutral).
+const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
+  if (c.pose_details.empty() || c.pose_names.empty() || c.pose_names.front() != "neutral" ||
+      c.pose_details.front().normal_png.empty())
+    return nullptr;
+  return &c.pose_details.front().normal_png;
+}
+
+std::string skin_mtl(bool texture, bool normal_map) {
   return std::string(
              "# facebooth: the skin material of the exported meshes\n"
              "newmtl skin\n"
@@ -170,7 +199,30 @@ std::string skin_mtl(bool texture) {
          "Ns 20\n"
          "d 1\n"
          "illum 2\n" +
-         (texture ? std::string("map_Kd ") + kTextureFile + "\n" : std::string());
+         (texture ? std::string("map_Kd ") + kTextureFile + "\n" : std::string()) +
+         // `norm`: the tangent-space normal map extension (Blender, assimp read it).
+         (normal_map ? std::string("norm ") + kNormalFile + "\n" : std::string());
+}
+
+// Every pose's wrinkle detail: wrinkles/pose_I_normal.png (tangent space, x along +u, y along
+// +v) and wrinkles/pose_I_displacement.pgm (16-bit, mm = (value - 32768) / 1000).
+Result<int> write_wrinkle_maps(ExportFolder& folder, const ExportContent& c) {
+  int written = 0;
+  for (std::size_t i = 0; i < c.pose_details.size(); ++i) {
+    const WrinkleDetailData& d = c.pose_details[i];
+    if (d.width <= 0) continue;
+    const std::string stem = "wrinkles/pose_" + std::to_string(i);
+    if (auto r = folder.write_file(stem + "_normal.png", d.normal_png); !r) return r.failure();
+    DepthImage pgm;
+    pgm.resize(d.width, d.height);
+    for (std::size_t k = 0; k < d.displacement_mm.size(); ++k)
+      pgm.pixels[k] = static_cast<std::uint16_t>(
+          std::clamp(std::lround(32768.0 + 1000.0 * d.displacement_mm[k]), 0L, 65535L));
+    if (auto r = folder.write_text(stem + "_displacement.pgm", encode_pgm16(pgm)); !r)
+      return r.failure();
+    ++written;
+  }
+  return written;
 }
 
 std::string safe_name(const std::string& name) {
@@ -187,9 +239,13 @@ Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, const Ri
   // relative to each file's folder.
   if (!ply) {
     const bool texture = !c.texture_png.empty() && c.uvs.fits(rig.triangles);
-    if (auto r = folder.write_text(kMtlFile, skin_mtl(texture)); !r) return r;
+    const auto* normal = c.uvs.fits(rig.triangles) ? neutral_normal_png(c) : nullptr;
+    if (auto r = folder.write_text(kMtlFile, skin_mtl(texture, normal != nullptr)); !r) return r;
     if (texture) {
       if (auto r = folder.write_file(kTextureFile, c.texture_png); !r) return r;
+    }
+    if (normal != nullptr) {
+      if (auto r = folder.write_file(kNormalFile, *normal); !r) return r;
     }
   }
   auto write = [&](const std::string& path, const MeshData& mesh, const std::string& comment) {
@@ -329,6 +385,7 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
       options.name = c.name;
       options.uvs = &c.uvs;
       options.base_color_png = &c.texture_png;
+      options.normal_png = neutral_normal_png(c);
       auto glb = encode_glb(rig, options);
       if (!glb) return glb.failure();
       if (auto r = folder->write_file(c.name + ".glb", *glb); !r) return r.failure();
@@ -359,6 +416,20 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
                                            : "face.mtl (skin, diffuse colour)";
       }
       break;
+  }
+  if (request.format != ExportFormat::kFaceWarehouse && has_uvs) {
+    auto maps = write_wrinkle_maps(*folder, c);
+    if (!maps) return maps.failure();
+    if (*maps > 0) {
+      manifest.details["wrinkles"] =
+          std::to_string(*maps) +
+          " poses carry wrinkle detail (facebooth wrinkles): wrinkles/pose_I_normal.png "
+          "(tangent space, x along +u, y along +v of the UV layout) and "
+          "wrinkles/pose_I_displacement.pgm (16-bit, mm = (value - 32768) / 1000, along the "
+          "normal); the neutral's normal map is on the skin material (glTF normalTexture with "
+          "TANGENT, OBJ norm face_normal.png). A frame's detail is N + sum a_i B_i over the "
+          "blendshapes, B solved from the poses' maps and their guide weights (docs/wrinkles.md)";
+    }
   }
   if (auto r = folder->finish(manifest); !r) return r.failure();
   ExportSummary summary;

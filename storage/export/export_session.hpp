@@ -40,6 +40,10 @@ struct ExportContent {
   // Per pose (same order as poses): that expression's own texture, PNG, or empty
   // (FaceWarehouse's TrainingPose/pose_i_texture.png).
   std::vector<std::vector<std::uint8_t>> pose_textures;
+  // Per pose: that capture's newest wrinkle detail (`facebooth wrinkles`; width 0: none). The
+  // neutral's (pose 0) normal map goes on the glTF material and into the OBJ MTL; every pose's
+  // maps are written to wrinkles/ (the blendshapes' detail is blended from them, section 4).
+  std::vector<WrinkleDetailData> pose_details;
 };
 
 // Attaches the face model's UV layout when the content's rig has the model's triangles (a rig

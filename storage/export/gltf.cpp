@@ -1,8 +1,11 @@
 #include "storage/export/gltf.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
+
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 namespace fb {
@@ -67,13 +70,73 @@ nlohmann::json skin_material(const GlbOptions& options, bool with_texture) {
   return material;
 }
 
-// Texture 0: the PNG in buffer view `image_view`, linear filtering with mipmaps, clamped so
+// The glTF document of one mesh in one node, one material and one buffer.
+nlohmann::json document(const GlbOptions& options, const nlohmann::json& mesh,
+                        const nlohmann::json& material, std::size_t buffer_bytes,
+                        const nlohmann::json& views, const nlohmann::json& accessors) {
+  return {
+      {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
+      {"scene", 0},
+      {"scenes", {{{"nodes", {0}}}}},
+      {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
+      {"meshes", {mesh}},
+      {"materials", {material}},
+      {"buffers", {{{"byteLength", buffer_bytes}}}},
+      {"bufferViews", views},
+      {"accessors", accessors},
+  };
+}
+
+}  // namespace
+
+std::vector<float> vertex_tangents(const std::vector<float>& positions,
+                                   const std::vector<float>& normals,
+                                   const std::vector<float>& texcoords,
+                                   const std::vector<std::uint32_t>& triangles) {
+  const std::size_t n = positions.size() / 3;
+  std::vector<Eigen::Vector3d> du(n, Eigen::Vector3d::Zero()), dv(n, Eigen::Vector3d::Zero());
+  auto p = [&](std::uint32_t v) {
+    return Eigen::Vector3d(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]);
+  };
+  // glTF's v runs down the image; the layout's +v (the normal map's green) is -v here.
+  auto uv = [&](std::uint32_t v) {
+    return Eigen::Vector2d(texcoords[2 * v], -texcoords[2 * v + 1]);
+  };
+  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
+    const std::uint32_t a = triangles[t], b = triangles[t + 1], c = triangles[t + 2];
+    const Eigen::Vector3d e1 = p(b) - p(a), e2 = p(c) - p(a);
+    const Eigen::Vector2d f1 = uv(b) - uv(a), f2 = uv(c) - uv(a);
+    const double det = f1.x() * f2.y() - f2.x() * f1.y();
+    if (std::abs(det) < 1e-14) continue;
+    // Surface per UV unit, area-weighted by summing unnormalised (|det| keeps its sign off).
+    const Eigen::Vector3d su = (e1 * f2.y() - e2 * f1.y()) / det * std::abs(det);
+    const Eigen::Vector3d sv = (e2 * f1.x() - e1 * f2.x()) / det * std::abs(det);
+    for (const auto v : {a, b, c}) du[v] += su, dv[v] += sv;
+  }
+  std::vector<float> out(4 * n);
+  for (std::size_t v = 0; v < n; ++v) {
+    const Eigen::Vector3d nv(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
+    Eigen::Vector3d t = du[v] - nv * nv.dot(du[v]);
+    if (t.norm() < 1e-12) t = nv.unitOrthogonal();  // no UV extent: any tangent will do
+    t.normalize();
+    const double w = nv.cross(t).dot(dv[v]) < 0.0 ? -1.0 : 1.0;
+    for (int k = 0; k < 3; ++k) out[4 * v + k] = static_cast<float>(t[k]);
+    out[4 * v + 3] = static_cast<float>(w);
+  }
+  return out;
+}
+
+namespace {
+
+// One texture per PNG in buffer views `image_views`, linear filtering with mipmaps, clamped so
 // the atlas's borders do not wrap.
-void add_texture(nlohmann::json& gltf, int image_view) {
-  gltf["images"] = {{{"bufferView", image_view}, {"mimeType", "image/png"}}};
+void add_textures(nlohmann::json& gltf, const std::vector<int>& image_views) {
   gltf["samplers"] = {
       {{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 33071}, {"wrapT", 33071}}};
-  gltf["textures"] = {{{"sampler", 0}, {"source", 0}}};
+  for (std::size_t i = 0; i < image_views.size(); ++i) {
+    gltf["images"].push_back({{"bufferView", image_views[i]}, {"mimeType", "image/png"}});
+    gltf["textures"].push_back({{"sampler", 0}, {"source", i}});
+  }
 }
 
 }  // namespace
@@ -150,8 +213,17 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   const std::vector<float> neutral_normals = vertex_normals(rig.neutral, rig.triangles);
   nlohmann::json attributes = {{"POSITION", add_floats(neutral, 3, "VEC3")},
                                {"NORMAL", add_floats(gather(neutral_normals, 1.0f), 3, "VEC3")}};
+  const bool with_normal_map =
+      textured && options.normal_png != nullptr && !options.normal_png->empty();
   if (textured) {
-    attributes["TEXCOORD_0"] = add_floats(split_texcoords(split, options.uvs->uvs), 2, "VEC2");
+    const std::vector<float> texcoords = split_texcoords(split, options.uvs->uvs);
+    attributes["TEXCOORD_0"] = add_floats(texcoords, 2, "VEC2");
+    if (with_normal_map) {
+      const std::vector<float> normals = gather(neutral_normals, 1.0f);
+      attributes["TANGENT"] = add_floats(
+          vertex_tangents(gather(rig.neutral, 1.0f), normals, texcoords, split.triangles), 4,
+          "VEC4");
+    }
   }
 
   nlohmann::json targets = nlohmann::json::array();
@@ -176,22 +248,17 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   // The base colour texture (a PNG in the UV layout), embedded in the binary chunk.
   const bool with_texture =
       textured && options.base_color_png != nullptr && !options.base_color_png->empty();
-  const int image_view =
-      with_texture ? add_view(options.base_color_png->data(), options.base_color_png->size(), 0)
-                   : -1;
-  const nlohmann::json material = skin_material(options, with_texture);
-  nlohmann::json gltf = {
-      {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
-      {"scene", 0},
-      {"scenes", {{{"nodes", {0}}}}},
-      {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
-      {"meshes", {mesh}},
-      {"materials", {material}},
-      {"buffers", {{{"byteLength", bin.size()}}}},
-      {"bufferViews", views},
-      {"accessors", accessors},
-  };
-  if (with_texture) add_texture(gltf, image_view);
+  nlohmann::json material = skin_material(options, with_texture);
+  std::vector<int> image_views;
+  if (with_texture)
+    image_views.push_back(
+        add_view(options.base_color_png->data(), options.base_color_png->size(), 0));
+  if (with_normal_map) {
+    image_views.push_back(add_view(options.normal_png->data(), options.normal_png->size(), 0));
+    material["normalTexture"] = {{"index", image_views.size() - 1}, {"texCoord", 0}};
+  }
+  nlohmann::json gltf = document(options, mesh, material, bin.size(), views, accessors);
+  if (!image_views.empty()) add_textures(gltf, image_views);
   return pack_glb(gltf.dump(), std::move(bin));
 }
 

@@ -7,7 +7,11 @@
 //    normals minus the neutral's), names in mesh.extras.targetNames (the convention Blender,
 //    three.js and Babylon read), default weights zero;
 //  - one PBR metallic-roughness material (a skin tone, metallic 0, roughness 0.6), or with a
-//    base colour texture when one is given.
+//    base colour texture when one is given;
+//  - with a normal map (the wrinkle detail, issue 40), the material's normalTexture and a
+//    TANGENT per vertex: xyz along +u of the UV layout, w chosen so that glTF's bitangent
+//    cross(normal, tangent) * w runs along +v of the layout (up in the image), the map's green
+//    axis. Given rather than left to a viewer's MikkTSpace, so every viewer agrees.
 #pragma once
 
 #include <array>
@@ -30,7 +34,17 @@ struct GlbOptions {
   // only). The subject's own texture (issue 37 item 3) is not built yet; this is where it goes.
   const std::vector<std::uint8_t>* base_color_png = nullptr;
   float roughness = 0.6f;
+  // A tangent-space normal map (PNG, x along +u, y along +v) in the UV layout as the material's
+  // normalTexture (with the UVs only); adds TANGENT.
+  const std::vector<std::uint8_t>* normal_png = nullptr;
 };
+
+// Per-vertex glTF tangents (4 floats each) of a mesh with one UV per vertex: +u on the surface
+// made orthogonal to the vertex normal, w = +-1 so cross(normal, tangent) * w follows +v.
+std::vector<float> vertex_tangents(const std::vector<float>& positions,
+                                   const std::vector<float>& normals,
+                                   const std::vector<float>& texcoords,
+                                   const std::vector<std::uint32_t>& triangles);
 
 Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOptions& options = {});
 

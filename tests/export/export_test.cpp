@@ -3,6 +3,7 @@
 // manifests with checksums, and exports that are never visible half-written.
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -115,7 +116,9 @@ struct Glb {
   std::vector<float> floats(int accessor) const {
     const auto& a = json["accessors"][accessor];
     const auto& v = json["bufferViews"][a["bufferView"].get<int>()];
-    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2" ? 2 : 3);
+    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2"   ? 2
+                                                               : a["type"] == "VEC4" ? 4
+                                                                                     : 3);
     std::vector<float> out(count);
     std::memcpy(out.data(), bytes.data() + bin_offset + v["byteOffset"].get<std::size_t>(),
                 count * sizeof(float));
@@ -546,6 +549,127 @@ TEST_F(Export, ATextureInTheUvLayoutReachesGltfAndObjMtl) {
   ASSERT_EQ(info.exit_code, 0) << info.out;
   EXPECT_NE(info.out.find("face.png"), std::string::npos) << info.out;  // the diffuse texture
   if (!skip.empty()) GTEST_SKIP() << skip;
+}
+
+// Wrinkle detail (issue 40): the neutral's normal map as normalTexture next to the base colour,
+// TANGENT per vertex (unit, w = +-1, bitangent along the layout's +v: glTF's -v), the validator
+// clean; OBJ: norm in the MTL and every pose's maps in wrinkles/.
+TEST_F(Export, WrinkleNormalMapReachesGltfWithTangentsAndObjMtl) {
+  ColorImage color, normal;
+  color.resize(64, 32);
+  std::fill(color.pixels.begin(), color.pixels.end(), Rgb8{180, 140, 120});
+  normal.resize(256, 128);
+  for (int y = 0; y < 128; ++y)
+    for (int x = 0; x < 256; ++x)
+      normal.at(x, y) = (x / 16 + y / 16) % 2 ? Rgb8{160, 128, 250} : Rgb8{128, 128, 255};
+  auto color_png = encode_png(color);
+  auto normal_png = encode_png(normal);
+  ASSERT_TRUE(color_png && normal_png);
+  ExportContent content = synthetic_content(*subject_, 5, "facemodel.fbfm");
+  content.uvs = uvs_;
+  content.texture_png = *color_png;
+  ASSERT_EQ(content.pose_names.front(), "neutral");
+  content.pose_details.resize(content.poses.size());
+  for (std::size_t i : {std::size_t{0}, std::size_t{3}}) {
+    WrinkleDetailData& d = content.pose_details[i];
+    d.width = 256;
+    d.height = 128;
+    d.displacement_mm.assign(256 * 128, i == 0 ? -0.25f : 0.5f);
+    d.normal_png = *normal_png;
+  }
+  ExportRequest request;
+  request.format = ExportFormat::kGlb;
+  request.out = dir_ / "glb";
+  auto glb_summary = export_content(content, request);
+  ASSERT_TRUE(glb_summary) << glb_summary.error().message;
+  const fs::path glb_path = glb_summary->path / "synthetic5.glb";
+  const Glb glb = read_glb(glb_path);
+  const auto& material = glb.json["materials"][0];
+  EXPECT_EQ(material["pbrMetallicRoughness"]["baseColorTexture"]["index"], 0);
+  EXPECT_EQ(material["normalTexture"]["index"], 1);
+  ASSERT_EQ(glb.json["images"].size(), 2u);
+  const auto& attributes = glb.json["meshes"][0]["primitives"][0]["attributes"];
+  ASSERT_TRUE(attributes.contains("TANGENT"));
+  const auto tangents = glb.floats(attributes["TANGENT"].get<int>());
+  const auto normals = glb.floats(attributes["NORMAL"].get<int>());
+  const auto positions = glb.floats(attributes["POSITION"].get<int>());
+  const auto texcoords = glb.floats(attributes["TEXCOORD_0"].get<int>());
+  ASSERT_EQ(tangents.size() / 4, normals.size() / 3);
+  double worst_length = 0, worst_dot = 0;
+  for (std::size_t v = 0; v < normals.size() / 3; ++v) {
+    const Eigen::Vector3d t(tangents[4 * v], tangents[4 * v + 1], tangents[4 * v + 2]);
+    const Eigen::Vector3d n(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
+    worst_length = std::max(worst_length, std::abs(t.norm() - 1.0));
+    worst_dot = std::max(worst_dot, std::abs(t.dot(n)));
+    EXPECT_EQ(std::abs(tangents[4 * v + 3]), 1.0f);
+  }
+  // Per triangle: the bitangent of its first corner against the surface's direction of the
+  // layout's +v (glTF texcoord v decreasing), and the tangent against +u.
+  const auto& indices_accessor = glb.json["accessors"][0];
+  const auto& view = glb.json["bufferViews"][indices_accessor["bufferView"].get<int>()];
+  std::vector<std::uint32_t> tris(indices_accessor["count"].get<std::size_t>());
+  std::memcpy(tris.data(),
+              glb.bytes.data() + glb.bin_offset + view["byteOffset"].get<std::size_t>(),
+              tris.size() * 4);
+  int agree_u = 0, agree_v = 0, counted = 0;
+  auto p = [&](std::uint32_t i) {
+    return Eigen::Vector3d(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]);
+  };
+  auto q = [&](std::uint32_t i) {
+    return Eigen::Vector2d(texcoords[2 * i], -texcoords[2 * i + 1]);
+  };
+  for (std::size_t t = 0; t + 2 < tris.size(); t += 3) {
+    const auto a = tris[t], b = tris[t + 1], c = tris[t + 2];
+    Eigen::Matrix<double, 3, 2> e;
+    e << p(b) - p(a), p(c) - p(a);
+    Eigen::Matrix2d f;
+    f << q(b) - q(a), q(c) - q(a);
+    if (std::abs(f.determinant()) < 1e-12) continue;
+    const Eigen::Matrix<double, 3, 2> j = e * f.inverse();
+    const Eigen::Vector3d tan(tangents[4 * a], tangents[4 * a + 1], tangents[4 * a + 2]);
+    const Eigen::Vector3d n(normals[3 * a], normals[3 * a + 1], normals[3 * a + 2]);
+    const Eigen::Vector3d bit = n.cross(tan) * tangents[4 * a + 3];
+    ++counted;
+    agree_u += tan.dot(j.col(0)) > 0;
+    agree_v += bit.dot(j.col(1)) > 0;
+  }
+  std::printf("tangents: |t|-1 <= %.1g, |t.n| <= %.1g; +u agrees %d, +v agrees %d of %d\n",
+              worst_length, worst_dot, agree_u, agree_v, counted);
+  EXPECT_LT(worst_length, 1e-5);
+  EXPECT_LT(worst_dot, 1e-5);
+  EXPECT_GT(agree_u, 0.99 * counted);
+  EXPECT_GT(agree_v, 0.99 * counted);
+
+  request.format = ExportFormat::kObj;
+  request.out = dir_ / "obj";
+  auto obj_summary = export_content(content, request);
+  ASSERT_TRUE(obj_summary) << obj_summary.error().message;
+  std::ifstream mtl(obj_summary->path / "face.mtl");
+  const std::string mtl_text((std::istreambuf_iterator<char>(mtl)), {});
+  EXPECT_NE(mtl_text.find("norm face_normal.png"), std::string::npos) << mtl_text;
+  EXPECT_TRUE(fs::exists(obj_summary->path / "face_normal.png"));
+  EXPECT_TRUE(fs::exists(obj_summary->path / "wrinkles" / "pose_3_normal.png"));
+  std::ifstream pgm(obj_summary->path / "wrinkles" / "pose_0_displacement.pgm", std::ios::binary);
+  const std::string pgm_text((std::istreambuf_iterator<char>(pgm)), {});
+  ASSERT_GT(pgm_text.size(), 20u);
+  // The last sample: -0.25 mm = 32768 - 250 = 32518, big-endian.
+  const auto hi = static_cast<unsigned char>(pgm_text[pgm_text.size() - 2]);
+  const auto lo = static_cast<unsigned char>(pgm_text[pgm_text.size() - 1]);
+  EXPECT_EQ(hi * 256 + lo, 32518);
+  EXPECT_FALSE(fs::exists(obj_summary->path / "wrinkles" / "pose_1_normal.png"));
+
+  std::string skip;
+  const auto report = validate(glb_path, skip);
+  if (!report) {
+    if (!skip.empty()) GTEST_SKIP() << skip;
+    FAIL() << "the validator did not run";
+  }
+  std::cout << "glb with normalTexture: " << (*report)["numErrors"] << " errors, "
+            << (*report)["numWarnings"] << " warnings, " << (*report)["numInfos"] << " infos "
+            << (*report)["messages"].dump() << "\n";
+  EXPECT_EQ((*report)["numErrors"], 0) << (*report)["messages"].dump(1);
+  EXPECT_EQ((*report)["numWarnings"], 0) << (*report)["messages"].dump(1);
+  EXPECT_EQ((*report)["info"]["hasTextures"], true);
 }
 
 // --names model keeps the face model's shapes and names (what the glb held before ARKit names).

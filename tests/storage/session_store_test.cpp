@@ -1,7 +1,10 @@
 // Session store round trips: captures, resume, rejections, landmarks, meshes, rigs, models,
 // takes, migrations, orphan cleanup and the one-writer/many-readers thread model.
 #include <gtest/gtest.h>
+
 #include <sqlite3.h>
+#include <cerrno>
+#include <cmath>
 
 #include <atomic>
 #include <cstring>
@@ -463,6 +466,69 @@ TEST(SessionStore, TexturesAndSessionCalibrationRoundTrip) {
   auto report = store->verify();
   ASSERT_TRUE(report);
   EXPECT_TRUE(report->ok()) << report->problems.size();
+}
+
+// Schema v6: a capture's wrinkle detail (displacement floats + normal PNG, with the rig) round
+// trips; a v5 store refuses it until a writer migrates; a write failing on the second file
+// leaves neither a row nor a file behind.
+TEST(SessionStore, WrinkleDetailRoundTripsAndFailsWhole) {
+  test::ScratchDir dir;
+  SessionId session = 0;
+  WrinkleDetailData detail;
+  detail.width = 4;
+  detail.height = 2;
+  detail.displacement_mm = {0.0f, -0.25f, 0.5f, 0.0f, 1e-3f, 0.0f, -1.0f, 0.0f};
+  detail.normal_png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 5, 6, 7};
+  {
+    StoreOptions v5;
+    v5.migrate_to = 5;
+    auto store = SessionStore::open(dir.path(), v5);
+    ASSERT_TRUE(store);
+    session = *store->create_session(*store->add_subject("s"), guide(2));
+    auto refused = store->add_wrinkle_detail(session, 1, std::nullopt, detail, "{}");
+    ASSERT_FALSE(refused);
+    EXPECT_TRUE(store->wrinkle_details(session)->empty());
+  }
+  {
+    // The second data file (the normal map) fails its first write: ENOSPC.
+    StoreOptions failing;
+    int starts = 0;
+    failing.inject_write_error = [&starts](std::size_t written) {
+      if (written == 0) ++starts;
+      return starts >= 2 ? ENOSPC : 0;
+    };
+    auto store = SessionStore::open(dir.path(), failing);
+    ASSERT_TRUE(store) << store.error().message;
+    EXPECT_FALSE(store->add_wrinkle_detail(session, 1, std::nullopt, detail, "{}"));
+    EXPECT_TRUE(store->wrinkle_details(session)->empty());
+  }
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store);
+  EXPECT_EQ(store->schema_version(), kSessionStoreSchemaVersion);
+  EXPECT_EQ(store->orphans_removed(), 0);  // the failed call removed its first file itself
+  WrinkleDetailData bad = detail;
+  bad.displacement_mm.pop_back();
+  EXPECT_FALSE(store->add_wrinkle_detail(session, 1, std::nullopt, bad, "{}"));
+  bad = detail;
+  bad.displacement_mm[2] = std::nanf("");
+  EXPECT_FALSE(store->add_wrinkle_detail(session, 1, std::nullopt, bad, "{}"));
+  auto id = store->add_wrinkle_detail(session, 1, std::nullopt, detail, R"({"regions": 2})");
+  ASSERT_TRUE(id) << id.error().message;
+  auto listed = store->wrinkle_details(session);
+  ASSERT_TRUE(listed);
+  ASSERT_EQ(listed->size(), 1u);
+  EXPECT_EQ(listed->at(0).capture_index, 1);
+  EXPECT_EQ(listed->at(0).width, 4);
+  EXPECT_FALSE(listed->at(0).rig);
+  EXPECT_EQ(listed->at(0).params_json, R"({"regions": 2})");
+  auto read = store->read_wrinkle_detail(*id);
+  ASSERT_TRUE(read) << read.error().message;
+  EXPECT_EQ(read->displacement_mm, detail.displacement_mm);
+  EXPECT_EQ(read->normal_png, detail.normal_png);
+  EXPECT_FALSE(store->read_wrinkle_detail(*id + 100));
+  auto report = store->verify();
+  ASSERT_TRUE(report);
+  EXPECT_TRUE(report->ok());
 }
 
 TEST(SessionStore, RigForPrefersTheSessionsOwnRig) {

@@ -1,0 +1,56 @@
+// One stored expression capture's wrinkle detail in the face model's UV layout (issue 40 items
+// 4 and 5; what `facebooth wrinkles` runs per capture). The colour frame is pulled into the depth
+// camera's pixel grid through the unit's registration at the fitted mesh's depth (the mesh,
+// posed by its landmarks, says where the skin is), so one pinhole camera (the depth camera's)
+// ties the image, its 68 landmarks (the mesh's landmark vertices projected) and the mesh
+// together; then wrinkle_detail() on that image and detail_maps() over the mesh.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include "algo/core/camera_model.hpp"
+#include "algo/core/image.hpp"
+#include "algo/core/result.hpp"
+#include "algo/sensor/kinect_calibration.hpp"
+#include "algo/texture/texel_map.hpp"
+#include "algo/wrinkles/wrinkle_detail.hpp"
+#include "algo/wrinkles/wrinkle_geometry.hpp"
+
+namespace fb {
+
+struct CaptureDetailInput {
+  const ColorImage* color = nullptr;  // the capture's frontal colour frame (colour camera)
+  std::span<const float> vertices;    // the fitted mesh, model frame, 3 floats per vertex
+  std::span<const std::uint32_t> triangles;
+  RigidPose depth_from_model;  // where the mesh is in the depth camera
+  std::array<std::uint32_t, 68> landmark_vertices{};
+  // The UV layout the maps are made in (TexelMap made from the same uvs / triangle_uvs).
+  const TexelMap* map = nullptr;
+  std::span<const float> uvs;
+  std::span<const std::uint32_t> triangle_uvs;
+};
+
+struct CaptureDetailOptions {
+  WrinkleDetailOptions detail;
+  int feather_px = 3;  // feather_heights() before the maps (0 = off)
+};
+
+struct CaptureDetail {
+  FloatImage luminance;  // the colour frame's luma in the depth camera's grid, 0..1
+  std::array<Eigen::Vector2d, 68> landmarks;  // in that grid
+  WrinkleDetail detail;                       // regions and heights in that grid
+  DetailMaps maps;                            // in the UV layout
+};
+
+// Heights faded to 0 over `px` pixels towards the edge of the synthesis domain (chamfer
+// distance), so the maps show no step where a region's box or a feature mask ends.
+void feather_heights(FloatImage& height_mm, const Image<std::uint8_t>& domain, int px);
+
+Result<CaptureDetail> capture_detail(const CaptureDetailInput& input,
+                                     const KinectRegistration& registration,
+                                     std::span<const WrinkleExemplar> exemplars,
+                                     const CaptureDetailOptions& options = {});
+
+}  // namespace fb

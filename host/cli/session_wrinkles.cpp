@@ -1,0 +1,148 @@
+#include "host/cli/session_wrinkles.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+#include "algo/core/clock.hpp"
+#include "algo/texture/mesh_alignment.hpp"
+#include "host/cli/session_texture.hpp"
+#include "storage/export/png_file.hpp"
+
+namespace fb::cli {
+
+namespace {
+
+// The newest fitted mesh of each capture (a neutral mesh counts for capture 0).
+Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session) {
+  auto meshes = store.meshes(session);
+  if (!meshes) return meshes.failure();
+  std::map<int, MeshId> out;
+  for (const auto& m : *meshes) {
+    if (m.role == MeshRole::kScan) continue;
+    const int index = m.capture_index.value_or(m.role == MeshRole::kNeutral ? 0 : -1);
+    if (index >= 0) out[index] = m.id;  // listed oldest first: the newest wins
+  }
+  return out;
+}
+
+// Where the fitted mesh is in the depth camera: its landmark vertices against the capture's
+// interior 3D landmarks (the contour's 0-16 have no reliable 3D).
+Result<RigidPose> mesh_pose(const MeshData& mesh, const CaptureData& capture,
+                            const FaceModel& model) {
+  std::vector<Eigen::Vector3d> model_points, camera_points;
+  for (std::size_t l = 17; l < capture.landmarks.size() && l < model.landmark_vertices.size();
+       ++l) {
+    const Landmark& p = capture.landmarks[l];
+    if (!p.has_3d) continue;
+    const auto v = model.landmark_vertices[l];
+    model_points.emplace_back(mesh.positions[3 * v], mesh.positions[3 * v + 1],
+                              mesh.positions[3 * v + 2]);
+    camera_points.emplace_back(p.x, p.y, p.z);
+  }
+  if (model_points.size() < 6)
+    return fail("it has " + std::to_string(model_points.size()) +
+                " landmarks with depth (6 or more are needed to place the fitted mesh); "
+                "correct its landmarks or recapture it");
+  return rigid_from_pairs(model_points, camera_points);
+}
+
+}  // namespace
+
+Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
+    SessionStore& store, SessionId session, const FaceModel& model,
+    const WrinkleSessionOptions& options, const std::function<void(int, int)>& progress) {
+  if (model.uvs.empty())
+    return fail(
+        "the face model asset has no UV layout; reconvert it with facebooth-convert-facemodel");
+  if (options.exemplars.empty()) return fail("no wrinkle exemplars were loaded");
+  auto info = store.session(session);
+  if (!info) return info.failure();
+  auto rig = store.rig_for(session);
+  if (!rig) return rig.failure();
+  if (!*rig)
+    return fail("session " + std::to_string(session) +
+                "'s subject has no rig to add wrinkle detail to; build one first: facebooth rig "
+                "--store DIR --session " +
+                std::to_string(session));
+  std::string note;
+  auto calibration = session_calibration(*info, note);
+  if (!calibration) return calibration.failure();
+  const KinectRegistration registration(*calibration);
+  const std::vector<float> uvs = model.atlas_uvs();
+  auto map = make_texel_map(uvs, model.triangle_uvs, options.size * model.uv_tiles(), options.size);
+  if (!map) return map.failure();
+  auto meshes = fitted_meshes(store, session);
+  if (!meshes) return meshes.failure();
+  if (meshes->find(0) == meshes->end())
+    return fail("session " + std::to_string(session) +
+                " has no fitted neutral (capture 0); finish or refit the session first");
+  auto captures = store.captures(session);
+  if (!captures) return captures.failure();
+  CaptureDetailOptions detail_options;
+  detail_options.detail.exemplar_mm_per_px = options.exemplar_mm_per_px;
+  std::vector<CaptureWrinkleReport> out;
+  for (const auto& [index, mesh_id] : *meshes) {
+    const auto t0 = Clock::now();
+    const std::string where =
+        "capture " + std::to_string(index) + " of session " + std::to_string(session);
+    auto mesh = store.read_mesh(mesh_id);
+    if (!mesh) return mesh.failure();
+    if (mesh->vertex_count() != model.vertex_count)
+      return fail(where +
+                  ": the fitted mesh does not have the face model's topology, so it has "
+                  "no UV layout to carry detail");
+    CaptureReadOptions read;
+    read.max_frames = 1;
+    auto capture = store.read_capture(session, index, read);
+    if (!capture) return fail(where + ": " + capture.error().message);
+    if (capture->frames.empty() || capture->frames.front().color.pixels.empty())
+      return fail(where + " has no colour frame to find wrinkles in; recapture it");
+    auto pose = mesh_pose(*mesh, *capture, model);
+    if (!pose) return fail(where + ": " + pose.error().message);
+    CaptureDetailInput in;
+    in.color = &capture->frames.front().color;
+    in.vertices = mesh->positions;
+    in.triangles = model.triangles;
+    in.depth_from_model = *pose;
+    in.landmark_vertices = model.landmark_vertices;
+    in.map = &*map;
+    in.uvs = uvs;
+    in.triangle_uvs = model.triangle_uvs;
+    auto detail = capture_detail(in, registration, options.exemplars, detail_options);
+    if (!detail) return fail(where + ": " + detail.error().message);
+    CaptureWrinkleReport r;
+    r.capture_index = index;
+    for (const auto& c : *captures)
+      if (c.index == index) r.expression = c.expression;
+    r.regions = static_cast<int>(detail->detail.regions.regions.size());
+    r.texels_with_detail = detail->maps.texels_with_detail;
+    for (const float h : detail->maps.displacement_mm.pixels)
+      r.max_height_mm = std::max(r.max_height_mm, static_cast<double>(std::abs(h)));
+    if (options.save) {
+      WrinkleDetailData data;
+      data.width = map->width;
+      data.height = map->height;
+      data.displacement_mm = detail->maps.displacement_mm.pixels;
+      auto png = encode_png(detail->maps.normal_map);
+      if (!png) return png.failure();
+      data.normal_png = std::move(*png);
+      const nlohmann::json params = {{"regions", r.regions},
+                                     {"texels_with_detail", r.texels_with_detail},
+                                     {"mm_per_px", detail->detail.image_mm_per_px},
+                                     {"mesh_id", mesh_id},
+                                     {"calibration", note.empty() ? "recorded" : "defaults"}};
+      auto id = store.add_wrinkle_detail(session, index, (*rig)->id, data, params.dump());
+      if (!id) return id.failure();
+      r.stored = *id;
+    }
+    r.seconds = ms_since(t0) / 1000.0;
+    out.push_back(r);
+    if (progress) progress(static_cast<int>(out.size()), static_cast<int>(meshes->size()));
+  }
+  return out;
+}
+
+}  // namespace fb::cli

@@ -1,0 +1,41 @@
+// The wrinkle detail of a stored session (issue 40, `facebooth wrinkles`): each capture with a
+// fitted mesh (the neutral first) through algo/wrinkles' capture_detail(), its maps stored with
+// the session and the rig serving it (SessionStore::add_wrinkle_detail).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "algo/core/result.hpp"
+#include "algo/facemodel/face_model.hpp"
+#include "algo/wrinkles/capture_detail.hpp"
+#include "storage/session_store.hpp"
+
+namespace fb::cli {
+
+struct CaptureWrinkleReport {
+  int capture_index = 0;
+  std::string expression;
+  int regions = 0;             // salient regions in the frame
+  int texels_with_detail = 0;  // of the maps
+  double max_height_mm = 0.0;  // largest |displacement| in the maps
+  std::optional<WrinkleDetailId> stored;
+  double seconds = 0.0;
+};
+
+struct WrinkleSessionOptions {
+  int size = 256;  // map height; width = size x the layout's tiles
+  bool save = true;
+  std::vector<WrinkleExemplar> exemplars;
+  double exemplar_mm_per_px = 0.25;
+};
+
+// Fails with what to do when the session has no rig, no fitted neutral, or a capture without a
+// colour frame or landmarks. `progress(done, total)` after each capture.
+Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
+    SessionStore& store, SessionId session, const FaceModel& model,
+    const WrinkleSessionOptions& options, const std::function<void(int, int)>& progress = {});
+
+}  // namespace fb::cli

@@ -3,10 +3,6 @@
 // and import included, no rigging) beside a plain HTTP GET of the same bundles (the peer: what
 // the wire and the booth's export give), and sessions per minute with rigging and rig upload.
 // One JSON object on stdout, progress on stderr.
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -23,6 +19,8 @@
 
 #include "algo/core/clock.hpp"
 #include "algo/core/result.hpp"
+#include "host/cli/scratch_directory.hpp"
+#include "sim/lab/daemon_harness.hpp"
 #include "sim/lab/lab_commands.hpp"
 
 // httplib last: its <resolv.h> defines `_res`, which breaks Eigen headers included after it.
@@ -33,74 +31,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// A binary of the build tree next to facebooth-lab (build/sim/), or installed in /usr/bin.
-fs::path find_binary(const std::string& given, const std::string& build_relative,
-                     const std::string& name) {
-  if (!given.empty()) return given;
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  for (const fs::path& p : {self.parent_path() / build_relative, self.parent_path() / name,
-                            fs::path("/usr/bin") / name})
-    if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
-  return {};
-}
-
-// A loopback port nothing listens on now (the kernel's pick for port 0, released at once).
-int loopback_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  int port = -1;
-  if (fd >= 0 && ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
-    port = ntohs(a.sin_port);
-  if (fd >= 0) ::close(fd);
-  return port;
-}
-
-// A faceboothd serving HTTP; SIGTERM at the end.
-class BoothDaemon {
- public:
-  BoothDaemon() = default;
-  BoothDaemon(const BoothDaemon&) = delete;
-  BoothDaemon& operator=(const BoothDaemon&) = delete;
-  ~BoothDaemon() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGTERM);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  Result<void> start(const fs::path& daemon, const fs::path& config, int port) {
-    pid_ = ::fork();
-    if (pid_ < 0) return fail("fork failed");
-    if (pid_ == 0) {
-      const std::string log = (config.parent_path() / "faceboothd.log").string();
-      std::freopen(log.c_str(), "a", stderr);
-      std::freopen("/dev/null", "w", stdout);
-      ::execl(daemon.c_str(), daemon.c_str(), "--config", config.c_str(), nullptr);
-      std::_Exit(127);
-    }
-    httplib::Client http("127.0.0.1", port);
-    http.set_connection_timeout(1, 0);
-    http.set_read_timeout(5, 0);
-    for (int i = 0; i < 600; ++i) {
-      if (auto r = http.Get("/api/status"); r && r->status == 200) return success();
-      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
-        pid_ = -1;
-        break;  // it exited (a port in use, a bad config): the log says why
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    return fail("faceboothd never answered; see " +
-                (config.parent_path() / "faceboothd.log").string());
-  }
-
- private:
-  pid_t pid_ = -1;
-};
 
 struct Run {
   int exit_code = -1;
@@ -152,8 +82,7 @@ Result<std::pair<std::uint64_t, double>> raw_get(const std::vector<int>& ports) 
 }
 
 int bench_sync(const ParsedOptions& o) {
-  const fs::path daemon =
-      find_binary(o.get("daemon"), "../firmware/daemon/faceboothd", "faceboothd");
+  const fs::path daemon = find_daemon(o.get("daemon"));
   const fs::path host_tool = find_binary(o.get("facebooth"), "../host/cli/facebooth", "facebooth");
   if (daemon.empty() || host_tool.empty())
     return report_failure(
@@ -167,17 +96,9 @@ int bench_sync(const ParsedOptions& o) {
   if (*booths < 1 || *booths > 8 || *sessions < 1 || *captures < 2 || *captures > 20 || *frames < 8)
     return report_failure({"--booths 1..8, --sessions >= 1, --captures 2..20, --frames >= 8"});
 
-  const fs::path dir =
-      fs::temp_directory_path() / ("facebooth-bench-sync-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  struct Cleanup {
-    fs::path dir;
-    ~Cleanup() {
-      std::error_code ec;
-      fs::remove_all(dir, ec);
-    }
-  } cleanup{dir};
+  auto scratch = ScratchDirectory::create("facebooth-bench-sync-");
+  if (!scratch) return report_failure(scratch.error());
+  const fs::path dir = scratch->path();
   json guide;
   {
     std::ifstream in(fs::path(FB_DATA_DIR) / "guide_expressions.json");
@@ -186,14 +107,14 @@ int bench_sync(const ParsedOptions& o) {
     guide["expressions"] = json(
         std::vector<json>(guide["expressions"].begin(), guide["expressions"].begin() + *captures));
   }
-  std::vector<std::unique_ptr<BoothDaemon>> daemons;
+  std::vector<std::unique_ptr<Child>> daemons;  // serving HTTP, killed at the end
   std::vector<int> ports;
   std::string booth_args;
   for (int b = 0; b < *booths; ++b) {
     const fs::path bd = dir / ("booth-" + std::to_string(b));
     fs::create_directories(bd);
     std::ofstream(bd / "guide.json") << guide.dump();
-    const int port = loopback_port();
+    const int port = free_port();
     std::ofstream(bd / "faceboothd.toml")
         << "[camera]\nuri = \"synthetic:seed=" << 5 + b << "\"\ncapture_frames = " << *frames
         << "\nrealtime = false\npreview_fps = 0\n[storage]\ndata_dir = \"" << (bd / "data").string()
@@ -208,9 +129,15 @@ int bench_sync(const ParsedOptions& o) {
         return report_failure(
             {"a headless session failed; see " + (bd / "faceboothd.log").string()});
     }
-    daemons.push_back(std::make_unique<BoothDaemon>());
-    if (auto ok = daemons.back()->start(daemon, bd / "faceboothd.toml", port); !ok)
-      return report_failure(ok.error());
+    const auto started = Clock::now();
+    auto spawned = spawn_daemon(daemon, bd / "faceboothd.toml", bd / "faceboothd-serving.log");
+    if (!spawned) return report_failure(spawned.error());
+    daemons.push_back(std::make_unique<Child>(*spawned));
+    httplib::Client http("127.0.0.1", port);
+    http.set_read_timeout(5, 0);
+    if (auto ready = wait_until_ready(http, started); !ready)
+      return report_failure(
+          {ready.error().message + "; see " + (bd / "faceboothd-serving.log").string()});
     ports.push_back(port);
     booth_args += " --booth http://127.0.0.1:" + std::to_string(port);
   }

@@ -25,15 +25,19 @@ namespace fb::cli {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-fs::path find_daemon(const std::string& given) {
+fs::path find_binary(const std::string& given, const std::string& build_relative,
+                     const std::string& name) {
   if (!given.empty()) return given;
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  // Build tree: build/sim/facebooth-lab -> build/firmware/daemon/faceboothd; installed: bin/.
-  for (const fs::path& p : {self.parent_path() / "../firmware/daemon/faceboothd",
-                            self.parent_path() / "faceboothd", fs::path("/usr/bin/faceboothd")})
+  for (const fs::path& p : {self.parent_path() / build_relative, self.parent_path() / name,
+                            fs::path("/usr/bin") / name})
     if (fs::exists(p, ec)) return fs::weakly_canonical(p, ec);
   return {};
+}
+
+fs::path find_daemon(const std::string& given) {
+  return find_binary(given, "../firmware/daemon/faceboothd", "faceboothd");
 }
 
 int bind_loopback(int fd) {

@@ -21,7 +21,11 @@ class Client;
 
 namespace fb::cli {
 
-// The faceboothd binary: `given`, else next to facebooth-lab in the build tree, else bin/.
+// A binary of the project: `given`, else `build_relative` to facebooth-lab in the build tree
+// (build/sim/), else `name` next to it, else /usr/bin/`name`; empty when none exists.
+std::filesystem::path find_binary(const std::string& given, const std::string& build_relative,
+                                  const std::string& name);
+// The faceboothd binary (find_binary).
 std::filesystem::path find_daemon(const std::string& given);
 
 // Binds `fd` to a free loopback port; returns the port, or -1.

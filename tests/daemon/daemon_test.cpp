@@ -30,6 +30,7 @@
 #include "storage/asset_files.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/session_store.hpp"
+#include "tests/common/daemon_fixture.hpp"
 #include "tests/fuzz/regression_input.hpp"
 
 // After every Eigen header (httplib's <resolv.h> defines _res).
@@ -330,51 +331,10 @@ TEST(GuideSteps, ALabelThatIsNotAStringIsAnError) {
 // ------------------------------------------------------------------ daemon, end to end
 
 // A temporary data directory and a short guide, so a whole session takes about a second.
-class DaemonTest : public ::testing::Test {
+class DaemonTest : public test::DaemonFixture {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fb-daemon-test-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    std::ofstream(dir_ / "guide.json") << R"({"expressions": [
-      {"id": 0, "name": "neutral", "label": "Neutral", "weights": {}},
-      {"id": 1, "name": "smile", "label": "Smile", "weights": {"mouthSmile_L": 0.8, "mouthSmile_R": 0.8}},
-      {"id": 2, "name": "jaw_open", "label": "Jaw open", "weights": {"jawOpen": 0.6}}]})";
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  DaemonTest() : DaemonFixture("fb-daemon-test-", test::kThreeStepGuide) {}
 
-  DaemonConfig config() const {
-    DaemonConfig c = default_daemon_config();
-    c.camera.uri = "synthetic:seed=4";
-    c.camera.capture_frames = 8;
-    c.camera.realtime = false;
-    c.camera.preview_fps = 0;
-    c.storage.data_dir = dir_ / "data";
-    c.session.guide_file = dir_ / "guide.json";
-    c.http.port = 0;
-    return c;
-  }
-  std::unique_ptr<Daemon> make(const DaemonConfig& c) {
-    DaemonOptions o;
-    o.handle_signals = false;
-    auto d = Daemon::create(c, o);
-    EXPECT_TRUE(d) << (d ? "" : d.error().message);
-    return d ? std::move(*d) : nullptr;
-  }
-  // Waits until the status satisfies `pred` (or fails after a generous bound: a hang is a bug).
-  template <class P>
-  nlohmann::json wait_for(Daemon& d, P pred) {
-    std::uint64_t v = 0;
-    for (int i = 0; i < 600; ++i) {
-      auto s = d.status();
-      if (pred(s)) return s;
-      v = d.wait_status(v, milliseconds(100));
-    }
-    ADD_FAILURE() << "condition never held; last status " << d.status().dump();
-    return d.status();
-  }
   // Tracking mode on a started daemon until `frames` frames are tracked; returns that status.
   nlohmann::json track_frames(Daemon& d, httplib::Client& http, int frames) {
     EXPECT_EQ(http.Post("/api/mode", R"({"mode": "tracking"})", "application/json")->status, 202);
@@ -393,8 +353,6 @@ class DaemonTest : public ::testing::Test {
     if (!store) return store.failure();
     return store->read_take(s["tracking"]["last_take"].get<std::int64_t>());
   }
-
-  fs::path dir_;
 };
 
 // Check of a stored fit against stored data only: the stored mesh (model frame) placed with the

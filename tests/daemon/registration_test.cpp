@@ -16,6 +16,7 @@
 #include "firmware/daemon/daemon.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "storage/session_store.hpp"
+#include "tests/common/daemon_fixture.hpp"
 
 // After every Eigen header (httplib's <resolv.h> defines _res).
 #include <httplib.h>
@@ -34,52 +35,18 @@ bool contains(const json& j, const std::string& what) {
   return j.is_string() && j.get<std::string>().find(what) != std::string::npos;
 }
 
-class DaemonRegistration : public ::testing::Test {
+class DaemonRegistration : public test::DaemonFixture {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fb-registration-test-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    std::ofstream(dir_ / "guide.json") << R"({"expressions": [
-      {"id": 0, "name": "neutral", "label": "Neutral", "weights": {}},
-      {"id": 1, "name": "smile", "label": "Smile", "weights": {"mouthSmile_L": 0.8, "mouthSmile_R": 0.8}},
-      {"id": 2, "name": "jaw_open", "label": "Jaw open", "weights": {"jawOpen": 0.6}}]})";
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  DaemonRegistration() : DaemonFixture("fb-registration-test-", test::kThreeStepGuide) {}
 
-  DaemonConfig config(const std::string& uri, double preview_fps) const {
-    DaemonConfig c = default_daemon_config();
-    c.camera.uri = uri;
-    c.camera.capture_frames = 8;
-    c.camera.realtime = false;
-    c.camera.preview_fps = preview_fps;
-    c.storage.data_dir = dir_ / "data";
-    c.session.guide_file = dir_ / "guide.json";
-    c.http.port = 0;
-    return c;
-  }
   std::unique_ptr<Daemon> start(const DaemonConfig& c) {
-    DaemonOptions o;
-    o.handle_signals = false;
-    auto d = Daemon::create(c, o);
-    EXPECT_TRUE(d) << (d ? "" : d.error().message);
-    if (!d) return nullptr;
-    EXPECT_TRUE((*d)->start());
-    return std::move(*d);
+    auto d = make(c);
+    if (d) EXPECT_TRUE(d->start());
+    return d;
   }
-  // Waits until the status satisfies `pred`; a bound only against hangs, not a timing check.
   template <class P>
   json wait_for(Daemon& d, P pred) {
-    std::uint64_t v = 0;
-    for (int i = 0; i < 1200; ++i) {
-      auto s = d.status();
-      if (pred(s)) return s;
-      v = d.wait_status(v, milliseconds(100));
-    }
-    ADD_FAILURE() << "condition never held; last status " << d.status().dump();
-    return d.status();
+    return DaemonFixture::wait_for(d, pred, 1200);
   }
   json wait_for_verdict(Daemon& d) {
     return wait_for(d, [](const json& s) { return s["registration"]["state"] != "checking"; });
@@ -100,8 +67,6 @@ class DaemonRegistration : public ::testing::Test {
     auto meshes = store->meshes(session);
     return meshes ? meshes->size() : 0;
   }
-
-  fs::path dir_;
 };
 
 // Preview frames decide: the status reports the offset, the LED and the page's text say what to

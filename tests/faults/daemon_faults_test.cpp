@@ -21,6 +21,7 @@
 #include "firmware/daemon/session_records.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/session_store.hpp"
+#include "tests/common/daemon_fixture.hpp"
 
 namespace fb {
 namespace {
@@ -28,49 +29,14 @@ namespace {
 namespace fs = std::filesystem;
 using std::chrono::milliseconds;
 
-class DaemonFaults : public ::testing::Test {
+class DaemonFaults : public test::DaemonFixture {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fb-faults-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    std::ofstream(dir_ / "guide.json") << R"({"expressions": [
+  DaemonFaults()
+      : DaemonFixture("fb-faults-", R"({"expressions": [
       {"id": 0, "name": "neutral", "label": "Neutral", "weights": {}},
-      {"id": 1, "name": "smile", "label": "Smile", "weights": {"mouthSmile_L": 0.8, "mouthSmile_R": 0.8}}]})";
+      {"id": 1, "name": "smile", "label": "Smile", "weights": {"mouthSmile_L": 0.8, "mouthSmile_R": 0.8}}]})") {
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
-  DaemonConfig config(const std::string& uri = "synthetic:seed=4") const {
-    DaemonConfig c = default_daemon_config();
-    c.camera.uri = uri;
-    c.camera.capture_frames = 8;
-    c.camera.realtime = false;
-    c.camera.preview_fps = 0;
-    c.storage.data_dir = dir_ / "data";
-    c.session.guide_file = dir_ / "guide.json";
-    c.http.port = 0;
-    return c;
-  }
-  std::unique_ptr<Daemon> make(const DaemonConfig& c) {
-    DaemonOptions o;
-    o.handle_signals = false;
-    auto d = Daemon::create(c, o);
-    EXPECT_TRUE(d) << (d ? "" : d.error().message);
-    return d ? std::move(*d) : nullptr;
-  }
-  template <class P>
-  nlohmann::json wait_for(Daemon& d, P pred) {
-    std::uint64_t v = 0;
-    for (int i = 0; i < 600; ++i) {  // 60 s: only a hang ends this loop
-      auto s = d.status();
-      if (pred(s)) return s;
-      v = d.wait_status(v, milliseconds(100));
-    }
-    ADD_FAILURE() << "condition never held; last status " << d.status().dump();
-    return d.status();
-  }
   // The store as `facebooth store info --verify` sees it, and every leftover temporary file.
   void expect_store_consistent() {
     StoreOptions ro;
@@ -100,8 +66,6 @@ class DaemonFaults : public ::testing::Test {
     log = text.str();
     return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
   }
-
-  fs::path dir_;
 };
 
 TEST_F(DaemonFaults, CameraThatStallsOrFailsMidTakeIsReportedAndTheSessionResumes) {

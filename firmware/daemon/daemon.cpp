@@ -231,10 +231,16 @@ nlohmann::json Daemon::status() const {
 
 nlohmann::json Daemon::Impl::status_json() const {
   const auto& d = *this;
-  std::lock_guard lock(d.status_mutex);
-  const StatusData& s = d.status;
+  // A snapshot under the lock, the JSON built outside it: the HTTP threads run at a lower
+  // priority, and one preempted while holding the lock would stall the take's frame loop.
+  std::uint64_t version = 0;
+  const StatusData s = [&] {
+    std::lock_guard lock(d.status_mutex);
+    version = d.status_version;
+    return d.status;
+  }();
   nlohmann::json j = {
-      {"version", d.status_version},
+      {"version", version},
       {"ready", d.ready.load()},
       {"state", to_string(s.state)},
       {"message", s.message},

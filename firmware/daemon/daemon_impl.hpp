@@ -243,7 +243,10 @@ struct Daemon::Impl {
   // Preview picture (downsampled colour with the face box), written by the worker.
   mutable std::mutex preview_mutex;
   ColorImage preview;
-  std::map<int, std::string> guide_bmp_cache;  // guarded by preview_mutex
+  // The guide pictures, rendered on first request (tens of ms: not under preview_mutex, which
+  // the take's frame loop takes).
+  std::mutex guide_bmp_mutex;
+  std::map<int, std::string> guide_bmp_cache;  // guarded by guide_bmp_mutex
 
   std::atomic<bool> stopping{false};
   std::atomic<bool> ready{false};

@@ -191,7 +191,7 @@ Result<std::string> load_booth_id(const std::filesystem::path& data_dir) {
 }
 
 Result<std::string> Daemon::Impl::guide_picture(int index) {
-  std::lock_guard lock(preview_mutex);
+  std::lock_guard lock(guide_bmp_mutex);
   if (auto it = guide_bmp_cache.find(index); it != guide_bmp_cache.end()) return it->second;
   const std::string uri =
       "synthetic:seed=0,identity=neutral,motion=static,frames=1,noise=off,expr=" +

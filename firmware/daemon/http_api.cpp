@@ -184,12 +184,13 @@ Result<void> Daemon::Impl::setup_http() {
             res.set_content(*bmp, "image/bmp");
           });
   srv.Get("/api/preview.bmp", [this](const httplib::Request&, httplib::Response& res) {
-    std::string bmp;
+    ColorImage picture;  // copied under the lock, encoded outside it (see status_json)
     {
       std::lock_guard lock(preview_mutex);
-      if (preview.empty()) return send_error(res, 503, "no preview frame yet");
-      bmp = encode_bmp(preview);
+      picture = preview;
     }
+    if (picture.empty()) return send_error(res, 503, "no preview frame yet");
+    const std::string bmp = encode_bmp(picture);
     res.set_header("Cache-Control", "no-store");
     res.set_content(bmp, "image/bmp");
   });
@@ -476,8 +477,8 @@ Result<void> Daemon::Impl::setup_http() {
     if (!request) return send_error(res, 400, request.error().message);
     const auto button = parse_button(request->button);
     if (!button) return send_error(res, 400, "button must be \"main\" or \"mode\"");
-    auto ok =
-        simulate_press(*gpio, {*button, request->long_press ? PressKind::kLong : PressKind::kShort});
+    auto ok = simulate_press(*gpio,
+                             {*button, request->long_press ? PressKind::kLong : PressKind::kShort});
     if (!ok) return send_error(res, 409, ok.error().message);
     send_json(res,
               {{"pressed", to_string(*button)}, {"kind", request->long_press ? "long" : "short"}},

@@ -63,6 +63,14 @@ void copy_spectra(const ModeFactors& f, TruncatedTensor& out, int id_knobs, int 
 
 }  // namespace
 
+ModeFactors factors_from_grams(const Eigen::MatrixXd& identity_gram,
+                               const Eigen::MatrixXd& expression_gram) {
+  ModeFactors f;
+  sorted_eigen(identity_gram, f.identity, f.identity_spectrum);
+  sorted_eigen(expression_gram, f.expression, f.expression_spectrum);
+  return f;
+}
+
 Result<ModeFactors> mode_factors(const DataTensor& t) {
   if (auto ok = check(t); !ok) return ok.failure();
   const int n_id = t.identities, n_exp = t.expressions;

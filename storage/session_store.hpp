@@ -155,6 +155,13 @@ struct MeshInfo {
   int triangle_count = 0;
 };
 
+struct MeshInput {
+  std::optional<int> capture_index;
+  MeshRole role = MeshRole::kFitted;
+  std::string name;
+  MeshData mesh;
+};
+
 struct RigInfo {
   RigId id = 0;
   SubjectId subject = 0;
@@ -298,6 +305,8 @@ class SessionStore {
   // --- meshes, rigs, models, takes
   Result<MeshId> add_mesh(SessionId session, std::optional<int> capture_index, MeshRole role,
                           const std::string& name, const MeshData& mesh);
+  // Several meshes of a session in one durable step (all or none), e.g. a session's refit.
+  Result<std::vector<MeshId>> add_meshes(SessionId session, const std::vector<MeshInput>& meshes);
   Result<std::vector<MeshInfo>> meshes(SessionId session) const;
   Result<MeshData> read_mesh(MeshId id) const;
 

@@ -79,10 +79,11 @@ Result<void> GramAccumulator::add(int identity, std::span<const float> slices) {
     if (identity == s) panel_data_.resize(data.size(), t - s);
     panel_data_.col(identity - s) = data;
     // Expression mode: each identity is in exactly one panel, so counted once.
-    Eigen::MatrixXf block = Eigen::MatrixXf::Zero(shape_.expressions, shape_.expressions);
-    const Eigen::Map<const Eigen::MatrixXf> ti(slices.data(), rows, shape_.expressions);
+    const Eigen::MatrixXd ti =
+        Eigen::Map<const Eigen::MatrixXf>(slices.data(), rows, shape_.expressions).cast<double>();
+    Eigen::MatrixXd block = Eigen::MatrixXd::Zero(shape_.expressions, shape_.expressions);
     block.selfadjointView<Eigen::Lower>().rankUpdate(ti.transpose());
-    g_exp_ += block.selfadjointView<Eigen::Lower>().toDenseMatrix().cast<double>();
+    g_exp_ += block.selfadjointView<Eigen::Lower>().toDenseMatrix();
     if (identity == t - 1) close_panel();
   } else {
     if (batch_.cols() != kGramBatch) batch_.resize(data.size(), kGramBatch);
@@ -102,17 +103,17 @@ Result<void> GramAccumulator::add(int identity, std::span<const float> slices) {
   return success();
 }
 
-// G_id within the panel.
+// G_id within the panel. Products in double, one expression slice at a time (see
+// mode_factors(): float round-off of the uncentred Gram moves the trailing eigenvectors).
 void GramAccumulator::close_panel() {
   const Eigen::Index rows = shape_.rows, p = panel_data_.cols();
   const int s = pass_ * panel_;
-  Eigen::MatrixXf block;
+  Eigen::MatrixXd block = Eigen::MatrixXd::Zero(p, p), slice;
   for (int e = 0; e < shape_.expressions; ++e) {
-    block.setZero(p, p);
-    block.selfadjointView<Eigen::Lower>().rankUpdate(
-        panel_data_.middleRows(e * rows, rows).transpose());
-    g_id_.block(s, s, p, p) += block.selfadjointView<Eigen::Lower>().toDenseMatrix().cast<double>();
+    slice = panel_data_.middleRows(e * rows, rows).cast<double>();
+    block.selfadjointView<Eigen::Lower>().rankUpdate(slice.transpose());
   }
+  g_id_.block(s, s, p, p) = block.selfadjointView<Eigen::Lower>().toDenseMatrix();
 }
 
 // G_id between the panel and a batch of identities before it.
@@ -121,12 +122,11 @@ void GramAccumulator::flush_batch() {
   if (nb == 0) return;
   const Eigen::Index rows = shape_.rows, p = panel_data_.cols();
   const int s = pass_ * panel_;
-  Eigen::MatrixXd cross = Eigen::MatrixXd::Zero(p, nb);
-  Eigen::MatrixXf block(p, nb);
+  Eigen::MatrixXd cross = Eigen::MatrixXd::Zero(p, nb), a, b;
   for (int e = 0; e < shape_.expressions; ++e) {
-    block.noalias() = panel_data_.middleRows(e * rows, rows).transpose() *
-                      batch_.middleRows(e * rows, rows).leftCols(nb);
-    cross += block.cast<double>();
+    a = panel_data_.middleRows(e * rows, rows).cast<double>();
+    b = batch_.middleRows(e * rows, rows).leftCols(nb).cast<double>();
+    cross.noalias() += a.transpose() * b;
   }
   for (Eigen::Index k = 0; k < nb; ++k) {
     const int j = batch_ids_[static_cast<std::size_t>(k)];

@@ -319,7 +319,9 @@ class SessionStore {
 
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first
-  Result<RigData> read_rig(RigId id) const;
+  // Checks the file's SHA-256 unless `verify_sha256` is false: for a caller reading the same
+  // rig again in one run after a verified read (model build's passes); the size is checked.
+  Result<RigData> read_rig(RigId id, bool verify_sha256 = true) const;
   // Which rig serves a session, the one rule for exports, model building, tracking and the
   // device: the newest rig built from this session, else the subject's newest rig (built from
   // another of their sessions, imported, or saved by `track --save-rig`). RigInfo::session says

@@ -207,7 +207,7 @@ Result<std::optional<RigInfo>> SessionStore::rig_for(SessionId session) const {
   return std::optional<RigInfo>(std::move(all->front()));
 }
 
-Result<RigData> SessionStore::read_rig(RigId id) const {
+Result<RigData> SessionStore::read_rig(RigId id, bool verify_sha256) const {
   auto stmt =
       sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");
   if (!stmt) return stmt.failure();
@@ -217,7 +217,7 @@ Result<RigData> SessionStore::read_rig(RigId id) const {
   if (!*row) return fail("there is no rig " + std::to_string(id) + " in this store");
   RigData rig;
   rig.shape_names = names_from_json(stmt->text(1));
-  auto bytes = impl_->load_file(stmt->int64(0));
+  auto bytes = impl_->load_file(stmt->int64(0), verify_sha256);
   if (!bytes) return bytes.failure();
   if (!decode_rig(*bytes, rig))
     return fail("the file of rig " + std::to_string(id) + " is malformed");

@@ -14,11 +14,10 @@ namespace fb::cli {
 
 RefitOptions full_fit_options() {
   RefitOptions o;
-  // See docs/sync.md, "rig --refit": what the booth's defaults leave on the table.
+  // More of the PCA step than the booth affords (booth: 7 rounds, every 2nd fitting vertex in
+  // the depth term). More refinement steps (30 instead of 12) made it worse: docs/sync.md.
   o.neutral.rounds = 12;
   o.neutral.depth_vertex_stride = 1;
-  o.neutral.refine_options.iterations = 30;
-  o.expression.refine_options.iterations = 30;
   return o;
 }
 

@@ -204,6 +204,7 @@ int bench_model(const ParsedOptions& o) {
       {"peak_rss_budget_mb", 2048},
       {"gram_passes", full->result["gram_passes"]},
       {"rig_reads", full->result["rig_reads"]},
+      {"rig_read_s", full->result["rig_read_s"]},
       {"memory_mb", *memory_mb},
       {"peer",
        "the in-memory build (facebooth model build --from-sessions --in-memory: every "

@@ -5,6 +5,7 @@
 // alignment, over the model's fitting vertices).
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <filesystem>
 #include <random>
 
@@ -228,6 +229,62 @@ TEST(Refit, RigRefitsTheStoredCapturesBetterAndRigsFromTheRefit) {
   auto verify = test::run_command(fb + " store info --store " + store_dir.string() + " --verify",
                                   test::Stderr::kToLog);
   EXPECT_EQ(verify.exit_code, 0) << verify.out;
+}
+
+// A refit is stored all or none: the disk fills while the third of five meshes is written, and
+// the store keeps exactly the booth's fits, no stray file, and verifies.
+TEST(Refit, MeshesOfARefitAreStoredAllOrNone) {
+  TempDir dir;
+  std::vector<MeshInput> batch;
+  SessionId session = 0;
+  {
+    auto store = SessionStore::open(dir.path);
+    ASSERT_TRUE(store.ok());
+    auto subject = store->add_subject("s");
+    ASSERT_TRUE(subject.ok());
+    auto s = store->create_session(*subject, {"neutral"});
+    ASSERT_TRUE(s.ok());
+    session = *s;
+    std::vector<float> mean(static_cast<std::size_t>(model().vertex_count) * 3);
+    model().evaluate({}, {}, mean);
+    ASSERT_TRUE(
+        store
+            ->add_mesh(session, 0, MeshRole::kNeutral, "neutral", MeshData{mean, model().triangles})
+            .ok());
+    for (int k = 0; k < 5; ++k)
+      batch.push_back(
+          MeshInput{0, MeshRole::kNeutral, "neutral", MeshData{mean, model().triangles}});
+  }
+  const auto files = [&] {
+    int n = 0;
+    for (const auto& e : fs::recursive_directory_iterator(dir.path / "sessions"))
+      n += e.is_regular_file();
+    return n;
+  };
+  const int before = files();
+  StoreOptions full;
+  int started = 0;
+  full.inject_write_error = [&](std::size_t written) {
+    if (written == 0) ++started;
+    return started >= 3 ? ENOSPC : 0;
+  };
+  {
+    auto store = SessionStore::open(dir.path, full);
+    ASSERT_TRUE(store.ok());
+    auto ids = store->add_meshes(session, batch);
+    ASSERT_FALSE(ids.ok());
+    EXPECT_NE(ids.error().message.find("no space left"), std::string::npos) << ids.error().message;
+    EXPECT_EQ(store->meshes(session)->size(), 1u);
+  }
+  EXPECT_EQ(files(), before);
+  auto store = SessionStore::open(dir.path);
+  ASSERT_TRUE(store.ok());
+  EXPECT_EQ(store->orphans_removed(), 0);
+  auto ids = store->add_meshes(session, batch);  // with space again
+  ASSERT_TRUE(ids.ok()) << ids.error().message;
+  EXPECT_EQ(ids->size(), 5u);
+  EXPECT_EQ(store->meshes(session)->size(), 6u);
+  EXPECT_TRUE(store->verify()->ok());
 }
 
 // The figures behind full_fit_options() (docs/sync.md): booth, the host with the booth's

@@ -209,7 +209,7 @@ Result<BuiltModel> build_from_sessions(const FaceModel& face_model, const Sessio
       {"sessions", list->used},         {"sessions_without_rig", list->skipped},
       {"identities", identities},       {"expressions", static_cast<int>(names.size())},
       {"id_knobs", o.id_knobs},         {"exp_knobs", built->truncated.exp_knobs},
-      {"rig_reads", built->rig_reads}};
+      {"rig_reads", built->rig_reads},  {"rig_read_s", built->read_s}};
   if (o.in_memory) {
     b.info["tensor"] = "dense, in memory";
   } else {

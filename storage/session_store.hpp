@@ -176,6 +176,13 @@ struct MeshInfo {
   int triangle_count = 0;
 };
 
+struct MeshInput {
+  std::optional<int> capture_index;
+  MeshRole role = MeshRole::kFitted;
+  std::string name;
+  MeshData mesh;
+};
+
 struct RigInfo {
   RigId id = 0;
   SubjectId subject = 0;
@@ -319,6 +326,8 @@ class SessionStore {
   // --- meshes, rigs, models, takes
   Result<MeshId> add_mesh(SessionId session, std::optional<int> capture_index, MeshRole role,
                           const std::string& name, const MeshData& mesh);
+  // Several meshes of a session in one durable step (all or none), e.g. a session's refit.
+  Result<std::vector<MeshId>> add_meshes(SessionId session, const std::vector<MeshInput>& meshes);
   Result<std::vector<MeshInfo>> meshes(SessionId session) const;
   Result<MeshData> read_mesh(MeshId id) const;
 
@@ -341,7 +350,9 @@ class SessionStore {
 
   Result<RigId> add_rig(SubjectId subject, std::optional<SessionId> session, const RigData& rig);
   Result<std::vector<RigInfo>> rigs(SubjectId subject) const;  // newest first
-  Result<RigData> read_rig(RigId id) const;
+  // Checks the file's SHA-256 unless `verify_sha256` is false: for a caller reading the same
+  // rig again in one run after a verified read (model build's passes); the size is checked.
+  Result<RigData> read_rig(RigId id, bool verify_sha256 = true) const;
   // Which rig serves a session, the one rule for exports, model building, tracking and the
   // device: the newest rig built from this session, else the subject's newest rig (built from
   // another of their sessions, imported, or saved by `track --save-rig`). RigInfo::session says

@@ -217,12 +217,15 @@ struct SessionStore::Impl {
   }
 
   // Reads a committed data file and checks its size and SHA-256 against the database.
-  Result<std::vector<std::uint8_t>> load_file(std::int64_t file_id) const {
+  // `verify`: the SHA-256 as well as the size (a caller re-reading a file it has verified in
+  // this run may skip the hash).
+  Result<std::vector<std::uint8_t>> load_file(std::int64_t file_id, bool verify = true) const {
     auto f = data_file(file_id);
     if (!f) return f.failure();
     auto data = read_file_bytes(f->path);
     if (!data) return data.failure();
-    if (data->size() != f->bytes || sha256_hex(*data) != f->sha256) return fail(damaged(*f));
+    if (data->size() != f->bytes || (verify && sha256_hex(*data) != f->sha256))
+      return fail(damaged(*f));
     return data;
   }
 

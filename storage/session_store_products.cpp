@@ -23,39 +23,60 @@ Result<void> check_mesh(const MeshData& mesh, const std::string& what) {
 Result<MeshId> SessionStore::add_mesh(SessionId session, std::optional<int> capture_index,
                                       MeshRole role, const std::string& name,
                                       const MeshData& mesh) {
+  auto ids = add_meshes(session, {MeshInput{capture_index, role, name, mesh}});
+  if (!ids) return ids.failure();
+  return ids->front();
+}
+
+Result<std::vector<MeshId>> SessionStore::add_meshes(SessionId session,
+                                                     const std::vector<MeshInput>& meshes) {
   if (auto r = impl_->require_writer(); !r) return r.failure();
-  if (auto r = check_mesh(mesh, "mesh '" + name + "'"); !r) return r.failure();
+  if (meshes.empty()) return fail("no meshes to add");
+  for (const auto& m : meshes)
+    if (auto r = check_mesh(m.mesh, "mesh '" + m.name + "'"); !r) return r.failure();
   auto folder = impl_->session_folder(session);
   if (!folder) return folder.failure();
-  ByteWriter w;
-  w.put_magic(kMeshMagic);
-  w.put(static_cast<std::uint32_t>(mesh.vertex_count()));
-  w.put(static_cast<std::uint32_t>(mesh.triangle_count()));
-  w.put_span(std::span<const float>(mesh.positions));
-  w.put_span(std::span<const std::uint32_t>(mesh.triangles));
-  auto file = impl_->write_data_file(*folder, "mesh.fbmsh", w.bytes);
-  if (!file) return file.failure();
+  std::vector<Impl::StoredFile> files;
+  for (const auto& m : meshes) {
+    ByteWriter w;
+    w.put_magic(kMeshMagic);
+    w.put(static_cast<std::uint32_t>(m.mesh.vertex_count()));
+    w.put(static_cast<std::uint32_t>(m.mesh.triangle_count()));
+    w.put_span(std::span<const float>(m.mesh.positions));
+    w.put_span(std::span<const std::uint32_t>(m.mesh.triangles));
+    auto file = impl_->write_data_file(*folder, "mesh.fbmsh", w.bytes);
+    if (!file) {
+      impl_->discard(files);
+      return file.failure();
+    }
+    files.push_back(std::move(*file));
+  }
   sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<MeshId> {
+  // Every file is durable before the one commit: a crash leaves all of the meshes or none.
+  auto insert = [&]() -> Result<std::vector<MeshId>> {
     auto tx = sql::Transaction::begin(db);
     if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO meshes(session_id, capture_idx, role, name, "
-                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(session,
-                   capture_index ? std::optional<std::int64_t>(*capture_index) : std::nullopt,
-                   to_string(role), name, mesh.vertex_count(), mesh.triangle_count(), *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const MeshId mesh_id = sqlite3_last_insert_rowid(db);
+    std::vector<MeshId> ids;
+    for (std::size_t k = 0; k < meshes.size(); ++k) {
+      const MeshInput& m = meshes[k];
+      auto id = impl_->insert_file_row(files[k]);
+      if (!id) return id.failure();
+      auto stmt = sql::prepare(db,
+                               "INSERT INTO meshes(session_id, capture_idx, role, name, "
+                               "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?,?)");
+      if (!stmt) return stmt.failure();
+      stmt->bind_all(
+          session, m.capture_index ? std::optional<std::int64_t>(*m.capture_index) : std::nullopt,
+          to_string(m.role), m.name, m.mesh.vertex_count(), m.mesh.triangle_count(), *id);
+      if (auto r = stmt->run(); !r) return r.failure();
+      ids.push_back(sqlite3_last_insert_rowid(db));
+    }
     if (auto r = tx->commit(); !r) return r.failure();
-    return mesh_id;
+    return ids;
   };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
+  auto ids = insert();
+  if (!ids) impl_->discard(files);
+  return ids;
 }
 
 Result<std::vector<MeshInfo>> SessionStore::meshes(SessionId session) const {
@@ -186,7 +207,7 @@ Result<std::optional<RigInfo>> SessionStore::rig_for(SessionId session) const {
   return std::optional<RigInfo>(std::move(all->front()));
 }
 
-Result<RigData> SessionStore::read_rig(RigId id) const {
+Result<RigData> SessionStore::read_rig(RigId id, bool verify_sha256) const {
   auto stmt =
       sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");
   if (!stmt) return stmt.failure();
@@ -196,7 +217,7 @@ Result<RigData> SessionStore::read_rig(RigId id) const {
   if (!*row) return fail("there is no rig " + std::to_string(id) + " in this store");
   RigData rig;
   rig.shape_names = names_from_json(stmt->text(1));
-  auto bytes = impl_->load_file(stmt->int64(0));
+  auto bytes = impl_->load_file(stmt->int64(0), verify_sha256);
   if (!bytes) return bytes.failure();
   if (!decode_rig(*bytes, rig))
     return fail("the file of rig " + std::to_string(id) + " is malformed");

@@ -63,28 +63,38 @@ void copy_spectra(const ModeFactors& f, TruncatedTensor& out, int id_knobs, int 
 
 }  // namespace
 
+ModeFactors factors_from_grams(const Eigen::MatrixXd& identity_gram,
+                               const Eigen::MatrixXd& expression_gram) {
+  ModeFactors f;
+  sorted_eigen(identity_gram, f.identity, f.identity_spectrum);
+  sorted_eigen(expression_gram, f.expression, f.expression_spectrum);
+  return f;
+}
+
 Result<ModeFactors> mode_factors(const DataTensor& t) {
   if (auto ok = check(t); !ok) return ok.failure();
   const int n_id = t.identities, n_exp = t.expressions;
   const Eigen::Index rows = t.rows;
   Eigen::MatrixXd g_id = Eigen::MatrixXd::Zero(n_id, n_id);
   Eigen::MatrixXd g_exp = Eigen::MatrixXd::Zero(n_exp, n_exp);
-  // Float products (the GEMM speed), accumulated per slice block in double.
-  Eigen::MatrixXf block;
+  // Double products: the uncentred Gram is dominated by the mean face (the trailing
+  // eigenvalues are ~1e-4 of the first), so float round-off there moved the truncated model by
+  // ~0.01 mm between two float summation orders (docs/sync.md).
+  Eigen::MatrixXd slice;
   for (int e = 0; e < n_exp; ++e) {
-    const Eigen::Map<const Eigen::MatrixXf> te(
-        t.data.data() + static_cast<std::size_t>(e) * n_id * rows, rows, n_id);
-    block.setZero(n_id, n_id);
-    block.selfadjointView<Eigen::Lower>().rankUpdate(te.transpose());
-    g_id += block.selfadjointView<Eigen::Lower>().toDenseMatrix().cast<double>();
+    slice = Eigen::Map<const Eigen::MatrixXf>(
+                t.data.data() + static_cast<std::size_t>(e) * n_id * rows, rows, n_id)
+                .cast<double>();
+    g_id.selfadjointView<Eigen::Lower>().rankUpdate(slice.transpose());
   }
+  g_id = g_id.selfadjointView<Eigen::Lower>();
   // Mode 3: M = the (rows * I) x E unfolding; one identity's rows at a time.
   const Eigen::Map<const Eigen::MatrixXf> m(t.data.data(), rows * n_id, n_exp);
   for (int i = 0; i < n_id; ++i) {
-    block.setZero(n_exp, n_exp);
-    block.selfadjointView<Eigen::Lower>().rankUpdate(m.middleRows(i * rows, rows).transpose());
-    g_exp += block.selfadjointView<Eigen::Lower>().toDenseMatrix().cast<double>();
+    slice = m.middleRows(i * rows, rows).cast<double>();
+    g_exp.selfadjointView<Eigen::Lower>().rankUpdate(slice.transpose());
   }
+  g_exp = g_exp.selfadjointView<Eigen::Lower>();
   ModeFactors f;
   sorted_eigen(g_id, f.identity, f.identity_spectrum);
   sorted_eigen(g_exp, f.expression, f.expression_spectrum);

@@ -63,6 +63,10 @@ struct TruncatedTensor {
 };
 
 Result<ModeFactors> mode_factors(const DataTensor& tensor);
+// The factors of given Gram matrices (what mode_factors computes them from; the streaming
+// build accumulates them itself, streaming_decomposition.hpp).
+ModeFactors factors_from_grams(const Eigen::MatrixXd& identity_gram,
+                               const Eigen::MatrixXd& expression_gram);
 Result<ModeFactors> mode_factors(const FactoredTensor& tensor);
 
 // Core of the truncation to (id_knobs, exp_knobs). Errors on knobs out of 1..identities /

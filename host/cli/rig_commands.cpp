@@ -28,6 +28,8 @@
 #include "host/cli/progress.hpp"
 #include "host/cli/rig_session.hpp"
 #include "host/cli/rig_support.hpp"
+#include "host/cli/session_model_build.hpp"
+#include "host/cli/session_refit.hpp"
 #include "host/cli/stats.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
@@ -168,6 +170,34 @@ nlohmann::json residual_json(const RigResult& rig, const std::vector<std::string
 // ---------------------------------------------------------------------------------------------
 // facebooth rig
 
+// --refit: the session's captures fitted again with the host's settings, stored, summarised.
+Result<nlohmann::json> run_refit(SessionStore& store, SessionId session, const FaceModel& model,
+                                 const GuideSet& guide) {
+  RefitOptions ro = full_fit_options();
+  std::optional<Progress> bar;
+  ro.progress = [&bar](int done, int total) {
+    if (!bar) bar.emplace("refit: captures", total);
+    bar->update(done);
+  };
+  std::cerr << "refit: session " << session << ", full fit (PCA + Laplacian refinement)\n";
+  auto report = refit_session(store, session, model, guide, ro);
+  bar.reset();
+  if (!report) return report.failure();
+  nlohmann::json per = nlohmann::json::array();
+  for (const auto& c : report->captures)
+    per.push_back({{"capture", c.index},
+                   {"expression", c.expression},
+                   {"mesh_id", c.mesh},
+                   {"supersedes_mesh_id", c.previous_mesh},
+                   {"rms_to_depth_mm", c.rms_to_depth_mm},
+                   {"landmark_error_mm", c.landmark_error_mm},
+                   {"fit_ms", c.fit_ms}});
+  nlohmann::json j = {
+      {"captures", per}, {"skipped", report->skipped}, {"refit_s", report->seconds}};
+  if (!report->calibration_note.empty()) j["calibration_note"] = report->calibration_note;
+  return j;
+}
+
 int run_rig(const ParsedOptions& options) {
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
@@ -183,8 +213,11 @@ int run_rig(const ParsedOptions& options) {
         {"give either --store DIR --session ID (a stored, fitted session) or --synthetic SEED "
          "(a synthetic subject's exact guide meshes)"});
   if (save && store_dir.empty()) return report_failure({"--save needs --store"});
+  const bool refit = options.flag("refit");
+  if (refit && store_dir.empty()) return report_failure({"--refit needs --store and --session"});
 
   SessionExamples ex;
+  nlohmann::json refit_json;
   std::optional<SessionStore> store;
   SessionId session = 0;
   if (!store_dir.empty()) {
@@ -192,11 +225,16 @@ int run_rig(const ParsedOptions& options) {
     if (!sid || *sid <= 0) return report_failure({"--session ID is required with --store"});
     session = *sid;
     StoreOptions so;
-    so.read_only = !save;
+    so.read_only = !save && !refit;
     so.create = false;
     auto opened = SessionStore::open(store_dir, so);
     if (!opened) return report_failure(opened.error());
     store.emplace(std::move(*opened));
+    if (refit) {
+      auto done = run_refit(*store, session, *model, *guide);
+      if (!done) return report_failure(done.error());
+      refit_json = std::move(*done);
+    }
     auto loaded =
         load_session_examples(*store, session, *model, *guide, options.flag("allow-missing"));
     if (!loaded) return report_failure(loaded.error());
@@ -224,6 +262,7 @@ int run_rig(const ParsedOptions& options) {
   const RigData& data = rigged->data;
 
   nlohmann::json out;
+  if (refit) out["refit"] = refit_json;
   out["examples"] = ex.names.size();
   out["missing"] = ex.missing;
   out["blendshapes"] = data.shape_count();
@@ -281,97 +320,6 @@ double energy_kept(const std::vector<float>& spectrum, int knobs) {
   return all > 0 ? kept / all : NAN;
 }
 
-Result<BuiltModel> build_from_sessions(const FaceModel& face_model, const std::string& store_dir,
-                                       const std::string& session_list, int id_knobs,
-                                       int exp_knobs) {
-  StoreOptions so;
-  so.read_only = true;
-  so.create = false;
-  auto store = SessionStore::open(store_dir, so);
-  if (!store) return store.failure();
-  std::vector<SessionId> wanted;
-  if (session_list.empty() || session_list == "all") {
-    auto all = store->sessions();
-    if (!all) return all.failure();
-    for (const auto& s : *all) wanted.push_back(s.id);
-  } else {
-    std::stringstream ss(session_list);
-    std::string item;
-    while (std::getline(ss, item, ',')) {
-      try {
-        wanted.push_back(std::stoll(item));
-      } catch (...) {
-        return fail("--sessions: '" + item + "' is not a session id (give ids like 1,2,5 or all)");
-      }
-    }
-  }
-  const auto t0 = Clock::now();
-  std::vector<RigData> rigs;
-  std::vector<SessionId> used, skipped;
-  for (SessionId sid : wanted) {
-    auto info = store->session(sid);
-    if (!info) return info.failure();
-    auto serving = store->rig_for(sid);
-    if (!serving) return serving.failure();
-    // The rig serving the session, unless another session of the subject built it (that
-    // session counts it; a subject is one identity of the tensor, not one per session).
-    if (!*serving || ((*serving)->session && *(*serving)->session != sid)) {
-      skipped.push_back(sid);
-      continue;
-    }
-    auto rig = store->read_rig((*serving)->id);
-    if (!rig) return rig.failure();
-    if (!rigs.empty() && (rig->vertex_count() != rigs.front().vertex_count() ||
-                          rig->shape_names != rigs.front().shape_names))
-      return fail("session " + std::to_string(sid) +
-                  ": its rig has another vertex count or other blendshapes than the first rig; "
-                  "a tensor needs the same topology and shapes for every subject");
-    rigs.push_back(std::move(*rig));
-    used.push_back(sid);
-  }
-  if (rigs.size() < 2)
-    return fail("model build: " + std::to_string(rigs.size()) +
-                " rigged session(s) found; a tensor needs at least 2 (rig sessions with "
-                "`facebooth rig --store DIR --session ID --save`)");
-  DataTensor t;
-  t.rows = 3 * rigs.front().vertex_count();
-  t.identities = static_cast<int>(rigs.size());
-  t.expressions = 1 + rigs.front().shape_count();
-  t.data.resize(static_cast<std::size_t>(t.rows) * t.identities * t.expressions);
-  for (int e = 0; e < t.expressions; ++e)
-    for (int i = 0; i < t.identities; ++i) {
-      const auto& rig = rigs[static_cast<std::size_t>(i)];
-      const auto& src = e == 0 ? rig.neutral : rig.shapes[static_cast<std::size_t>(e - 1)];
-      std::copy(src.begin(), src.end(),
-                t.data.begin() + (static_cast<std::ptrdiff_t>(e) * t.identities + i) * t.rows);
-    }
-  if (id_knobs > t.identities)
-    return fail("model build: only " + std::to_string(t.identities) +
-                " rigged subjects; pass --id-knobs " + std::to_string(t.identities) + " or fewer");
-  auto factors = mode_factors(t);
-  if (!factors) return factors.failure();
-  auto truncated = truncate(t, *factors, id_knobs, std::min(exp_knobs, t.expressions));
-  if (!truncated) return fail("model build: " + truncated.error().message);
-  std::vector<std::string> names{"neutral"};
-  for (const auto& n : rigs.front().shape_names) names.push_back(n);
-  BuiltModel b;
-  b.info = {{"source", "session store rigs"},
-            {"store", std::filesystem::absolute(store_dir).string()},
-            {"sessions", used},
-            {"sessions_without_rig", skipped},
-            {"identities", t.identities},
-            {"expressions", t.expressions},
-            {"id_knobs", id_knobs},
-            {"exp_knobs", truncated->exp_knobs},
-            {"tensor", "dense"}};
-  FaceModel topology = face_model;
-  topology.triangles =
-      rigs.front().triangles.empty() ? face_model.triangles : rigs.front().triangles;
-  b.model = make_bilinear_model(*truncated, topology, names, b.info.dump());
-  b.build_s = seconds_since(t0);
-  return b;
-}
-
 Result<void> write_model(const BilinearModel& model, const std::filesystem::path& path,
                          nlohmann::json& out) {
   const auto t0 = Clock::now();
@@ -405,12 +353,20 @@ int run_model_build(const ParsedOptions& options) {
   if (!face_model) return report_failure(face_model.error());
   std::cerr << "model build: " << (from_model ? "bootstrap from the face model" : "from sessions")
             << "...\n";
+  SessionModelOptions so;
+  so.store = options.get("store");
+  so.sessions = options.get("sessions");
+  so.id_knobs = static_cast<int>(*id_knobs);
+  so.exp_knobs = static_cast<int>(*exp_knobs);
+  so.in_memory = options.flag("in-memory");
+  auto memory_mb = options.get_int("memory-mb");
+  if (!memory_mb || *memory_mb < 16) return report_failure({"--memory-mb takes an integer >= 16"});
+  so.memory_mb = static_cast<std::size_t>(*memory_mb);
   Result<BuiltModel> built =
       from_model ? build_from_face_model(*face_model, static_cast<int>(*identities),
                                          static_cast<std::uint64_t>(*seed),
                                          static_cast<int>(*id_knobs), static_cast<int>(*exp_knobs))
-                 : build_from_sessions(*face_model, options.get("store"), options.get("sessions"),
-                                       static_cast<int>(*id_knobs), static_cast<int>(*exp_knobs));
+                 : build_from_sessions(*face_model, so);
   if (!built) return report_failure(built.error());
   nlohmann::json out = built->info;
   out["model_build_s"] = built->build_s;
@@ -442,6 +398,10 @@ std::vector<Command> rig_commands() {
        "weights) and residuals.f32 (examples x vertices, mm)",
        ""},
       {"save", "", "store the rig in --store (subject of the session)", ""},
+      {"refit", "",
+       "first fit every capture again from its stored fused depth and landmarks with the "
+       "host's full settings (the booth's fits are kept but superseded), then rig from those",
+       ""},
       guide_opt};
   for (const auto& o : rig_option_specs()) rig_opts.push_back(o);
   return {
@@ -457,11 +417,21 @@ std::vector<Command> rig_commands() {
         "--from-face-model: bootstrap tensor from the face model (--identities random "
         "identities x 54 expressions, kept factored). --from-sessions: the rigs stored for "
         "sessions of --store (the newest rig made from each session, or the subject's newest rig "
-        "without a session, as imports store them; sessions without a rig are skipped and listed). "
+        "without a session, as imports store them; sessions without a rig are skipped and listed), "
+        "streamed from disk one subject at a time (Gram matrices accumulated, the tensor never "
+        "held: ceil(subjects / panel) passes over the rigs plus one for the core). "
         "N-mode SVD without factoring the vertex mode, truncated to "
         "--id-knobs x --exp-knobs. File layout: algo/bilinear/README.md.",
         {{"from-face-model", "", "bootstrap from the face model", ""},
-         {"from-sessions", "", "stack the rigs of stored sessions", ""},
+         {"from-sessions", "", "the rigs of stored sessions, streamed", ""},
+         {"in-memory", "",
+          "with --from-sessions: stack every rig in one dense tensor instead of streaming "
+          "(the reference build; 7.3 MB a subject)",
+          ""},
+         {"memory-mb", "MB",
+          "with --from-sessions: memory for the subjects held at once while streaming (7.3 MB "
+          "each; more = fewer passes over the store)",
+          "1024"},
          {"store", "DIR", "session store (with --from-sessions)", ""},
          {"sessions", "LIST", "session ids, comma-separated, or all", "all"},
          {"identities", "N", "sampled identities (with --from-face-model)", "150"},

@@ -19,6 +19,7 @@ std::vector<Command> soak_bench_commands();             // bench soak
 std::vector<Command> sync_bench_commands();             // bench sync (bench_sync.cpp)
 std::vector<Command> rig_eval_commands();               // eval rig, eval model
 Command bench_rig_command();                            // rig_bench.cpp
+Command bench_model_command();                          // bench_model.cpp
 std::vector<Command> self_calibration_eval_commands();  // eval self-calibration, bench calibration
 std::vector<Command> calibration_eval_commands();       // eval calibration
 std::vector<Command> texture_eval_commands();           // eval texture

@@ -32,10 +32,10 @@ int main(int argc, char** argv) {
        {bench_camera_commands(), fusion_commands(), fit_commands(),
         std::vector<Command>{eval_track_command(), bench_track_command()}, storage_eval_commands(),
         daemon_bench_commands(), soak_bench_commands(), sync_bench_commands(), rig_eval_commands(),
-        std::vector<Command>{bench_rig_command()}, self_calibration_eval_commands(),
-        calibration_eval_commands(), texture_eval_commands(), transfer_eval_commands(),
-        std::vector<Command>{bench_transfer_command()}, wrinkles_eval_commands(),
-        wrinkle_render_commands(), tracking_commands(&truth_landmarks)}) {
+        std::vector<Command>{bench_rig_command(), bench_model_command()},
+        self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
+        transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
+        wrinkles_eval_commands(), wrinkle_render_commands(), tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth-lab",

@@ -397,7 +397,9 @@ void Daemon::Impl::gpio_loop() {
 void Daemon::Impl::worker_loop() {
   last_watchdog = Clock::now() - std::chrono::hours(1);
   auto last_preview = Clock::now() - std::chrono::hours(1);
-  while (!stopping) {
+  // Leaves only through the stopping branch below, so a stop that arrives while a tracking
+  // frame is processed still stores the take (a `while (!stopping)` lost it).
+  while (true) {
     watchdog_ping();
     check_wall_clock();
     std::optional<QueuedInput> input;

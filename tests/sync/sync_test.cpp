@@ -9,6 +9,7 @@
 #include "storage/bundle_import.hpp"
 #include "storage/session_store.hpp"
 #include "storage/sha256.hpp"
+#include "tests/common/bundle_writer.hpp"
 #include "tests/sync/booth_process.hpp"
 
 namespace fb {
@@ -376,63 +377,10 @@ TEST_F(SyncTest, WatchPicksUpASessionCompletedWhileItRuns) {
 
 // ------------------------------------------------------------------ refused bundles
 
-std::string tar_entry(const std::string& name, const std::string& content, char type = '0') {
-  char h[512] = {};
-  std::snprintf(h, 100, "%s", name.c_str());
-  std::snprintf(h + 100, 8, "%07o", 0644);
-  std::snprintf(h + 108, 8, "%07o", 0);
-  std::snprintf(h + 116, 8, "%07o", 0);
-  std::snprintf(h + 124, 12, "%011llo", static_cast<unsigned long long>(content.size()));
-  std::snprintf(h + 136, 12, "%011o", 0);
-  std::memset(h + 148, ' ', 8);
-  h[156] = type;
-  if (type == '2') std::snprintf(h + 157, 100, "%s", "/etc/passwd");
-  std::memcpy(h + 257, "ustar", 6);
-  std::memcpy(h + 263, "00", 2);
-  unsigned sum = 0;
-  for (unsigned char c : h) sum += c;
-  std::snprintf(h + 148, 8, "%06o", sum);
-  h[155] = ' ';
-  std::string out(h, 512);
-  out += content;
-  out.append((512 - content.size() % 512) % 512, '\0');
-  return out;
-}
-
-std::string sha(const std::string& s) {
-  return sha256_hex(std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
-}
-
-// A bundle of `files` (name in the archive, manifest path, content) whose manifest lists
-// `listed` with the digest of `digest_of`.
-struct BundleFile {
-  std::string archive_name;
-  std::string content;
-  std::string manifest_path;  // empty: not listed
-  std::string digest_content;
-  char type = '0';
-};
-std::string bundle(const std::vector<BundleFile>& files) {
-  json list = json::array();
-  std::string tar;
-  for (const auto& f : files) {
-    tar += tar_entry(f.archive_name, f.content, f.type);
-    if (!f.manifest_path.empty())
-      list.push_back({{"path", f.manifest_path},
-                      {"bytes", f.digest_content.size()},
-                      {"sha256", sha(f.digest_content)}});
-  }
-  tar += tar_entry("session-1/manifest.json", json({{"files", list}}).dump());
-  return tar + std::string(1024, '\0');
-}
-
-const std::string kSessionJson = json({{"format", "facebooth-session-bundle"},
-                                       {"version", 3},
-                                       {"session", 1},
-                                       {"subject", "x"},
-                                       {"subject_id", 1},
-                                       {"captures", json::array()}})
-                                     .dump();
+using test::bundle;
+using test::BundleFile;
+using test::tar_entry;
+const std::string kSessionJson = test::session_json();
 
 // A booth that serves one session whose bundle is `tar`.
 class FakeBooth {

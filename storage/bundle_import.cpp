@@ -150,6 +150,27 @@ struct BundleFiles {
   }
 };
 
+// A member of a JSON object, or null when it is absent or the value is no object. (The const
+// operator[] on a missing key is undefined behaviour, the non-const one throws on a non-object:
+// a hostile bundle must meet neither; fuzzing found the first.)
+const json& member(const json& object, const char* key) {
+  static const json kAbsent;  // immutable
+  if (!object.is_object()) return kAbsent;
+  const auto it = object.find(key);
+  return it == object.end() ? kAbsent : *it;
+}
+
+// A string or integer member, or `otherwise` when absent or of another type (json::value throws
+// on a present value of the wrong type).
+std::string text_member(const json& object, const char* key, const std::string& otherwise) {
+  const json& v = member(object, key);
+  return v.is_string() ? v.get<std::string>() : otherwise;
+}
+int int_member(const json& object, const char* key, int otherwise) {
+  const json& v = member(object, key);
+  return v.is_number_integer() ? v.get<int>() : otherwise;
+}
+
 Result<json> parse_json(std::span<const std::uint8_t> bytes, const std::string& name) {
   auto j = json::parse(bytes.begin(), bytes.end(), nullptr, false);
   if (j.is_discarded() || !j.is_object()) return fail(name + " is not a JSON object");
@@ -172,21 +193,22 @@ Result<BundleFiles> checked_files(std::span<const std::uint8_t> archive) {
   if (manifest_bytes == b.files.end()) return fail("the bundle has no manifest.json");
   auto manifest = parse_json(manifest_bytes->second, "the bundle's manifest.json");
   if (!manifest) return manifest.failure();
-  if (!(*manifest)["files"].is_array()) return fail("the bundle's manifest.json lists no files");
+  if (!member(*manifest, "files").is_array())
+    return fail("the bundle's manifest.json lists no files");
   std::set<std::string> listed = {"manifest.json"};
-  for (const auto& f : (*manifest)["files"]) {
-    if (!f.is_object() || !f["path"].is_string() || !f["bytes"].is_number_unsigned() ||
-        !f["sha256"].is_string())
+  for (const auto& f : member(*manifest, "files")) {
+    if (!f.is_object() || !member(f, "path").is_string() ||
+        !member(f, "bytes").is_number_unsigned() || !member(f, "sha256").is_string())
       return fail("the bundle's manifest.json has a malformed entry: " + f.dump());
-    const std::string path = f["path"].get<std::string>();
+    const std::string path = member(f, "path").get<std::string>();
     if (const std::string why = unsafe_name(path); !why.empty())
       return refused(path, "listed in the manifest with " + why);
     auto it = b.files.find(path);
     if (it == b.files.end())
       return fail("the bundle lacks '" + path +
                   "', which its manifest lists: refused; nothing was written");
-    if (it->second.size() != f["bytes"].get<std::uint64_t>() ||
-        sha256_hex(it->second) != f["sha256"].get<std::string>())
+    if (it->second.size() != member(f, "bytes").get<std::uint64_t>() ||
+        sha256_hex(it->second) != member(f, "sha256").get<std::string>())
       return fail("the bundle's file '" + path +
                   "' does not match the SHA-256 (or size) in the booth's manifest: damaged in "
                   "transfer or altered; refused, nothing was written (sync again; if it "
@@ -222,18 +244,18 @@ Result<std::vector<Landmark>> decode_landmarks(std::span<const std::uint8_t> byt
                                                const std::string& name, LandmarkSource& source) {
   auto doc = parse_json(bytes, name);
   if (!doc) return doc.failure();
-  source = (*doc).value("source", "") == "operator" ? LandmarkSource::kOperator
-                                                    : LandmarkSource::kAutomatic;
+  source = text_member(*doc, "source", "") == "operator" ? LandmarkSource::kOperator
+                                                         : LandmarkSource::kAutomatic;
   std::vector<Landmark> out;
-  if (!(*doc)["points"].is_array()) return fail(name + " has no points");
-  for (const auto& p : (*doc)["points"]) {
-    if (!p.is_object() || !p["u"].is_number() || !p["v"].is_number())
+  if (!member(*doc, "points").is_array()) return fail(name + " has no points");
+  for (const auto& p : member(*doc, "points")) {
+    if (!p.is_object() || !member(p, "u").is_number() || !member(p, "v").is_number())
       return fail(name + " has a point without u and v");
     Landmark l;
-    l.u = p["u"].get<float>();
-    l.v = p["v"].get<float>();
+    l.u = member(p, "u").get<float>();
+    l.v = member(p, "v").get<float>();
     if (p.contains("xyz_mm")) {
-      const auto& x = p["xyz_mm"];
+      const auto& x = member(p, "xyz_mm");
       if (!x.is_array() || x.size() != 3 || !x[0].is_number() || !x[1].is_number() ||
           !x[2].is_number())
         return fail(name + " has a malformed xyz_mm");
@@ -250,52 +272,53 @@ Result<std::vector<Landmark>> decode_landmarks(std::span<const std::uint8_t> byt
 Result<ImportedCapture> decode_capture(const BundleFiles& b, const json& c, std::size_t i) {
   ImportedCapture out;
   const std::string what = "session.json: capture " + std::to_string(i);
-  if (!c.is_object() || !c["index"].is_number_integer() || !c["expression"].is_string() ||
-      !c["state"].is_string())
+  if (!c.is_object() || !member(c, "index").is_number_integer() ||
+      !member(c, "expression").is_string() || !member(c, "state").is_string())
     return fail(what + " is malformed");
-  out.index = c["index"].get<int>();
-  out.expression = c["expression"].get<std::string>();
-  const std::string state = c["state"].get<std::string>();
+  out.index = member(c, "index").get<int>();
+  out.expression = member(c, "expression").get<std::string>();
+  const std::string state = member(c, "state").get<std::string>();
   out.state = state == "done"        ? CaptureState::kDone
               : state == "rejected"  ? CaptureState::kRejected
               : state == "capturing" ? CaptureState::kCapturing
                                      : CaptureState::kPending;
-  out.attempts = c.value("attempts", 0);
-  if (c["qa"].is_object())
-    for (const auto& [k, v] : c["qa"].items())
+  out.attempts = int_member(c, "attempts", 0);
+  if (member(c, "qa").is_object())
+    for (const auto& [k, v] : member(c, "qa").items())
       if (v.is_number()) out.qa_scores[k] = v.get<double>();
   if (out.state != CaptureState::kDone) return out;
   // The frontal colour frame stands for the take (the booth keeps the head-turn sequence).
-  auto color = b.get(c["color"], "the colour frame of " + out.expression);
+  auto color = b.get(member(c, "color"), "the colour frame of " + out.expression);
   if (!color) return color.failure();
   auto image = decode_png(std::vector<std::uint8_t>(color->begin(), color->end()));
   if (!image) return fail("the colour frame of " + out.expression + ": " + image.error().message);
   out.frames.emplace_back();
   out.frames.back().color = std::move(*image);
   if (c.contains("fused_depth")) {
-    auto bytes = b.get(c["fused_depth"], "the fused depth of " + out.expression);
+    auto bytes = b.get(member(c, "fused_depth"), "the fused depth of " + out.expression);
     if (!bytes) return bytes.failure();
-    auto depth = decode_pgm16(*bytes, c["fused_depth"].get<std::string>());
+    auto depth = decode_pgm16(*bytes, member(c, "fused_depth").get<std::string>());
     if (!depth) return depth.failure();
     out.fused_depth = std::move(*depth);
   }
   if (c.contains("landmarks")) {
-    auto bytes = b.get(c["landmarks"], "the landmarks of " + out.expression);
+    auto bytes = b.get(member(c, "landmarks"), "the landmarks of " + out.expression);
     if (!bytes) return bytes.failure();
-    auto points = decode_landmarks(*bytes, c["landmarks"].get<std::string>(), out.landmark_source);
+    auto points =
+        decode_landmarks(*bytes, member(c, "landmarks").get<std::string>(), out.landmark_source);
     if (!points) return points.failure();
     out.landmarks = std::move(*points);
   }
   if (c.contains("mesh")) {
-    auto bytes = b.get(c["mesh"], "the mesh of " + out.expression);
+    auto bytes = b.get(member(c, "mesh"), "the mesh of " + out.expression);
     if (!bytes) return bytes.failure();
     auto mesh =
         parse_obj(std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()),
-                  c["mesh"].get<std::string>());
+                  member(c, "mesh").get<std::string>());
     if (!mesh) return mesh.failure();
     out.mesh = std::move(mesh->mesh);
     out.mesh_role =
-        c.value("mesh_role", "fitted") == "neutral" ? MeshRole::kNeutral : MeshRole::kFitted;
+        text_member(c, "mesh_role", "fitted") == "neutral" ? MeshRole::kNeutral : MeshRole::kFitted;
   }
   return out;
 }
@@ -311,24 +334,25 @@ Result<SessionImport> read_session_bundle(std::span<const std::uint8_t> archive,
   auto doc = parse_json(session_bytes->second, "the bundle's session.json");
   if (!doc) return doc.failure();
   const json& s = *doc;
-  if (s.value("format", "") != "facebooth-session-bundle" || !s["session"].is_number_integer() ||
-      !s["subject_id"].is_number_integer() || !s["captures"].is_array())
+  if (text_member(s, "format", "") != "facebooth-session-bundle" ||
+      !member(s, "session").is_number_integer() || !member(s, "subject_id").is_number_integer() ||
+      !member(s, "captures").is_array())
     return fail("the bundle's session.json is not a facebooth session bundle");
   SessionImport out;
   out.booth = booth;
-  out.origin_session = s["session"].get<std::int64_t>();
-  out.origin_subject = s["subject_id"].get<std::int64_t>();
-  out.subject_name = s.value("subject", "");
+  out.origin_session = member(s, "session").get<std::int64_t>();
+  out.origin_subject = member(s, "subject_id").get<std::int64_t>();
+  out.subject_name = text_member(s, "subject", "");
   if (expected_session > 0 && out.origin_session != expected_session)
     return fail("the bundle holds session " + std::to_string(out.origin_session) +
                 ", not the session " + std::to_string(expected_session) + " asked for");
   if (s.contains("calibration")) {
-    auto bytes = b->get(s["calibration"], "the calibration");
+    auto bytes = b->get(member(s, "calibration"), "the calibration");
     if (!bytes) return bytes.failure();
     out.calibration_json.assign(reinterpret_cast<const char*>(bytes->data()), bytes->size());
   }
-  for (std::size_t i = 0; i < s["captures"].size(); ++i) {
-    auto c = decode_capture(*b, s["captures"][i], i);
+  for (std::size_t i = 0; i < member(s, "captures").size(); ++i) {
+    auto c = decode_capture(*b, member(s, "captures")[i], i);
     if (!c)
       return fail("session " + std::to_string(out.origin_session) + " of booth " + booth + ": " +
                   c.error().message);

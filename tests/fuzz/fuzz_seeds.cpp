@@ -15,6 +15,7 @@
 #include "storage/data_codec.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/export/mesh_files.hpp"
+#include "tests/common/bundle_writer.hpp"
 #include "tests/common/tiny_face_model.hpp"
 
 namespace {
@@ -174,6 +175,27 @@ void facewarehouse(Corpus c) {
   c.add('\2', std::string(reinterpret_cast<const char*>(&n), 4) + bs + obj);
 }
 
+// Bundles a booth serves: a plain listing, a whole bundle with a capture, its session.json.
+void bundles(Corpus c) {
+  using fb::test::bundle;
+  c.add('\0', fb::test::tar_entry("session-1/a.txt", "abc") + std::string(1024, '\0'));
+  const std::string mesh = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  const std::string landmarks = R"({"source": "dlib", "points": [{"index": 0, "u": 1, "v": 2}]})";
+  const std::string session = fb::test::session_json(nlohmann::json::array(
+      {{{"index", 0}, {"expression", "neutral"}, {"state", "pending"}, {"attempts", 1}},
+       {{"index", 1},
+        {"expression", "smile"},
+        {"state", "rejected"},
+        {"qa", {{"coverage", 0.9}}},
+        {"mesh", "m.obj"},
+        {"landmarks", "l.json"}}}));
+  c.add('\1', bundle({{"session-1/session.json", session, "session.json", session},
+                      {"session-1/m.obj", mesh, "m.obj", mesh},
+                      {"session-1/l.json", landmarks, "l.json", landmarks}}));
+  c.add('\2', session);
+  c.add('\2', fb::test::session_json());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -209,5 +231,6 @@ int main(int argc, char** argv) {
   corpus("daemon_config_fuzz").add(fb::to_toml(fb::default_daemon_config()));
   http(corpus("http_requests_fuzz"));
   store_files(corpus("store_files_fuzz"));
+  bundles(corpus("bundle_fuzz"));
   return 0;
 }

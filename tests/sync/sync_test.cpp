@@ -10,6 +10,7 @@
 #include "storage/session_store.hpp"
 #include "storage/sha256.hpp"
 #include "tests/common/bundle_writer.hpp"
+#include "tests/fuzz/regression_input.hpp"
 #include "tests/sync/booth_process.hpp"
 
 namespace fb {
@@ -490,6 +491,39 @@ TEST(BundleImport, ListTarRefusesWhatCouldLandOutsideTheFolder) {
   ASSERT_FALSE(read);
   EXPECT_NE(read.error().message.find("not listed in the bundle's manifest"), std::string::npos)
       << read.error().message;
+}
+
+// A session.json a hostile or broken booth could send: members missing or of the wrong type are
+// refused with the reason, never read out of bounds or thrown past the caller (bundle_fuzz found
+// the first: tests/fuzz/regressions/bundle_fuzz/).
+TEST(BundleImport, MalformedSessionJsonIsRefusedNotMisread) {
+  const std::string found_by_fuzzing =
+      test::fuzz_regression("bundle_fuzz", "session_json_without_session_id", true);
+  const std::string cases[] = {
+      found_by_fuzzing,
+      R"({"format": 7, "session": 1, "subject_id": 1, "captures": []})",
+      R"({"format": "facebooth-session-bundle", "session": 1, "subject_id": 1, "captures": [],
+          "subject": 5})",
+      R"({"format": "facebooth-session-bundle", "session": 1, "subject_id": 1,
+          "captures": [{"index": 0, "expression": "n", "state": "pending", "attempts": "x"}]})",
+      R"({"format": "facebooth-session-bundle", "session": 1, "subject_id": 1,
+          "captures": [{"index": 0, "expression": "n", "state": "done"}]})",
+      R"({"format": "facebooth-session-bundle", "session": 1, "subject_id": 1, "captures": [7]})",
+  };
+  int refused = 0;
+  for (const auto& session : cases) {
+    const std::string tar = bundle({{"session-1/session.json", session, "session.json", session}});
+    auto read = read_session_bundle(
+        std::span(reinterpret_cast<const std::uint8_t*>(tar.data()), tar.size()), "b", 0);
+    if (!read) {
+      ++refused;
+      EXPECT_NE(read.error().message.find("session"), std::string::npos) << read.error().message;
+    }
+  }
+  // The fuzzer's input lacks "session", the 2nd has a numeric format, the 5th a done capture
+  // without its colour frame, the 6th a capture that is no object: refused. A numeric subject
+  // name and attempts are read as absent: accepted.
+  EXPECT_EQ(refused, 4);
 }
 
 }  // namespace

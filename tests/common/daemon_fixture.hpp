@@ -1,7 +1,8 @@
 // The in-process daemon tests' common ground: a temporary data directory named after the test
 // with a short guide (a whole session takes about a second), a quick daemon configuration, the
 // daemon made without signal handling, and a wait on its status (bounded only against hangs:
-// never a timing check). Used by tests/daemon and tests/faults.
+// never a timing check), the store's consistency after a fault. Used by tests/daemon and
+// tests/faults.
 #pragma once
 
 #include <unistd.h>
@@ -17,6 +18,8 @@
 
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/daemon_config.hpp"
+#include "storage/durable_file.hpp"
+#include "storage/session_store.hpp"
 
 namespace fb::test {
 
@@ -71,6 +74,25 @@ class DaemonFixture : public ::testing::Test {
     }
     ADD_FAILURE() << "condition never held; last status " << d.status().dump();
     return d.status();
+  }
+
+  // The store as `facebooth store info --verify` sees it (read-only).
+  Result<SessionStore> open_store() const {
+    StoreOptions ro;
+    ro.read_only = true;
+    return SessionStore::open(dir_ / "data" / "store", ro);
+  }
+  // The store verifies and no partial (temporary) file is left anywhere in the data folder.
+  void expect_store_consistent() const {
+    auto store = open_store();
+    ASSERT_TRUE(store) << store.error().message;
+    auto report = store->verify();
+    ASSERT_TRUE(report) << report.error().message;
+    EXPECT_TRUE(report->ok()) << report->integrity << " " << report->problems.size();
+    for (const auto& e : std::filesystem::recursive_directory_iterator(dir_ / "data")) {
+      const std::string name = e.path().filename().string();
+      EXPECT_NE(name.rfind(kDurableTempPrefix, 0), 0u) << "partial file left: " << e.path();
+    }
   }
 
   std::filesystem::path dir_;

@@ -117,19 +117,6 @@ class DaemonSigterm : public test::DaemonFixture {
     EXPECT_TRUE(p->wait_until([](auto& s) { return s["ready"] == true; }));
     return p;
   }
-  void expect_store_consistent() {
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
-    ASSERT_TRUE(store) << store.error().message;
-    auto report = store->verify();
-    ASSERT_TRUE(report) << report.error().message;
-    EXPECT_TRUE(report->ok()) << report->integrity << " " << report->problems.size();
-    for (const auto& e : fs::recursive_directory_iterator(dir_ / "data")) {
-      const std::string name = e.path().filename().string();
-      EXPECT_NE(name.rfind(kDurableTempPrefix, 0), 0u) << "partial file left: " << e.path();
-    }
-  }
 };
 
 // SIGTERM during a take: the committed capture stays, the interrupted one is recorded again.
@@ -204,9 +191,7 @@ TEST_F(DaemonSigterm, EachOtherPhaseStopsCleanlyAndTheNextStartGoesOn) {
     expect_store_consistent();
   }
   {
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
+    auto store = open_store();
     ASSERT_TRUE(store);
     auto sessions = store->sessions();
     ASSERT_TRUE(sessions);
@@ -223,9 +208,7 @@ TEST_F(DaemonSigterm, EachOtherPhaseStopsCleanlyAndTheNextStartGoesOn) {
     }));
     EXPECT_EQ(p->terminate(), 0) << "tracking";
     expect_store_consistent();
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
+    auto store = open_store();
     ASSERT_TRUE(store);
     auto subjects = store->subjects();
     ASSERT_TRUE(subjects);

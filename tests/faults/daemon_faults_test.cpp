@@ -37,20 +37,6 @@ class DaemonFaults : public test::DaemonFixture {
       {"id": 1, "name": "smile", "label": "Smile", "weights": {"mouthSmile_L": 0.8, "mouthSmile_R": 0.8}}]})") {
   }
 
-  // The store as `facebooth store info --verify` sees it, and every leftover temporary file.
-  void expect_store_consistent() {
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
-    ASSERT_TRUE(store) << store.error().message;
-    auto report = store->verify();
-    ASSERT_TRUE(report) << report.error().message;
-    EXPECT_TRUE(report->ok()) << report->integrity << " " << report->problems.size();
-    for (const auto& e : fs::recursive_directory_iterator(dir_ / "data")) {
-      const std::string name = e.path().filename().string();
-      EXPECT_NE(name.rfind(kDurableTempPrefix, 0), 0u) << "partial file left: " << e.path();
-    }
-  }
   // Runs the real faceboothd headless with `env` before it; returns its exit code, stderr in
   // `log`.
   int run_headless(const std::string& env, std::string& log) {
@@ -118,9 +104,7 @@ TEST_F(DaemonFaults, FullDiskDuringCaptureCommitLosesNothingAndResumes) {
   EXPECT_NE(log.find("free space"), std::string::npos) << log;
   expect_store_consistent();
   {
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
+    auto store = open_store();
     ASSERT_TRUE(store);
     auto sessions = store->sessions();
     ASSERT_TRUE(sessions);
@@ -131,9 +115,7 @@ TEST_F(DaemonFaults, FullDiskDuringCaptureCommitLosesNothingAndResumes) {
   // Space again: the same session is resumed and completed.
   EXPECT_EQ(run_headless("", log), 0) << log;
   expect_store_consistent();
-  StoreOptions ro;
-  ro.read_only = true;
-  auto store = SessionStore::open(dir_ / "data" / "store", ro);
+  auto store = open_store();
   ASSERT_TRUE(store);
   auto sessions = store->sessions();
   ASSERT_TRUE(sessions);
@@ -163,9 +145,7 @@ TEST_F(DaemonFaults, FullDiskDuringExportPublishesNothingAndKeepsTheSession) {
   // The session itself is complete and stored; with space again it exports.
   std::int64_t session = 0;
   {
-    StoreOptions ro;
-    ro.read_only = true;
-    auto store = SessionStore::open(dir_ / "data" / "store", ro);
+    auto store = open_store();
     ASSERT_TRUE(store);
     auto sessions = store->sessions();
     ASSERT_TRUE(sessions);
@@ -193,9 +173,7 @@ TEST_F(DaemonFaults, WallClockSetMidSessionIsReportedAndChangesNothing) {
   ASSERT_EQ(run_headless(clock + "86400", log), 0) << log;
   EXPECT_NE(log.find("the wall clock was set forward by 86400 s"), std::string::npos) << log;
   expect_store_consistent();
-  StoreOptions ro;
-  ro.read_only = true;
-  auto store = SessionStore::open(dir_ / "data" / "store", ro);
+  auto store = open_store();
   ASSERT_TRUE(store);
   auto sessions = store->sessions();
   ASSERT_TRUE(sessions);

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -86,6 +87,18 @@ Result<void> track_interval(httplib::Client& http, int seconds) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return fail("faceboothd did not come back from tracking mode to idle within 10 s");
+}
+
+// Descriptors that stay: the fewest open over 1 s (ten looks). One look alone counts what is in
+// flight at that moment (the load clients' connections, an export's files) and varied by +-2
+// between sessions; a leak stays in every look.
+int lasting_fds(pid_t pid) {
+  int fewest = open_fds(pid);
+  for (int i = 0; i < 9; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    fewest = std::min(fewest, open_fds(pid));
+  }
+  return fewest;
 }
 
 Result<SoakSettings> soak_settings(const ParsedOptions& o) {
@@ -209,7 +222,7 @@ int bench_soak(const ParsedOptions& o) {
     s.session = i;
     s.seconds = ms_since(soak_t0) / 1000.0;
     s.rss_mb = rss_mb(pid, "VmRSS:");
-    s.fds = open_fds(pid);
+    s.fds = lasting_fds(pid);
     s.threads = thread_count(pid);
     const auto bytes = folder_bytes(dir / "data");
     s.disk_mb = bytes ? static_cast<double>(*bytes) / (1024.0 * 1024.0) : -1.0;

@@ -613,14 +613,18 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
             block[3 * static_cast<std::size_t>(depth_set[slot]) + d];
   }
   std::array<int, kFitLandmarkCount> lm_verts{};
-  for (int round = 0; round < o.rounds; ++round) {
+  const int max_rounds = std::max(o.rounds, o.max_rounds);
+  int rounds_run = 0;
+  for (int round = 0; round < max_rounds; ++round) {
+    rounds_run = round + 1;
     for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
     model.evaluate(coeffs, {}, mesh);
     const Points v = to_points(mesh);
     const Points x = posed(v, r, t);
     const Points vn = vertex_normals(x, model.triangles);
     lm_verts = landmark_vertices(model, target, x);
-    const double f = o.rounds > 1 ? static_cast<double>(round) / (o.rounds - 1) : 1.0;
+    const double f =
+        o.rounds > 1 ? std::min(1.0, static_cast<double>(round) / (o.rounds - 1)) : 1.0;
     const double gate = o.max_distance_mm + f * (o.final_distance_mm - o.max_distance_mm);
 
     // Rows: 3 per interior landmark, 2 per contour landmark, 1 per depth correspondence; each
@@ -718,6 +722,10 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     if (angle > 0) r = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * r;
     t += d.segment<3>(3);
     c += d.tail(m);
+    const bool settled = (m == 0 || d.tail(m).cwiseAbs().maxCoeff() < o.settled_coeff) &&
+                         d.segment<3>(3).norm() < o.settled_mm &&
+                         angle * 100.0 < o.settled_mm;  // ~100 mm lever arm
+    if (round + 1 >= o.rounds && settled) break;
   }
   for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
   model.evaluate(coeffs, {}, mesh);
@@ -743,6 +751,7 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     landmark_residuals(target, x, out.landmark_vertex, out.landmark_residual_mm);
   }
   out.identity_coeffs = coeffs;
+  out.rounds = rounds_run;
   out.times.initial_ms = initial_ms;
   return out;
 }

@@ -98,7 +98,12 @@ struct NeutralFitOptions {
   double w_pos = 0.5;
   double w_coef = 1.0;
   double landmark_huber_mm = 3.0;  // Huber loss on landmark residuals (robust to wrong points)
-  int rounds = 7;                  // least-squares rounds (paper: 5-8)
+  int rounds = 7;                  // rounds over which the depth gate shrinks (paper: 5-8)
+  // Then more rounds at the final gate until the step settles: a face far from the mean
+  // (identity modes past 3 sigma) is still moving after the schedule (docs/tuning.md).
+  int max_rounds = 20;
+  double settled_coeff = 0.01;     // largest identity-coefficient step (sigma units) ...
+  double settled_mm = 0.02;        // ... and translation step that count as settled
   int identity_modes = 100;        // leading modes used (<= model.identity_count)
   int depth_vertex_stride = 2;     // every k-th fitting vertex takes part in Epos in step 1
   double max_distance_mm = 15.0;   // depth gate of the first round, shrinking to
@@ -129,6 +134,7 @@ struct FitResult {
   std::vector<float> initial_vertices;
   RigidPose camera_from_model;
   std::vector<float> identity_coeffs;  // sigma units (neutral fits; empty for expressions)
+  int rounds = 0;                      // least-squares rounds of the PCA step (neutral fits)
   // Per-vertex point-to-plane distance to the depth map, mm (signed: + in front of the
   // surface); NaN where the vertex has no valid correspondence. For the final and the
   // initial mesh.

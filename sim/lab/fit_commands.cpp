@@ -7,6 +7,7 @@
 // depth + normals -> landmarks (ground-truth colour points + Gaussian pixel noise, lifted with
 // the registration and the fused depth) -> neutral fit / deformation transfer + refinement.
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -177,6 +178,38 @@ struct FitEvalSetup {
   UnitCalibration unit_calibration = UnitCalibration::kSelfCalibrated;
 };
 
+nlohmann::json vertex_error_json(const VertexErrorParts& p) {
+  return {{"mean_offset_mm", {p.mean_offset_mm.x(), p.mean_offset_mm.y(), p.mean_offset_mm.z()}},
+          {"after_translation_mm", p.after_translation_mm},
+          {"after_rigid_mm", p.after_rigid_mm},
+          {"rigid_rotation_deg", p.rigid_rotation_deg},
+          {"normal_mm", p.normal_mm},
+          {"tangential_mm", p.tangential_mm}};
+}
+
+// dlib's error by landmark group (iBUG 68): the mean error length and the length of the mean
+// error vector (what all captures share: a convention, not noise), px, averaged over the group.
+nlohmann::json landmark_group_errors(const std::array<Eigen::Vector2d, 68>& bias_sum,
+                                     const std::array<double, 68>& len_sum, int n) {
+  if (n == 0) return nullptr;
+  const std::array<std::pair<const char*, std::pair<int, int>>, 5> groups{{{"contour", {0, 16}},
+                                                                           {"brows", {17, 26}},
+                                                                           {"nose", {27, 35}},
+                                                                           {"eyes", {36, 47}},
+                                                                           {"mouth", {48, 67}}}};
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& [name, range] : groups) {
+    double len = 0, bias = 0;
+    for (int l = range.first; l <= range.second; ++l) {
+      len += len_sum[static_cast<std::size_t>(l)] / n;
+      bias += (bias_sum[static_cast<std::size_t>(l)] / n).norm();
+    }
+    const int count = range.second - range.first + 1;
+    out[name] = {{"error_px", len / count}, {"bias_px", bias / count}};
+  }
+  return out;
+}
+
 Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEvalSetup& setup,
                                      const std::string& world) {
   const FaceModel* model = setup.model;
@@ -199,6 +232,11 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
       lm_err_interior, lm_detect_fail, neutral_ms, expr_ms, lm_ms_track, lm_ms_full, lift_err;
   int detections = 0, detection_attempts = 0, fit_dlib_found = 0, fit_dlib_attempts = 0;
   Samples fit_dlib_err;
+  // dlib's error per landmark over the captures: the mean vector (bias: a convention the model's
+  // landmark vertices do not share) and the mean length (bias + scatter).
+  std::array<Eigen::Vector2d, 68> dlib_bias_sum;
+  dlib_bias_sum.fill(Eigen::Vector2d::Zero());
+  std::array<double, 68> dlib_len_sum{};
   nlohmann::json per_subject = nlohmann::json::array();
   nlohmann::json per_expression = nlohmann::json::object();
   std::map<int, Samples> expr_err;
@@ -259,10 +297,13 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         ++fit_dlib_found;
         fit_points.assign(found->points.begin(), found->points.end());
         double sum = 0;
-        for (int l = 0; l < 68; ++l)
-          sum += (fit_points[static_cast<std::size_t>(l)] -
-                  cap->truth_color_px[static_cast<std::size_t>(l)])
-                     .norm();
+        for (int l = 0; l < 68; ++l) {
+          const Eigen::Vector2d d = fit_points[static_cast<std::size_t>(l)] -
+                                    cap->truth_color_px[static_cast<std::size_t>(l)];
+          sum += d.norm();
+          dlib_bias_sum[static_cast<std::size_t>(l)] += d;
+          dlib_len_sum[static_cast<std::size_t>(l)] += d.norm();
+        }
         fit_dlib_err.add(sum / 68);
         j["fit_landmark_error_px"] = sum / 68;
       }
@@ -323,7 +364,18 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         j["rms_to_depth_mm"] = neutral.rms_to_depth_mm;
         j["vertex_error_mm_initial"] = vi;
         j["vertex_error_mm"] = vr;
+        const VertexErrorParts parts =
+            vertex_error_parts(neutral.vertices, neutral.camera_from_model, cap->truth_mesh,
+                               cap->truth_pose, model->fitting_vertices, model->triangles);
+        j["vertex_error_parts"] = vertex_error_json(parts);
+        std::fprintf(stderr,
+                     "  neutral: offset %.2f %.2f %.2f mm; error less the offset %.2f mm, less "
+                     "a rigid motion %.2f mm (%.2f deg); along the normal %.2f, across %.2f mm\n",
+                     parts.mean_offset_mm.x(), parts.mean_offset_mm.y(), parts.mean_offset_mm.z(),
+                     parts.after_translation_mm, parts.after_rigid_mm, parts.rigid_rotation_deg,
+                     parts.normal_mm, parts.tangential_mm);
         j["fit_ms"] = neutral.times.total_ms();
+        j["fit_rounds"] = neutral.rounds;
         std::fprintf(stderr,
                      "  neutral: RMS to depth %s -> %s mm, vertex error %s -> %s mm, %.0f ms\n",
                      figure_text(neutral.rms_to_depth_mm_initial, 3).c_str(),
@@ -461,6 +513,8 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         fit_dlib_err.empty() ? nlohmann::json(nullptr) : nlohmann::json(fit_dlib_err.mean());
     out["fit_landmark_detections"] =
         std::to_string(fit_dlib_found) + "/" + std::to_string(fit_dlib_attempts);
+    out["fit_landmark_error_by_group"] =
+        landmark_group_errors(dlib_bias_sum, dlib_len_sum, fit_dlib_found);
   }
   out["expressions"] = expressions->size();
   out["frames_per_capture"] = *frames;

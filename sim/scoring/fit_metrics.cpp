@@ -1,6 +1,10 @@
 #include "sim/scoring/fit_metrics.hpp"
 
+#include <cmath>
+
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 
 namespace fb::cli {
 
@@ -34,6 +38,72 @@ void append_vertex_distances(std::span<const float> a, const RigidPose& pose_a,
         (pose_a.apply({a[i], a[i + 1], a[i + 2]}) - pose_b.apply({b[i], b[i + 1], b[i + 2]}))
             .norm());
   }
+}
+
+VertexErrorParts vertex_error_parts(std::span<const float> fitted, const RigidPose& pose_fitted,
+                                    std::span<const float> truth, const RigidPose& pose_truth,
+                                    std::span<const std::uint32_t> subset,
+                                    std::span<const std::uint32_t> triangles) {
+  VertexErrorParts out;
+  if (!triangles.empty()) {  // area-weighted normals of the posed truth
+    const std::size_t n = truth.size() / 3;
+    std::vector<Eigen::Vector3d> p(n), nrm(n, Eigen::Vector3d::Zero());
+    for (std::size_t i = 0; i < n; ++i)
+      p[i] = pose_truth.apply({truth[3 * i], truth[3 * i + 1], truth[3 * i + 2]});
+    for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
+      const Eigen::Vector3d f =
+          (p[triangles[t + 1]] - p[triangles[t]]).cross(p[triangles[t + 2]] - p[triangles[t]]);
+      for (int k = 0; k < 3; ++k) nrm[triangles[t + static_cast<std::size_t>(k)]] += f;
+    }
+    double sn = 0, st = 0;
+    int count = 0;
+    for (std::uint32_t v : subset) {
+      const std::size_t i = 3 * static_cast<std::size_t>(v);
+      if (v >= n || i + 2 >= fitted.size() || nrm[v].norm() == 0) continue;
+      const Eigen::Vector3d e = pose_fitted.apply({fitted[i], fitted[i + 1], fitted[i + 2]}) - p[v];
+      const Eigen::Vector3d u = nrm[v].normalized();
+      sn += std::abs(e.dot(u));
+      st += (e - e.dot(u) * u).norm();
+      ++count;
+    }
+    if (count) {
+      out.normal_mm = sn / count;
+      out.tangential_mm = st / count;
+    }
+  }
+  std::vector<Eigen::Vector3d> a, b;
+  for (std::uint32_t v : subset) {
+    const std::size_t i = 3 * static_cast<std::size_t>(v);
+    if (i + 2 >= fitted.size() || i + 2 >= truth.size()) continue;
+    a.push_back(pose_fitted.apply({fitted[i], fitted[i + 1], fitted[i + 2]}));
+    b.push_back(pose_truth.apply({truth[i], truth[i + 1], truth[i + 2]}));
+  }
+  if (a.empty()) return out;
+  Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ca += a[k];
+    cb += b[k];
+  }
+  ca /= static_cast<double>(a.size());
+  cb /= static_cast<double>(b.size());
+  out.mean_offset_mm = ca - cb;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  double moved = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    moved += ((a[k] - ca) - (b[k] - cb)).norm();
+    cov += (a[k] - ca) * (b[k] - cb).transpose();
+  }
+  out.after_translation_mm = moved / static_cast<double>(a.size());
+  // Kabsch: the rotation taking the fitted shape onto the truth's.
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0) d(2, 2) = -1;
+  const Eigen::Matrix3d r = svd.matrixV() * d * svd.matrixU().transpose();
+  double rigid = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) rigid += (r * (a[k] - ca) - (b[k] - cb)).norm();
+  out.after_rigid_mm = rigid / static_cast<double>(a.size());
+  out.rigid_rotation_deg = Eigen::AngleAxisd(r).angle() * 180.0 / M_PI;
+  return out;
 }
 
 }  // namespace fb::cli

@@ -26,6 +26,7 @@
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
+#include "firmware/daemon/fit_worker.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
@@ -180,15 +181,11 @@ struct Daemon::Impl {
   CaptureCommit pending_commit;
   CaptureView pending_view;  // frontal colour + fused surface of the last take
 
-  // --- landmarks + quick fit (daemon_pipeline.cpp): a fit thread with a job queue, so the
-  // fit never blocks the frame loop or the HTTP threads.
+  // --- landmarks + quick fit (daemon_pipeline.cpp), run by the fit worker (fit_worker below)
+  // so the fit never blocks the frame loop or the HTTP threads.
   std::unique_ptr<QuickFitter> fitter;  // fit thread only (model() is immutable: any thread)
   std::string fitter_error;             // why there is no fitter (config off, model missing)
-  std::thread fit_thread;
-  std::mutex fit_mutex;
-  std::condition_variable fit_cv;
-  std::deque<std::function<void(bool run)>> fit_jobs;  // run = false: discarded at stop
-  struct LastCapture {                                 // fit thread only
+  struct LastCapture {                  // fit thread only
     std::int64_t session = 0;
     int index = -1;
     bool committed = false;
@@ -283,8 +280,6 @@ struct Daemon::Impl {
   void loop_preview_camera();
   // daemon_pipeline.cpp
   Result<void> start_fitter();
-  void fit_loop();
-  void post_fit_job(std::function<void(bool run)> job);
   void process_capture(std::int64_t session, int index, QaReport qa, CaptureCommit commit,
                        CaptureView view, bool run);
   void publish_qa_capture(const LastCapture& c);
@@ -350,6 +345,8 @@ struct Daemon::Impl {
   LedPattern led_pattern(KioskState state) const;
   void refresh_led();
 
+  // Near the end: its jobs use the members above, so it is joined before they are destroyed.
+  FitWorker fit_worker;
   // Last: its checker thread calls back into the members above, so it is destroyed first.
   std::unique_ptr<RegistrationHealth> health;
 };

@@ -1,5 +1,5 @@
-// The daemon's processing after a take (landmarks, quick fit, QA, commit) on its fit thread,
-// the operator's landmark corrections, and tracking mode (on the frame loop).
+// The daemon's processing after a take (landmarks, quick fit, QA, commit) on the fit worker
+// (fit_worker.hpp), the operator's landmark corrections, and tracking mode (on the frame loop).
 //
 // Threads: the worker (frame loop + state machine) hands a recorded take to the fit thread and
 // keeps running; the fit thread posts the outcome (qa_passed / last_done / qa_failed, tagged with
@@ -55,7 +55,7 @@ Result<void> Daemon::Impl::start_fitter() {
   take_detector.emplace(fitter->share_landmark_detector());
   take_proportions = face_proportions(fitter->model());
   // Tracking after a restart uses the newest session's stored neutral.
-  post_fit_job([this](bool run) {
+  fit_worker.post([this](bool run) {
     if (!run) return;
     std::int64_t newest = 0;
     {
@@ -65,35 +65,6 @@ Result<void> Daemon::Impl::start_fitter() {
     if (newest > 0) ensure_session_neutral(newest);
   });
   return success();
-}
-
-void Daemon::Impl::post_fit_job(std::function<void(bool run)> job) {
-  {
-    std::lock_guard lock(fit_mutex);
-    fit_jobs.push_back(std::move(job));
-  }
-  fit_cv.notify_all();
-}
-
-void Daemon::Impl::fit_loop() {
-  while (true) {
-    std::function<void(bool)> job;
-    {
-      std::unique_lock lock(fit_mutex);
-      fit_cv.wait(lock, [&] { return !fit_jobs.empty() || stopping.load(); });
-      if (stopping) {
-        // Discard what is queued (each job learns it was not run: promises are answered).
-        auto jobs = std::move(fit_jobs);
-        fit_jobs.clear();
-        lock.unlock();
-        for (auto& j : jobs) j(false);
-        return;
-      }
-      job = std::move(fit_jobs.front());
-      fit_jobs.pop_front();
-    }
-    job(true);
-  }
 }
 
 void Daemon::Impl::ensure_session_neutral(std::int64_t session) {
@@ -282,7 +253,7 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
   if (!fitter) return fail("landmarks are off: " + fitter_error);
   auto promise = std::make_shared<std::promise<Result<nlohmann::json>>>();
   auto future = promise->get_future();
-  post_fit_job([this, promise, session, index, corrections](bool run) {
+  fit_worker.post([this, promise, session, index, corrections](bool run) {
     auto answer = [&]() -> Result<nlohmann::json> {
       if (!run) return fail("the daemon is stopping");
       if (!last_capture || last_capture->session != session || last_capture->index != index)

@@ -169,7 +169,7 @@ void Daemon::request_stop() {
   impl_->queue_cv.notify_all();
   impl_->status_cv.notify_all();
   impl_->fit_worker.request_stop();
-  impl_->live_cv.notify_all();
+  impl_->tracking.live().wake_all();
 }
 
 void Daemon::stop() {
@@ -179,7 +179,7 @@ void Daemon::stop() {
   d.queue_cv.notify_all();
   d.status_cv.notify_all();
   d.fit_worker.request_stop();
-  d.live_cv.notify_all();
+  d.tracking.live().wake_all();
   const auto t0 = Clock::now();
   if (d.http) d.http->stop();
   if (d.worker_thread.joinable()) d.worker_thread.join();
@@ -420,7 +420,7 @@ void Daemon::Impl::worker_loop() {
       }
     }
     if (stopping) {
-      if (tracker) stop_tracking();  // the take so far is stored, not lost
+      if (this->tracking.active()) stop_tracking();  // the take so far is stored, not lost
       if (job) job(false);
       break;
     }

@@ -7,11 +7,7 @@
 namespace fb::http {
 
 void get_tracking_live(Daemon::Impl& d, const Request&, Response& res) {
-  std::string body;
-  {
-    std::lock_guard lock(d.live_mutex);
-    body = d.live_json;
-  }
+  const std::string body = d.tracking.live().latest();
   if (body.empty()) return send_error(res, 404, "no tracked frame yet (switch to tracking mode)");
   res.set_header("Cache-Control", "no-store");
   res.set_content(body, "application/json");
@@ -23,19 +19,11 @@ void get_tracking_events(Daemon::Impl& d, const Request&, Response& res) {
   res.set_chunked_content_provider(
       "text/event-stream", [&d, seen](size_t, httplib::DataSink& sink) {
         if (d.stopping) return false;
-        std::string msg;
-        {
-          std::unique_lock lock(d.live_mutex);
-          d.live_cv.wait_for(lock, std::chrono::milliseconds(250),
-                             [&] { return d.live_version != *seen || d.stopping.load(); });
-          if (d.stopping) return false;
-          if (d.live_version == *seen) {
-            msg = ": keep-alive\n\n";
-          } else {
-            *seen = d.live_version;
-            msg = "event: face\ndata: " + d.live_json + "\n\n";
-          }
-        }
+        const std::string json =
+            d.tracking.live().wait_newer(*seen, std::chrono::milliseconds(250), d.stopping);
+        if (d.stopping) return false;
+        const std::string msg =
+            json.empty() ? ": keep-alive\n\n" : "event: face\ndata: " + json + "\n\n";
         // At most ~15 events/s per client: the page draws bars, not every frame.
         std::this_thread::sleep_for(std::chrono::milliseconds(60));
         return sink.write(msg.data(), msg.size());

@@ -404,9 +404,9 @@ void Daemon::Impl::worker_loop() {
       std::lock_guard lock(status_mutex);
       state = status.state;
     }
-    const bool tracking = state == KioskState::kTracking;
+    const bool in_tracking = state == KioskState::kTracking;
     auto wait = std::chrono::milliseconds(100);
-    if (tracking) wait = std::chrono::milliseconds(1);
+    if (in_tracking) wait = std::chrono::milliseconds(1);
     {
       std::unique_lock lock(queue_mutex);
       queue_cv.wait_for(lock, wait,
@@ -420,7 +420,7 @@ void Daemon::Impl::worker_loop() {
       }
     }
     if (stopping) {
-      if (this->tracking.active()) stop_tracking();  // the take so far is stored, not lost
+      if (tracking.active()) stop_tracking();  // the take so far is stored, not lost
       if (job) job(false);
       break;
     }
@@ -433,7 +433,7 @@ void Daemon::Impl::worker_loop() {
       continue;
     }
     maybe_auto_calibrate(state);
-    if (tracking) {
+    if (in_tracking) {
       tracking_tick();
     } else if (config.camera.preview_fps > 0 &&
                ms_since(last_preview) >= 1000.0 / config.camera.preview_fps) {

@@ -119,10 +119,7 @@ Result<void> Daemon::start() {
   if (d.started.exchange(true)) return success();
   d.refresh_led();
   d.worker_thread = std::thread([&d] { d.worker_loop(); });
-  d.fit_thread = std::thread([&d] {
-    run_in_background();
-    d.fit_loop();
-  });
+  d.fit_worker.start();
   d.gpio_thread = std::thread([&d] { d.gpio_loop(); });
   if (d.http) {
     d.http_thread = std::thread([&d] {
@@ -171,9 +168,8 @@ void Daemon::request_stop() {
   [[maybe_unused]] auto n = ::write(impl_->wake_fd.get(), &one, sizeof one);
   impl_->queue_cv.notify_all();
   impl_->status_cv.notify_all();
-  { std::lock_guard lock(impl_->fit_mutex); }
-  impl_->fit_cv.notify_all();
-  impl_->live_cv.notify_all();
+  impl_->fit_worker.request_stop();
+  impl_->tracking.live().wake_all();
 }
 
 void Daemon::stop() {
@@ -182,14 +178,13 @@ void Daemon::stop() {
   if (d.started) sd_notify(0, "STOPPING=1");
   d.queue_cv.notify_all();
   d.status_cv.notify_all();
-  {
-    std::lock_guard lock(d.fit_mutex);  // the fit thread checks `stopping` under this lock
-  }
-  d.fit_cv.notify_all();
-  d.live_cv.notify_all();
+  d.fit_worker.request_stop();
+  d.tracking.live().wake_all();
   const auto t0 = Clock::now();
   if (d.http) d.http->stop();
-  for (auto* t : {&d.worker_thread, &d.fit_thread, &d.gpio_thread, &d.http_thread})
+  if (d.worker_thread.joinable()) d.worker_thread.join();
+  d.fit_worker.join();
+  for (auto* t : {&d.gpio_thread, &d.http_thread})
     if (t->joinable()) t->join();
   d.drain_worker_jobs();  // a calibration request still waiting is answered
   if (d.preview_camera) d.preview_camera->stop();
@@ -409,9 +404,9 @@ void Daemon::Impl::worker_loop() {
       std::lock_guard lock(status_mutex);
       state = status.state;
     }
-    const bool tracking = state == KioskState::kTracking;
+    const bool in_tracking = state == KioskState::kTracking;
     auto wait = std::chrono::milliseconds(100);
-    if (tracking) wait = std::chrono::milliseconds(1);
+    if (in_tracking) wait = std::chrono::milliseconds(1);
     {
       std::unique_lock lock(queue_mutex);
       queue_cv.wait_for(lock, wait,
@@ -425,7 +420,7 @@ void Daemon::Impl::worker_loop() {
       }
     }
     if (stopping) {
-      if (tracker) stop_tracking();  // the take so far is stored, not lost
+      if (tracking.active()) stop_tracking();  // the take so far is stored, not lost
       if (job) job(false);
       break;
     }
@@ -438,7 +433,7 @@ void Daemon::Impl::worker_loop() {
       continue;
     }
     maybe_auto_calibrate(state);
-    if (tracking) {
+    if (in_tracking) {
       tracking_tick();
     } else if (config.camera.preview_fps > 0 &&
                ms_since(last_preview) >= 1000.0 / config.camera.preview_fps) {
@@ -607,7 +602,7 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       pending_commit = {};
       pending_view = {};
       update_status([](StatusData& s) { s.message = "Checking the capture (landmarks, fit)..."; });
-      post_fit_job([this, session, index, qa = pending_qa, commit, view](bool run) {
+      fit_worker.post([this, session, index, qa = pending_qa, commit, view](bool run) {
         process_capture(session, index, qa, std::move(*commit), std::move(*view), run);
       });
       return in.input;

@@ -1,4 +1,7 @@
-// Private: the daemon's state shared by daemon.cpp (worker, signals) and http_api.cpp.
+// Private: the daemon's state shared by daemon.cpp (worker, signals), the pipeline and the HTTP
+// handlers (http_routes.hpp). Its rooms have their own headers and locks: the fit worker
+// (fit_worker.hpp) and tracking mode (tracking_mode.hpp); the status is a snapshot the worker
+// and the fit worker publish (update_status) and everyone else copies (status_json).
 #pragma once
 
 #include <sys/eventfd.h>
@@ -19,19 +22,16 @@
 #include "algo/fusion/face_fusion.hpp"
 #include "algo/fusion/view_consistency.hpp"
 #include "algo/landmarks/face_region_box.hpp"
-#include "algo/tracking/arkit.hpp"
-#include "algo/tracking/detected_landmarks.hpp"
-#include "algo/tracking/face_tracker.hpp"
-#include "algo/tracking/occlusion_report.hpp"
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
 #include "firmware/daemon/daemon.hpp"
+#include "firmware/daemon/fit_worker.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
 #include "firmware/daemon/take_fusion.hpp"
+#include "firmware/daemon/tracking_mode.hpp"
 #include "firmware/daemon/wall_clock_watch.hpp"
-#include "firmware/streaming/vmc_sender.hpp"
 
 // After every Eigen header: httplib pulls in <resolv.h>, whose `_res` macro breaks Eigen.
 #include <httplib.h>
@@ -180,15 +180,11 @@ struct Daemon::Impl {
   CaptureCommit pending_commit;
   CaptureView pending_view;  // frontal colour + fused surface of the last take
 
-  // --- landmarks + quick fit (daemon_pipeline.cpp): a fit thread with a job queue, so the
-  // fit never blocks the frame loop or the HTTP threads.
+  // --- landmarks + quick fit (daemon_pipeline.cpp), run by the fit worker (fit_worker below)
+  // so the fit never blocks the frame loop or the HTTP threads.
   std::unique_ptr<QuickFitter> fitter;  // fit thread only (model() is immutable: any thread)
   std::string fitter_error;             // why there is no fitter (config off, model missing)
-  std::thread fit_thread;
-  std::mutex fit_mutex;
-  std::condition_variable fit_cv;
-  std::deque<std::function<void(bool run)>> fit_jobs;  // run = false: discarded at stop
-  struct LastCapture {                                 // fit thread only
+  struct LastCapture {                  // fit thread only
     std::int64_t session = 0;
     int index = -1;
     bool committed = false;
@@ -205,29 +201,9 @@ struct Daemon::Impl {
   std::vector<float> subject_identity;
   std::int64_t identity_session = 0;
 
-  // --- tracking mode (worker thread)
-  std::unique_ptr<FaceTracker> tracker;
-  std::unique_ptr<VmcSender> vmc;
-  std::optional<ArkitMapping> arkit;
-  std::optional<TakeWriter> take;  // the tracked take, stored when tracking stops
-  // Re-acquisition by detection: dlib on the colour image while the tracker has no face or
-  // calibrates the identity (the fitter's shape predictor, shared); its pose seeds the ICP,
-  // its points guide the calibration. Set only in tracking mode.
-  std::optional<TrackLandmarkSource> reacquire_source;
-  bool face_before = false;    // the last tracked frame had the face
-  OcclusionLog occlusion_log;  // this tracking run's occluded frames
-  // tracking_tick()'s per-frame times, a ring of the last kLatencyWindow (no allocation).
-  static constexpr int kLatencyWindow = 300;
-  std::array<float, kLatencyWindow> latency_ring{}, track_ms_ring{};
-  long long latency_count = 0;
-  std::int64_t take_session = 0;
-  TrackReport track_report;
-  ArkitFrame track_frame;
-  // The live weights for the page (SSE /api/tracking/events), guarded by live_mutex.
-  mutable std::mutex live_mutex;
-  mutable std::condition_variable live_cv;
-  std::string live_json;
-  std::uint64_t live_version = 0;
+  // --- tracking mode (tracking_mode.hpp): started, fed and stopped by the worker; the HTTP
+  // threads read its live weights (tracking.live(), under its own lock).
+  TrackingMode tracking;
 
   // Inputs for the worker.
   std::mutex queue_mutex;
@@ -283,8 +259,6 @@ struct Daemon::Impl {
   void loop_preview_camera();
   // daemon_pipeline.cpp
   Result<void> start_fitter();
-  void fit_loop();
-  void post_fit_job(std::function<void(bool run)> job);
   void process_capture(std::int64_t session, int index, QaReport qa, CaptureCommit commit,
                        CaptureView view, bool run);
   void publish_qa_capture(const LastCapture& c);
@@ -314,7 +288,7 @@ struct Daemon::Impl {
   // The guide expression i rendered on a neutral synthetic head (cached BMP).
   Result<std::string> guide_picture(int index);
 
-  // --- HTTP (http_api.cpp)
+  // --- HTTP (http_api.cpp: the server and its route table)
   Result<void> setup_http();
 
   // --- registration health and calibration (daemon_calibration.cpp)
@@ -350,6 +324,8 @@ struct Daemon::Impl {
   LedPattern led_pattern(KioskState state) const;
   void refresh_led();
 
+  // Near the end: its jobs use the members above, so it is joined before they are destroyed.
+  FitWorker fit_worker;
   // Last: its checker thread calls back into the members above, so it is destroyed first.
   std::unique_ptr<RegistrationHealth> health;
 };

@@ -1,5 +1,6 @@
-// The daemon's processing after a take (landmarks, quick fit, QA, commit) on its fit thread,
-// the operator's landmark corrections, and tracking mode (on the frame loop).
+// The daemon's processing after a take (landmarks, quick fit, QA, commit) on the fit worker
+// (fit_worker.hpp), the operator's landmark corrections, and the worker's side of tracking mode
+// (tracking_mode.hpp: the frame loop feeds it and keeps the status).
 //
 // Threads: the worker (frame loop + state machine) hands a recorded take to the fit thread and
 // keeps running; the fit thread posts the outcome (qa_passed / last_done / qa_failed, tagged with
@@ -14,9 +15,7 @@
 
 #include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
-#include "algo/tracking/rig_view.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
-#include "firmware/streaming/live_json.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -55,7 +54,7 @@ Result<void> Daemon::Impl::start_fitter() {
   take_detector.emplace(fitter->share_landmark_detector());
   take_proportions = face_proportions(fitter->model());
   // Tracking after a restart uses the newest session's stored neutral.
-  post_fit_job([this](bool run) {
+  fit_worker.post([this](bool run) {
     if (!run) return;
     std::int64_t newest = 0;
     {
@@ -65,35 +64,6 @@ Result<void> Daemon::Impl::start_fitter() {
     if (newest > 0) ensure_session_neutral(newest);
   });
   return success();
-}
-
-void Daemon::Impl::post_fit_job(std::function<void(bool run)> job) {
-  {
-    std::lock_guard lock(fit_mutex);
-    fit_jobs.push_back(std::move(job));
-  }
-  fit_cv.notify_all();
-}
-
-void Daemon::Impl::fit_loop() {
-  while (true) {
-    std::function<void(bool)> job;
-    {
-      std::unique_lock lock(fit_mutex);
-      fit_cv.wait(lock, [&] { return !fit_jobs.empty() || stopping.load(); });
-      if (stopping) {
-        // Discard what is queued (each job learns it was not run: promises are answered).
-        auto jobs = std::move(fit_jobs);
-        fit_jobs.clear();
-        lock.unlock();
-        for (auto& j : jobs) j(false);
-        return;
-      }
-      job = std::move(fit_jobs.front());
-      fit_jobs.pop_front();
-    }
-    job(true);
-  }
 }
 
 void Daemon::Impl::ensure_session_neutral(std::int64_t session) {
@@ -282,7 +252,7 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
   if (!fitter) return fail("landmarks are off: " + fitter_error);
   auto promise = std::make_shared<std::promise<Result<nlohmann::json>>>();
   auto future = promise->get_future();
-  post_fit_job([this, promise, session, index, corrections](bool run) {
+  fit_worker.post([this, promise, session, index, corrections](bool run) {
     auto answer = [&]() -> Result<nlohmann::json> {
       if (!run) return fail("the daemon is stopping");
       if (!last_capture || last_capture->session != session || last_capture->index != index)
@@ -387,25 +357,8 @@ Result<nlohmann::json> Daemon::Impl::correct_landmarks(
 }
 
 // ---------------------------------------------------------------------------------------------
-// Tracking mode
-
-namespace {
-
-// Tracks with the subject's rig from the host (their own neutral and blendshapes, FaceWarehouse
-// 4.2), as `facebooth track --rig-from-store` does. Returns the status note, or why the rig
-// cannot be used.
-Result<std::string> track_with_rig(FaceTracker& tracker, const StoredRig& rig,
-                                   const FaceModel& model, const ArkitMapping& arkit) {
-  const TrackerRig view =
-      tracker_rig_view(rig.data.neutral, rig.data.shape_names, rig.data.shapes, model, arkit);
-  if (view.shapes.empty()) return fail("none of its shape names is a tracked blendshape");
-  if (auto set = tracker.set_rig(view); !set) return set.failure();
-  return "stored rig " + std::to_string(rig.id) + " of subject " + std::to_string(rig.subject) +
-         " (" + std::to_string(view.shapes.size()) + " of its " +
-         std::to_string(rig.data.shape_count()) + " shapes tracked)";
-}
-
-}  // namespace
+// Tracking mode (the room: tracking_mode.hpp); the worker gathers whose face it is and keeps
+// the status.
 
 Result<void> Daemon::Impl::start_tracking() {
   update_status([](StatusData& s) {
@@ -418,28 +371,12 @@ Result<void> Daemon::Impl::start_tracking() {
   // A session before leaves its freed buffers (fusion volumes, the fit thread's arena) in the
   // heap; hand them back before the tracker allocates, or the peak adds both.
   ::malloc_trim(0);
-  const FaceModel& model = fitter->model();  // immutable after create(): safe on this thread
-  auto t = FaceTracker::create(model, preview_camera->info().depth_intrinsics);
-  if (!t) return t.failure();
-  tracker = std::move(*t);
-  auto mapping = make_arkit_mapping(model);
-  if (!mapping) return mapping.failure();
-  arkit = *mapping;
-  std::vector<std::string> shape_names(kArkitNames.begin(), kArkitNames.end());
-  const double fps = preview_camera->info().fps;
-  take.emplace(std::move(shape_names), fps);
-  // The whole take's room up front, so the frame loop does not grow it (the pages count only
-  // once written).
-  take->reserve(config.streaming.max_take_frames);
-  latency_count = 0;
-  face_before = false;
-  occlusion_log = OcclusionLog();
-  reacquire_source.emplace(fitter->share_landmark_detector(), preview_camera->info().calibration);
+  std::int64_t take_session;
   {
     std::lock_guard lock(status_mutex);
     take_session = status.session;
   }
-  std::optional<StoredRig> rig;
+  TrackingIdentity identity;
   {
     std::lock_guard lock(records_mutex);
     if (take_session == 0) {
@@ -448,54 +385,27 @@ Result<void> Daemon::Impl::start_tracking() {
     if (take_session != 0) {
       auto found = records->rig_for(take_session);
       if (found) {
-        rig = std::move(*found);
+        identity.rig = std::move(*found);
       } else {
         std::fprintf(stderr, "faceboothd: tracking without the stored rig: %s\n",
                      found.error().message.c_str());
       }
     }
   }
-  std::string identity_note;
-  if (rig) {
-    // The subject's own rig wins over the quick neutral fit.
-    auto note = track_with_rig(*tracker, *rig, model, *arkit);
-    if (note) {
-      identity_note = std::move(*note);
-    } else {
-      std::fprintf(stderr, "faceboothd: stored rig %lld not used: %s\n",
-                   static_cast<long long>(rig->id), note.error().message.c_str());
-      rig.reset();
-    }
-  }
-  if (!rig) {
-    std::vector<float> identity;
-    std::int64_t from_session = 0;
-    {
-      std::lock_guard lock(identity_mutex);
-      identity = subject_identity;
-      from_session = identity_session;
-    }
-    if (!identity.empty()) {
-      identity_note = "neutral fit of session " + std::to_string(from_session);
-      if (auto ok = tracker->set_identity(identity); !ok) return ok.failure();
-    } else {
-      // No neutral fit yet: the tracker starts from the mean face and calibrates the identity
-      // on its first frames.
-      identity_note = "mean face, calibrated on the first frames (no neutral fit yet)";
-    }
+  {
+    std::lock_guard lock(identity_mutex);
+    identity.neutral = subject_identity;
+    identity.neutral_session = identity_session;
   }
   const std::string target = !config.streaming.vmc_target.empty() ? config.streaming.vmc_target
                                                                   : config.streaming.osc_target;
-  vmc.reset();
-  if (!target.empty()) {
-    auto dest = parse_osc_destination(target);
-    if (!dest) return fail("[streaming] target '" + target + "': " + dest.error().message);
-    auto sender = VmcSender::open(*dest);
-    if (!sender) return sender.failure();
-    vmc = std::move(*sender);
-  }
+  // The face model is immutable after create(): safe on this thread.
+  auto note =
+      tracking.start(fitter->model(), preview_camera->info(), fitter->share_landmark_detector(),
+                     std::move(identity), target, config.streaming.max_take_frames, take_session);
+  if (!note) return note.failure();
   update_status([&](StatusData& s) {
-    s.tracking_identity = identity_note;
+    s.tracking_identity = *note;
     s.vmc_datagrams = 0;
     s.tracking_latency_median_ms = s.tracking_latency_p95_ms = s.tracking_ms_median = 0;
     s.tracking_reacquire = "dlib face detection on the colour image, then depth";
@@ -504,53 +414,38 @@ Result<void> Daemon::Impl::start_tracking() {
     s.tracking_hidden_fraction = 0;
     s.tracking_occluded_frames = 0;
   });
-  std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", identity_note.c_str(),
+  std::fprintf(stderr, "faceboothd: tracking (%s), VMC %s\n", note->c_str(),
                target.empty() ? "off" : target.c_str());
   return success();
 }
 
 void Daemon::Impl::stop_tracking() {
-  if (!tracker) return;
+  if (!tracking.active()) return;
   std::string note;
   std::int64_t take_id = 0;
+  TakeWriter* take = tracking.take();
   if (config.streaming.save_takes && take && take->frame_count() > 0) {
     TakeRecord whose;
-    whose.session = take_session;
+    whose.session = tracking.take_session();
     whose.subject_name = "tracking";
     std::lock_guard lock(records_mutex);
     auto id = records->add_take(whose, *take);
     if (id) {
       take_id = *id;
       note = "take " + std::to_string(*id) + " stored (" + std::to_string(take->frame_count()) +
-             " frames; the face was occluded on " +
-             std::to_string(occlusion_log.occluded_frames()) + ")";
+             " frames; the face was occluded on " + std::to_string(tracking.occluded_frames()) +
+             ")";
     } else {
       note = "take not stored: " + id.error().message;
     }
   }
-  tracker.reset();
-  reacquire_source.reset();
-  vmc.reset();
-  take.reset();
+  tracking.stop();
   update_status([&](StatusData& s) {
     s.tracking_note = note;
     if (take_id > 0) s.last_take = take_id;
   });
   if (!note.empty()) std::fprintf(stderr, "faceboothd: %s\n", note.c_str());
 }
-
-namespace {
-
-// The q-quantile of the first n values (a copy: the ring keeps its order).
-template <std::size_t N>
-double percentile_of(std::array<float, N> values, int n, double q) {
-  if (n <= 0) return 0.0;
-  const auto k = static_cast<std::ptrdiff_t>(q * (n - 1) + 0.5);
-  std::nth_element(values.begin(), values.begin() + k, values.begin() + n);
-  return values[static_cast<std::size_t>(k)];
-}
-
-}  // namespace
 
 void Daemon::Impl::tracking_tick() {
   const auto t0 = Clock::now();
@@ -563,67 +458,21 @@ void Daemon::Impl::tracking_tick() {
   health->offer(frame);
   {
     std::lock_guard lock(preview_mutex);
-    const FaceBox box = default_face_box(frame.color.width, frame.color.height);
     const int w = frame.color.width / 2, h = frame.color.height / 2;
     preview.resize(w, h);
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
-    (void)box;
   }
   bool state_changed = false;
-  if (tracker) {
-    // While the face is not found (start, after loss) the detector looks for it: its
-    // landmarks give the tracker a pose to start from, not the nearest surface (a hand, the
-    // desk). While the identity calibrates they guide it (depth alone lets hair and noise pull
-    // it off). Tracked frames use depth alone.
-    const TrackLandmarks* landmarks = nullptr;
-    if (reacquire_source && (!face_before || !tracker->calibrated()) &&
-        reacquire_source->detect(frame.color, frame.depth_mm).found) {
-      landmarks = reacquire_source->landmarks();
-      update_status([](StatusData& s) { ++s.tracking_detections; });
-    }
-    tracker->track(frame.depth_mm, frame.depth_host_time_s, landmarks, track_report);
-    // Lost: the next detection searches the whole image, not around the last face.
-    if (face_before && !track_report.face_found && reacquire_source) reacquire_source->reset();
-    face_before = track_report.face_found;
-    track_frame.index = frame.index;
-    track_frame.time_s = frame.depth_host_time_s;
-    track_frame.face_found = track_report.face_found;
-    track_frame.occluded = track_report.occluded;
-    track_frame.occluded_fraction = track_report.occluded_fraction;
-    const bool occlusion_changed =
-        occlusion_log.add(track_report.occluded) != OcclusionLog::Change::kNone;
-    track_frame.camera_from_model = track_report.camera_from_model;
-    arkit->to_arkit(std::span<const float>(track_report.weights.data(),
-                                           static_cast<std::size_t>(track_report.shape_count)),
-                    track_frame.weights);
-    if (vmc) {
-      if (auto sent = vmc->send(track_frame); !sent)
-        update_status([&](StatusData& s) { s.tracking_note = sent.error().message; });
-    }
-    const auto slot = static_cast<std::size_t>(latency_count++ % kLatencyWindow);
-    latency_ring[slot] = static_cast<float>(ms_since(arrival));
-    track_ms_ring[slot] = static_cast<float>(track_report.times.total_ms());
-    if (take && take->frame_count() < config.streaming.max_take_frames) {
-      // 52 weights for 52 names: cannot fail.
-      (void)take->add_frame(track_frame.time_s, track_frame.camera_from_model, track_frame.weights);
-    }
-    {
-      std::lock_guard lock(live_mutex);
-      format_frame_json(track_frame, live_json);
-      ++live_version;
-    }
-    live_cv.notify_all();
+  if (tracking.active()) {
+    const TrackingMode::Tick tick = tracking.track(frame, arrival);
+    if (tick.detected) update_status([](StatusData& s) { ++s.tracking_detections; });
+    if (!tick.send_error.empty())
+      update_status([&](StatusData& s) { s.tracking_note = tick.send_error; });
     std::lock_guard lock(status_mutex);
     // A hand arriving or leaving is pushed at once too, not at the next half-second.
-    state_changed = status.tracking_state != to_string(track_report.state) || occlusion_changed;
+    state_changed = status.tracking_state != tracking.state() || tick.occlusion_changed;
   }
-  const long long vmc_sent = vmc ? vmc->datagrams_sent() : 0;
-  const char* state = tracker ? to_string(track_report.state) : "";
-  const char* reason = tracker ? track_report.loss_reason : "";
-  const bool occluded = tracker && track_report.occluded;
-  const double hidden = tracker ? track_report.occluded_fraction : 0.0;
-  const long long occluded_frames = occlusion_log.occluded_frames();
   // The status (and its SSE stream) changes on tracker state changes and twice a second; the
   // per-frame weights go through the live stream.
   long long frames;
@@ -633,20 +482,17 @@ void Daemon::Impl::tracking_tick() {
     ++status.tracking_frames;
   }
   if (state_changed || frames % 15 == 0) {
-    const int n = static_cast<int>(std::min<long long>(latency_count, kLatencyWindow));
-    const double latency_median = percentile_of(latency_ring, n, 0.5);
-    const double latency_p95 = percentile_of(latency_ring, n, 0.95);
-    const double track_median = percentile_of(track_ms_ring, n, 0.5);
+    const TrackingMode::Figures f = tracking.figures();
     update_status([&](StatusData& s) {
-      s.tracking_state = state;
-      s.tracking_reason = reason;
-      s.tracking_occluded = occluded;
-      s.tracking_hidden_fraction = hidden;
-      s.tracking_occluded_frames = occluded_frames;
-      s.vmc_datagrams = vmc_sent;
-      s.tracking_latency_median_ms = latency_median;
-      s.tracking_latency_p95_ms = latency_p95;
-      s.tracking_ms_median = track_median;
+      s.tracking_state = f.state;
+      s.tracking_reason = f.reason;
+      s.tracking_occluded = f.occluded;
+      s.tracking_hidden_fraction = f.hidden_fraction;
+      s.tracking_occluded_frames = f.occluded_frames;
+      s.vmc_datagrams = f.vmc_datagrams;
+      s.tracking_latency_median_ms = f.latency_median_ms;
+      s.tracking_latency_p95_ms = f.latency_p95_ms;
+      s.tracking_ms_median = f.track_ms_median;
     });
   }
   if (config.camera.realtime) {

@@ -164,6 +164,11 @@ class StoreRecords : public SessionRecords {
     return r;
   }
 
+  Result<bool> export_capture(ExportFolder& folder, std::int64_t id, const CaptureInfo& c,
+                              const std::vector<MeshInfo>& meshes, nlohmann::json& j);
+  Result<void> finish_bundle(ExportFolder& folder, const SessionInfo& s, std::size_t captures,
+                             int fitted, nlohmann::json list);
+
   SessionStore store_;
 };
 
@@ -179,6 +184,99 @@ Result<void> StoreRecords::commit_capture(std::int64_t session, int index, Captu
   if (!commit.calibration_json.empty())
     if (auto r = store_.set_session_calibration(session, commit.calibration_json); !r) return r;
   return store_.commit_capture(session, index, input);
+}
+
+// The capture's landmarks as the bundle's landmarks.json.
+nlohmann::json landmarks_doc(const CaptureData& data) {
+  nlohmann::json pts = nlohmann::json::array();
+  for (const auto& l : data.landmarks) {
+    nlohmann::json p = {{"u", l.u}, {"v", l.v}};
+    if (l.has_3d) p["xyz_mm"] = {l.x, l.y, l.z};
+    pts.push_back(p);
+  }
+  return {{"source", data.landmark_source == LandmarkSource::kOperator ? "operator" : "automatic"},
+          {"order", "iBUG 68"},
+          {"units", "colour image px; xyz in the depth camera frame, mm"},
+          {"points", pts}};
+}
+
+// One done capture's files in the bundle, named in its entry `j`: the fused depth, the colour
+// of frame 0 and the landmarks, then the newest fitted mesh. True when it had a mesh.
+Result<bool> StoreRecords::export_capture(ExportFolder& folder, std::int64_t id,
+                                          const CaptureInfo& c, const std::vector<MeshInfo>& meshes,
+                                          nlohmann::json& j) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "capture-%02d-%s/", c.index, c.expression.c_str());
+  const std::string dir = buf;
+  {
+    // Scoped: the frames are released before the mesh is read.
+    auto data = store_.read_capture(id, c.index, {.max_frames = 1});  // colour of frame 0
+    if (!data) return data.failure();
+    if (!data->fused_depth.empty()) {
+      if (auto ok = folder.write_text(dir + "fused_depth.pgm", encode_pgm16(data->fused_depth));
+          !ok)
+        return ok.failure();
+      j["fused_depth"] = dir + "fused_depth.pgm";
+    }
+    if (!data->frames.empty() && !data->frames.front().color.empty()) {
+      auto png = encode_png(data->frames.front().color);
+      if (!png) return png.failure();
+      if (auto ok = folder.write_file(dir + "color.png", *png); !ok) return ok.failure();
+      j["color"] = dir + "color.png";
+    }
+    if (!data->landmarks.empty()) {
+      if (auto ok = folder.write_text(dir + "landmarks.json", landmarks_doc(*data).dump(1)); !ok)
+        return ok.failure();
+      j["landmarks"] = dir + "landmarks.json";
+    }
+  }
+  const MeshInfo* newest = nullptr;
+  for (const auto& m : meshes)
+    if (m.capture_index == c.index && m.role != MeshRole::kScan) newest = &m;
+  if (!newest) return false;
+  auto mesh = store_.read_mesh(newest->id);
+  if (!mesh) return mesh.failure();
+  if (auto ok = folder.write_text(
+          dir + "mesh.obj",
+          encode_obj(*mesh, "quick fit of " + c.expression + ", model frame, mm"));
+      !ok)
+    return ok.failure();
+  j["mesh"] = dir + "mesh.obj";
+  j["mesh_role"] = to_string(newest->role);
+  return true;
+}
+
+// session.json and the unit's calibration, then the manifest (which renames the folder).
+Result<void> StoreRecords::finish_bundle(ExportFolder& folder, const SessionInfo& s,
+                                         std::size_t captures, int fitted, nlohmann::json list) {
+  std::string subject_name;
+  if (auto subj = store_.subject(s.subject)) subject_name = subj->name;
+  nlohmann::json session_doc = {{"format", "facebooth-session-bundle"},
+                                {"version", 3},
+                                {"session", s.id},
+                                {"subject", subject_name},
+                                {"subject_id", s.subject},
+                                {"created_at", s.created_at},
+                                {"complete", s.complete},
+                                {"fitted_captures", fitted},
+                                {"captures", std::move(list)}};
+  // v3: the unit's calibration, which the host needs to map depth to colour when it refits.
+  if (!s.calibration_json.empty()) {
+    if (auto ok = folder.write_text("calibration.json", s.calibration_json); !ok)
+      return ok.failure();
+    session_doc["calibration"] = "calibration.json";
+  }
+  if (auto ok = folder.write_text("session.json", session_doc.dump(1)); !ok) return ok.failure();
+  ExportManifest manifest;
+  manifest.what = "facebooth-session-bundle";
+  manifest.source = {{"kind", "session"},
+                     {"store", store_.root().string()},
+                     {"session", std::to_string(s.id)},
+                     {"subject", std::to_string(s.subject)}};
+  manifest.details = {{"captures", std::to_string(captures)},
+                      {"fitted_captures", std::to_string(fitted)},
+                      {"units", "mm; meshes in the face model frame"}};
+  return folder.finish(manifest);
 }
 
 // The session bundle the host fetches (offload) and the kiosk's export: assembled with
@@ -210,10 +308,6 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
   if (ec) return fail("cannot create '" + exports_dir.string() + "': " + ec.message());
   auto folder = ExportFolder::create(out, /*overwrite=*/true);
   if (!folder) return folder.failure();
-  auto write = [&](const std::string& name, const std::string& bytes) {
-    return folder->write_file(name,
-                              {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()});
-  };
   nlohmann::json list = nlohmann::json::array();
   int fitted = 0;
   for (const auto& c : *caps) {
@@ -225,86 +319,14 @@ Result<fs::path> StoreRecords::export_session(std::int64_t id, const fs::path& e
                         {"qa", c.qa_scores},
                         {"frame_count", c.frame_count}};
     if (c.state == CaptureState::kDone) {
-      char dir[96];
-      std::snprintf(dir, sizeof dir, "capture-%02d-%s/", c.index, c.expression.c_str());
-      auto data = store_.read_capture(id, c.index, {.max_frames = 1});  // colour of frame 0
-      if (!data) return data.failure();
-      if (!data->fused_depth.empty()) {
-        if (auto ok = write(dir + std::string("fused_depth.pgm"), encode_pgm16(data->fused_depth));
-            !ok)
-          return ok.failure();
-        j["fused_depth"] = dir + std::string("fused_depth.pgm");
-      }
-      if (!data->frames.empty() && !data->frames.front().color.empty()) {
-        auto png = encode_png(data->frames.front().color);
-        if (!png) return png.failure();
-        if (auto ok = folder->write_file(dir + std::string("color.png"), *png); !ok)
-          return ok.failure();
-        j["color"] = dir + std::string("color.png");
-      }
-      if (!data->landmarks.empty()) {
-        nlohmann::json pts = nlohmann::json::array();
-        for (const auto& l : data->landmarks) {
-          nlohmann::json p = {{"u", l.u}, {"v", l.v}};
-          if (l.has_3d) p["xyz_mm"] = {l.x, l.y, l.z};
-          pts.push_back(p);
-        }
-        nlohmann::json doc = {
-            {"source",
-             data->landmark_source == LandmarkSource::kOperator ? "operator" : "automatic"},
-            {"order", "iBUG 68"},
-            {"units", "colour image px; xyz in the depth camera frame, mm"},
-            {"points", pts}};
-        if (auto ok = write(dir + std::string("landmarks.json"), doc.dump(1)); !ok)
-          return ok.failure();
-        j["landmarks"] = dir + std::string("landmarks.json");
-      }
-      data = fail("");  // release the frames before the next capture
-      const MeshInfo* newest = nullptr;
-      for (const auto& m : *meshes)
-        if (m.capture_index == c.index && m.role != MeshRole::kScan) newest = &m;
-      if (newest) {
-        auto mesh = store_.read_mesh(newest->id);
-        if (!mesh) return mesh.failure();
-        if (auto ok =
-                write(dir + std::string("mesh.obj"),
-                      encode_obj(*mesh, "quick fit of " + c.expression + ", model frame, mm"));
-            !ok)
-          return ok.failure();
-        j["mesh"] = dir + std::string("mesh.obj");
-        j["mesh_role"] = to_string(newest->role);
-        ++fitted;
-      }
+      auto had_mesh = export_capture(*folder, id, c, *meshes, j);
+      if (!had_mesh) return had_mesh.failure();
+      fitted += *had_mesh;
     }
     list.push_back(std::move(j));
   }
-  std::string subject_name;
-  if (auto subj = store_.subject(s->subject)) subject_name = subj->name;
-  nlohmann::json session_doc = {{"format", "facebooth-session-bundle"},
-                                {"version", 3},
-                                {"session", id},
-                                {"subject", subject_name},
-                                {"subject_id", s->subject},
-                                {"created_at", s->created_at},
-                                {"complete", s->complete},
-                                {"fitted_captures", fitted},
-                                {"captures", list}};
-  // v3: the unit's calibration, which the host needs to map depth to colour when it refits.
-  if (!s->calibration_json.empty()) {
-    if (auto ok = write("calibration.json", s->calibration_json); !ok) return ok.failure();
-    session_doc["calibration"] = "calibration.json";
-  }
-  if (auto ok = write("session.json", session_doc.dump(1)); !ok) return ok.failure();
-  ExportManifest manifest;
-  manifest.what = "facebooth-session-bundle";
-  manifest.source = {{"kind", "session"},
-                     {"store", store_.root().string()},
-                     {"session", std::to_string(id)},
-                     {"subject", std::to_string(s->subject)}};
-  manifest.details = {{"captures", std::to_string(caps->size())},
-                      {"fitted_captures", std::to_string(fitted)},
-                      {"units", "mm; meshes in the face model frame"}};
-  if (auto ok = folder->finish(manifest); !ok) return ok.failure();
+  if (auto ok = finish_bundle(*folder, *s, caps->size(), fitted, std::move(list)); !ok)
+    return ok.failure();
 
   // With a rig from the host built from this session: the FaceWarehouse layout next to the
   // bundle.

@@ -113,6 +113,7 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
     in.triangle_uvs = model.triangle_uvs;
     CaptureDetailOptions capture_options = detail_options;
     capture_options.detail.given_alongside = options.also_detect;
+    capture_options.detail.regions.wrinkle_zones = options.zones;
     const ColorImage& color = capture->frames.front().color;
     for (const auto& g : options.regions) {
       if (g.capture && *g.capture != index) continue;

@@ -97,6 +97,7 @@ int run_wrinkles(const ParsedOptions& options) {
     wo.regions.push_back(*region);
   }
   wo.also_detect = options.flag("also-detect");
+  wo.zones = options.flag("zones");
   if (wo.also_detect && wo.regions.empty())
     return report_failure({"--also-detect goes with --region (detection is the default)"});
   StoreOptions so;
@@ -163,6 +164,11 @@ std::vector<Command> wrinkle_commands() {
               "capture or only CAPTURE; replaces the detected regions (see --also-detect)",
               ""},
              {"also-detect", "", "with --region: keep the detected regions too", ""},
+             {"zones", "",
+              "detect wrinkles only where expression wrinkles form (forehead, glabella, "
+              "crow's feet; from the landmarks): fewer false regions, some wrinkles missed "
+              "(docs/wrinkles.md)",
+              ""},
              {"no-save", "", "build and report only; the store is opened read-only", ""}}},
            run_wrinkles}};
 }

@@ -17,6 +17,7 @@
 #include "algo/texture/texel_map.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "algo/wrinkles/exemplar.hpp"
+#include "algo/wrinkles/salient_regions.hpp"
 #include "storage/export/png_file.hpp"
 #include "tests/common/run_command.hpp"
 #include "tests/wrinkles/wrinkle_store.hpp"
@@ -167,6 +168,59 @@ TEST_F(WrinklesOptions, GivenRegionKeepsTheDetailInsideIt) {
   r = test::run_command(wrinkles("--no-save --also-detect"), test::Stderr::kMerged);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("--region"), std::string::npos) << r.out;
+}
+
+// Regions scored as eval wrinkles does (T: the true windows; W: their pixels with >= 0.1 mm
+// relief): recall = W in regions / W, precision = region pixels in T + 5 px / region pixels.
+std::pair<double, double> region_scores(const cli::WrinkleCase& c,
+                                        const std::vector<PixelRectI>& regions) {
+  long long w = 0, w_in = 0, d = 0, d_in = 0;
+  for (int y = 0; y < c.luminance.height; ++y)
+    for (int x = 0; x < c.luminance.width; ++x) {
+      bool in_region = false, near_truth = false, in_truth = false;
+      for (const auto& r : regions) in_region = in_region || r.contains(x, y);
+      for (const auto& t : c.true_regions) {
+        in_truth = in_truth || t.contains(x, y);
+        near_truth =
+            near_truth || PixelRectI{t.x - 5, t.y - 5, t.width + 10, t.height + 10}.contains(x, y);
+      }
+      if (in_truth && std::abs(c.true_height_mm.at(x, y)) >= 0.1f) ++w, w_in += in_region;
+      if (in_region) ++d, d_in += near_truth;
+    }
+  return {w_in / std::max(1.0, 1.0 * w), d_in / std::max(1.0, 1.0 * d)};
+}
+
+// The wrinkle zones (forehead, glabella, crow's feet from the landmarks): regions only there,
+// none spanning an eye or a brow; precision up, some recall lost (docs/wrinkles.md).
+TEST_F(WrinklesOptions, WrinkleZonesKeepRegionsWhereWrinklesForm) {
+  const cli::WrinkleCase& c = *brows_;
+  SalientOptions paper, zoned;
+  zoned.wrinkle_zones = true;
+  const auto a = salient_regions(c.luminance, c.landmarks, paper);
+  const auto b = salient_regions(c.luminance, c.landmarks, zoned);
+  const auto [recall_a, precision_a] = region_scores(c, a.regions);
+  const auto [recall_b, precision_b] = region_scores(c, b.regions);
+  std::printf(
+      "paper's detector: %zu regions, recall %.2f, precision %.2f; zones: %zu, recall "
+      "%.2f, precision %.2f\n",
+      a.regions.size(), recall_a, precision_a, b.regions.size(), recall_b, precision_b);
+  const auto zones = wrinkle_zones(c.landmarks, zoned);
+  ASSERT_EQ(zones.size(), 4u);
+  for (const auto& r : b.regions) {
+    bool inside = false;
+    for (const auto& z : zones)
+      inside = inside || (r.x >= z.x - 5 && r.y >= z.y - 5 && r.x + r.width <= z.x + z.width + 5 &&
+                          r.y + r.height <= z.y + z.height + 5);
+    EXPECT_TRUE(inside) << r.x << "," << r.y << " " << r.width << "x" << r.height;
+  }
+  EXPECT_GT(precision_b, precision_a + 0.15);
+  EXPECT_GT(recall_b, 0.6);
+
+  // On the command line: --zones.
+  auto r = test::run_command(wrinkles("--no-save --zones"), test::Stderr::kToLog);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_LE(j["details"][1]["regions"].get<int>(), 4);
 }
 
 // A height map (16-bit, 1/16384 mm a level about 32768) and its colour image (the relief shaded

@@ -171,6 +171,11 @@ SalientRegions salient_regions(const FloatImage& luminance,
       if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||
           sign_change(g, x, y, 0, 1, o.gradient_threshold))
         out.marked.at(x, y) = 1;
+  // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
+  // join the eyelids' edges into one component centred on the eye.
+  if (!zones.empty())
+    for (std::size_t i = 0; i < out.marked.pixels.size(); ++i)
+      if (out.features.pixels[i]) out.marked.pixels[i] = 0;
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
   std::vector<Eigen::Vector2i> stack;
@@ -210,7 +215,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
               line.zone = static_cast<int>(z);
           if (line.zone < 0) continue;
         }
-        if (o.inside_face_only) {
+        // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
+        if (o.inside_face_only && zones.empty()) {
           // Most of the line, not its centroid: the head's silhouette is a loop around the face.
           std::size_t inside = 0;
           for (const auto& p : line.pixels) inside += inside_polygon(p.cast<double>(), outline);

@@ -214,7 +214,7 @@ TEST_F(WrinklesOptions, WrinkleZonesKeepRegionsWhereWrinklesForm) {
     EXPECT_TRUE(inside) << r.x << "," << r.y << " " << r.width << "x" << r.height;
   }
   EXPECT_GT(precision_b, precision_a + 0.15);
-  EXPECT_GT(recall_b, 0.6);
+  EXPECT_GT(recall_b, 0.9);
 
   // On the command line: --zones.
   auto r = test::run_command(wrinkles("--no-save --zones"), test::Stderr::kToLog);

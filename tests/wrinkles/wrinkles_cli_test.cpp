@@ -170,9 +170,10 @@ TEST_F(WrinklesCli, StoresDetailWhereTheWrinklesAreAndExportsIt) {
   // The detail as geometry: the brow raiser subdivided under its detail (item 4).
   auto displaced = read_obj(dir_ / "obj" / "poses" / "pose_1_detail.obj");
   ASSERT_TRUE(displaced) << displaced.error().message;
-  std::printf("pose_1_detail.obj: %d vertices, %d triangles (the pose: %d)\n",
+  std::printf("pose_1_detail.obj: %d vertices, %d triangles (the pose: %d), %.1f MB\n",
               displaced->mesh.vertex_count(), displaced->mesh.triangle_count(),
-              model->triangle_count());
+              model->triangle_count(),
+              fs::file_size(dir_ / "obj" / "poses" / "pose_1_detail.obj") / 1e6);
   EXPECT_GT(displaced->mesh.triangle_count(), model->triangle_count() + 1000);
   std::ifstream mtl(dir_ / "obj" / "face.mtl");
   const std::string mtl_text((std::istreambuf_iterator<char>(mtl)), {});

@@ -140,8 +140,9 @@ std::vector<Command> wrinkle_commands() {
             "a height field is synthesised from exemplars of real skin (EM texture "
             "optimisation, PatchMatch); the heights become a displacement map (mm) and a "
             "tangent-space normal map in the face model's UV layout, stored with the session "
-            "and the rig serving it. Exports use them: glTF normalTexture, OBJ norm, and the "
-            "per-expression maps for the blendshapes. See docs/wrinkles.md for what the "
+            "and the rig serving it. Exports use them: glTF normalTexture, OBJ norm and a "
+            "subdivided, displaced mesh per expression, and the per-expression maps for the "
+            "blendshapes. See docs/wrinkles.md for what the "
             "synthesis does and does not reach. JSON report on stdout, progress on stderr.",
             {{"store", "DIR", "session store", ""},
              {"session", "ID", "the session (needs a rig and its fitted captures)", ""},

@@ -1,6 +1,7 @@
 #include "algo/wrinkles/capture_detail.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -79,6 +80,8 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
   // The colour each depth pixel sees at the mesh's depth there; off the face, at the face's
   // mean depth (a plausible background; the region detector keeps to the face outline).
   out.luminance.resize(k.width, k.height);
+  // The hand-given colour rectangles as boxes in the depth grid: min x, min y, max x, max y.
+  std::vector<std::array<int, 4>> given(options.color_regions.size(), {k.width, k.height, -1, -1});
   int on_face = 0;
   for (int y = 0; y < k.height; ++y)
     for (int x = 0; x < k.width; ++x) {
@@ -87,15 +90,33 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
       const double z = covered ? raster.depth[i] : face_depth;
       double cx = 0.0, cy = 0.0;
       float value = 0.0f;
-      if (registration.depth_to_color_interpolated(x, y, std::round(z), cx, cy))
+      if (registration.depth_to_color_interpolated(x, y, std::round(z), cx, cy)) {
         value = luma(*in.color, cx, cy), on_face += covered;
+        for (std::size_t r = 0; r < given.size(); ++r)
+          if (options.color_regions[r].contains(static_cast<int>(std::floor(cx)),
+                                                static_cast<int>(std::floor(cy)))) {
+            auto& b = given[r];
+            b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
+          }
+      }
       out.luminance.at(x, y) = value;
     }
   if (on_face < 1000)
     return fail("the fitted mesh covers too little of the colour frame (" +
                 std::to_string(on_face) + " pixels); refit the capture");
+  WrinkleDetailOptions detail_options = options.detail;
+  for (std::size_t r = 0; r < given.size(); ++r) {
+    const auto& b = given[r];
+    const PixelRectI& c = options.color_regions[r];
+    if (b[2] < b[0])
+      return fail("the region " + std::to_string(c.x) + "," + std::to_string(c.y) + "," +
+                  std::to_string(c.width) + "," + std::to_string(c.height) +
+                  " of the colour frame is not seen by the depth camera; give a rectangle on "
+                  "the face");
+    detail_options.given_regions.push_back({b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1});
+  }
   auto detail =
-      wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars, options.detail);
+      wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars, detail_options);
   if (!detail) return detail.failure();
   out.detail = std::move(*detail);
   feather_heights(out.detail.synthesis.height_mm, out.detail.synthesis.domain, options.feather_px);

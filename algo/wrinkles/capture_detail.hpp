@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "algo/core/camera_model.hpp"
 #include "algo/core/image.hpp"
@@ -35,6 +36,11 @@ struct CaptureDetailInput {
 struct CaptureDetailOptions {
   WrinkleDetailOptions detail;
   int feather_px = 3;  // feather_heights() before the maps (0 = off)
+  // Regions given by hand in the colour frame's pixels (`facebooth wrinkles --region`): each
+  // becomes the box of the depth-grid pixels whose colour lies inside it (at the mesh's depth),
+  // and goes to detail.given_regions (instead of the detected ones unless
+  // detail.given_alongside).
+  std::vector<PixelRectI> color_regions;
 };
 
 struct CaptureDetail {

@@ -125,6 +125,32 @@ bool near(const PixelRectI& a, const PixelRectI& b, int gap) {
 
 }  // namespace
 
+std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
+                                      const SalientOptions& o) {
+  const double jaw = (l[16] - l[0]).norm();
+  double brow_top = 1e30;
+  for (int i = 17; i <= 26; ++i) brow_top = std::min(brow_top, l[static_cast<std::size_t>(i)].y());
+  auto rect = [](double x0, double y0, double x1, double y1) {
+    const int ix = static_cast<int>(std::floor(std::min(x0, x1))),
+              iy = static_cast<int>(std::floor(std::min(y0, y1)));
+    return PixelRectI{ix, iy, static_cast<int>(std::ceil(std::max(x0, x1))) - ix,
+                      static_cast<int>(std::ceil(std::max(y0, y1))) - iy};
+  };
+  std::vector<PixelRectI> zones;
+  // Forehead: between the brows' outer ends, from the outline's top down to the brows' mean
+  // height; the glabella (vertical frown lines) between the inner ends down to the nose's
+  // bridge.
+  double brow_mean = 0.0;
+  for (int i = 17; i <= 26; ++i) brow_mean += l[static_cast<std::size_t>(i)].y() / 10.0;
+  zones.push_back(rect(l[17].x(), brow_top - o.forehead_fraction * jaw, l[26].x(), brow_mean));
+  zones.push_back(rect(l[21].x(), brow_mean, l[22].x(), l[27].y()));
+  // Crow's feet: beyond each outer eye corner (36: image left, 45: image right).
+  const double cw = o.crows_feet_width * jaw, ch = 0.5 * o.crows_feet_height * jaw;
+  zones.push_back(rect(l[36].x() - cw, l[36].y() - ch, l[36].x(), l[36].y() + ch));
+  zones.push_back(rect(l[45].x(), l[45].y() - ch, l[45].x() + cw, l[45].y() + ch));
+  return zones;
+}
+
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
                                const SalientOptions& o) {
@@ -134,7 +160,9 @@ SalientRegions salient_regions(const FloatImage& luminance,
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
   const ImageGradient g = image_gradient(detection_image(luminance, o));
   std::vector<Eigen::Vector2d> outline;
+  std::vector<PixelRectI> zones;
   if (landmarks) {
+    if (o.wrinkle_zones) zones = wrinkle_zones(*landmarks, o);
     outline = face_outline(*landmarks, o);
     out.features = feature_pixels(w, h, *landmarks, o);
   }
@@ -143,6 +171,11 @@ SalientRegions salient_regions(const FloatImage& luminance,
       if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||
           sign_change(g, x, y, 0, 1, o.gradient_threshold))
         out.marked.at(x, y) = 1;
+  // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
+  // join the eyelids' edges into one component centred on the eye.
+  if (!zones.empty())
+    for (std::size_t i = 0; i < out.marked.pixels.size(); ++i)
+      if (out.features.pixels[i]) out.marked.pixels[i] = 0;
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
   std::vector<Eigen::Vector2i> stack;
@@ -175,7 +208,15 @@ SalientRegions salient_regions(const FloatImage& luminance,
         for (const auto& p : line.pixels) c += p.cast<double>();
         c /= static_cast<double>(line.pixels.size());
         if (on_feature(c, *landmarks, o)) continue;
-        if (o.inside_face_only) {
+        if (!zones.empty()) {
+          line.zone = -1;
+          for (std::size_t z = 0; z < zones.size() && line.zone < 0; ++z)
+            if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
+              line.zone = static_cast<int>(z);
+          if (line.zone < 0) continue;
+        }
+        // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
+        if (o.inside_face_only && zones.empty()) {
           // Most of the line, not its centroid: the head's silhouette is a loop around the face.
           std::size_t inside = 0;
           for (const auto& p : line.pixels) inside += inside_polygon(p.cast<double>(), outline);
@@ -190,23 +231,41 @@ SalientRegions salient_regions(const FloatImage& luminance,
       out.lines.push_back(std::move(line));
     }
   // Cluster: boxes closer than the gap merge until none do.
+  // (With zones, only lines of one zone.)
   std::vector<PixelRectI> boxes;
-  for (const auto& l : out.lines) boxes.push_back(l.box);
+  std::vector<int> zone_of;
+  for (const auto& l : out.lines) boxes.push_back(l.box), zone_of.push_back(l.zone);
   for (bool merged = true; merged;) {
     merged = false;
     for (std::size_t i = 0; i < boxes.size() && !merged; ++i)
       for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j)
-        if (near(boxes[i], boxes[j], o.cluster_gap_px)) {
+        if (zone_of[i] == zone_of[j] && near(boxes[i], boxes[j], o.cluster_gap_px)) {
           boxes[i] = merge(boxes[i], boxes[j]);
           boxes.erase(boxes.begin() + static_cast<long>(j));
+          zone_of.erase(zone_of.begin() + static_cast<long>(j));
           merged = true;
         }
   }
-  for (auto b : boxes) {
+  for (std::size_t k = 0; k < boxes.size(); ++k) {
+    const PixelRectI& b = boxes[k];
     const int x0 = std::max(0, b.x - o.margin_px), y0 = std::max(0, b.y - o.margin_px);
     const int x1 = std::min(w, b.x + b.width + o.margin_px),
               y1 = std::min(h, b.y + b.height + o.margin_px);
-    out.regions.push_back({x0, y0, x1 - x0, y1 - y0});
+    if (zones.empty()) {
+      out.regions.push_back({x0, y0, x1 - x0, y1 - y0});
+      continue;
+    }
+    // The forehead's rows across its zone; a small zone whole.
+    {
+      const int zone = zone_of[k];
+      const PixelRectI& z = zones[static_cast<std::size_t>(zone)];
+      const bool across = zone == 0, whole = zone > 0;
+      const int zx0 = across || whole ? z.x : std::max(x0, z.x - o.margin_px);
+      const int zy0 = whole ? z.y : std::max(y0, z.y - o.margin_px);
+      const int zx1 = across || whole ? z.x + z.width : std::min(x1, z.x + z.width + o.margin_px);
+      const int zy1 = whole ? z.y + z.height : std::min(y1, z.y + z.height + o.margin_px);
+      if (zx1 > zx0 && zy1 > zy0) out.regions.push_back({zx0, zy0, zx1 - zx0, zy1 - zy0});
+    }
   }
   return out;
 }

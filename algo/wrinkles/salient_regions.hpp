@@ -50,11 +50,22 @@ struct SalientOptions {
   // feature_radius_px around their landmarks.
   float mask_brow_px = 6.0f;
   float mask_eye_px = 3.0f;
+  // With landmarks: keep only lines in the zones where expression wrinkles form (the forehead
+  // above the brows, the glabella between them, the crow's feet beyond the outer eye corners),
+  // cluster each zone's lines apart, and make the regions from the zones: a forehead cluster
+  // spans the zone's width (forehead lines run across it; the detector finds pieces of them),
+  // a glabella or crow's-feet zone with a line is one region. No region then spans an eye or
+  // a brow. Sizes are fractions of the jaw's width (landmarks 0-16). Off: the paper's
+  // detector alone (lines anywhere on the face but the features).
+  bool wrinkle_zones = false;
+  double crows_feet_width = 0.15;   // outwards from the outer eye corner
+  double crows_feet_height = 0.18;  // centred on the corner
 };
 
 struct WrinkleLine {
   std::vector<Eigen::Vector2i> pixels;
   PixelRectI box;
+  int zone = -1;  // with SalientOptions::wrinkle_zones: the zone of its centroid
   int length() const { return std::max(box.width, box.height); }
 };
 
@@ -67,6 +78,11 @@ struct SalientRegions {
 
 // `landmarks`: the 68 iBUG points in this image (optional); without them no line is dropped for
 // lying on a feature.
+// The wrinkle zones of SalientOptions::wrinkle_zones in the image: forehead, glabella, the
+// image-left and image-right crow's feet.
+std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
+                                      const SalientOptions& options);
+
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
                                const SalientOptions& options = {});

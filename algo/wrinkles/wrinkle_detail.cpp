@@ -14,7 +14,11 @@ Result<WrinkleDetail> wrinkle_detail(
   WrinkleDetail out;
   out.image_mm_per_px = face_depth_mm / focal_px;
   out.regions = salient_regions(luminance, landmarks, options.regions);
-  if (!options.given_regions.empty()) out.regions.regions = options.given_regions;
+  if (!options.given_regions.empty()) {
+    if (!options.given_alongside) out.regions.regions.clear();
+    out.regions.regions.insert(out.regions.regions.end(), options.given_regions.begin(),
+                               options.given_regions.end());
+  }
   const std::vector<WrinkleExemplar> scaled =
       rescale_exemplars(exemplars, options.exemplar_mm_per_px, out.image_mm_per_px);
   auto synthesis =

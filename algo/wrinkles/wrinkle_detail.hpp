@@ -25,8 +25,9 @@ struct WrinkleDetailOptions {
   // 0 = keep the whole regions.
   int keep_near_lines_px = 0;
   // Regions given by hand (the paper's user rectangles, margin included): used instead of the
-  // detected ones (the features are still left out).
+  // detected ones (the features are still left out), or beside them with `given_alongside`.
   std::vector<PixelRectI> given_regions;
+  bool given_alongside = false;
 };
 
 struct WrinkleDetail {

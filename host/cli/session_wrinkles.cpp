@@ -111,13 +111,29 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
     in.map = &*map;
     in.uvs = uvs;
     in.triangle_uvs = model.triangle_uvs;
-    auto detail = capture_detail(in, registration, options.exemplars, detail_options);
+    CaptureDetailOptions capture_options = detail_options;
+    capture_options.detail.given_alongside = options.also_detect;
+    capture_options.detail.regions.wrinkle_zones = options.zones;
+    const ColorImage& color = capture->frames.front().color;
+    for (const auto& g : options.regions) {
+      if (g.capture && *g.capture != index) continue;
+      const PixelRectI& r = g.rect;
+      if (r.x < 0 || r.y < 0 || r.width <= 0 || r.height <= 0 || r.x + r.width > color.width ||
+          r.y + r.height > color.height)
+        return fail(where + ": the region " + std::to_string(r.x) + "," + std::to_string(r.y) +
+                    "," + std::to_string(r.width) + "," + std::to_string(r.height) +
+                    " is not inside its colour frame (" + std::to_string(color.width) + " x " +
+                    std::to_string(color.height) + " pixels)");
+      capture_options.color_regions.push_back(r);
+    }
+    auto detail = capture_detail(in, registration, options.exemplars, capture_options);
     if (!detail) return fail(where + ": " + detail.error().message);
     CaptureWrinkleReport r;
     r.capture_index = index;
     for (const auto& c : *captures)
       if (c.index == index) r.expression = c.expression;
     r.regions = static_cast<int>(detail->detail.regions.regions.size());
+    r.given_regions = static_cast<int>(capture_options.color_regions.size());
     r.texels_with_detail = detail->maps.texels_with_detail;
     for (const float h : detail->maps.displacement_mm.pixels)
       r.max_height_mm = std::max(r.max_height_mm, static_cast<double>(std::abs(h)));
@@ -130,6 +146,7 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
       if (!png) return png.failure();
       data.normal_png = std::move(*png);
       const nlohmann::json params = {{"regions", r.regions},
+                                     {"given_regions", r.given_regions},
                                      {"texels_with_detail", r.texels_with_detail},
                                      {"mm_per_px", detail->detail.image_mm_per_px},
                                      {"mesh_id", mesh_id},

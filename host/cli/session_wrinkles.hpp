@@ -18,7 +18,8 @@ namespace fb::cli {
 struct CaptureWrinkleReport {
   int capture_index = 0;
   std::string expression;
-  int regions = 0;             // salient regions in the frame
+  int regions = 0;             // regions synthesised in (detected and/or given)
+  int given_regions = 0;       // of them given by hand
   int texels_with_detail = 0;  // of the maps
   double max_height_mm = 0.0;  // largest |displacement| in the maps
   std::optional<WrinkleDetailId> stored;
@@ -30,6 +31,15 @@ struct WrinkleSessionOptions {
   bool save = true;
   std::vector<WrinkleExemplar> exemplars;
   double exemplar_mm_per_px = 0.25;
+  // Hand-given regions in the colour frame's pixels (--region), for one capture or (no index)
+  // every capture; they replace the detected regions unless `also_detect`.
+  struct GivenRegion {
+    std::optional<int> capture;
+    PixelRectI rect;
+  };
+  std::vector<GivenRegion> regions;
+  bool also_detect = false;
+  bool zones = false;  // detect only in the wrinkle zones (SalientOptions::wrinkle_zones)
 };
 
 // Fails with what to do when the session has no rig, no fitted neutral, or a capture without a

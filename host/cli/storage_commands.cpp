@@ -12,6 +12,7 @@
 #include "algo/core/clock.hpp"
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/detail_weights.hpp"
 #include "host/cli/export_summary.hpp"
 #include "host/cli/stats.hpp"
 #include "storage/asset_files.hpp"
@@ -69,6 +70,31 @@ Result<SessionStore> open_reader(const ParsedOptions& options) {
   return SessionStore::open(options.get("store"), ro);
 }
 
+// The wrinkle map weights of a take whose session has detail maps (issue 40 item 5), beside
+// its CSV; what the manifest says about them.
+Result<std::string> take_detail_weights(const SessionStore& store, const TakeData& take,
+                                        ExportFolder& folder) {
+  if (!take.info.session) return std::string("none: the take has no session");
+  auto details = store.wrinkle_details(*take.info.session);
+  if (!details) return details.failure();
+  if (details->empty())
+    return "none: session " + std::to_string(*take.info.session) +
+           " has no wrinkle detail (facebooth wrinkles)";
+  auto model = load_face_model();
+  if (!model) return model.failure();
+  auto guide = load_guide_expressions(*model);
+  if (!guide) return guide.failure();
+  auto blend = load_session_detail_blend(store, *take.info.session, *model, *guide);
+  if (!blend) return "none: " + blend.error().message;
+  auto layers = write_take_detail_weights(folder, take, *blend, *model);
+  if (!layers) return layers.failure();
+  return "take_" + std::to_string(take.info.id) +
+         "_detail_weights.csv: " + detail_weights_description() +
+         "; the maps: wrinkles/capture_I_normal.png (tangent space, x along +u, y along +v) and "
+         "wrinkles/capture_I_displacement.pgm (16-bit, mm = (value - 32768) / 1000), capture " +
+         std::to_string(blend->neutral_capture) + " is N";
+}
+
 // A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name).
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
                                   bool overwrite) {
@@ -120,6 +146,8 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   if (auto r = folder->write_text("take_" + std::to_string(id) + ".csv", text); !r) {
     return r.failure();
   }
+  auto detail = take_detail_weights(store, *take, *folder);
+  if (!detail) return detail.failure();
   ExportManifest manifest;
   manifest.what = "livelink_csv";
   manifest.source = {{"kind", "take"},
@@ -134,11 +162,12 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                       {"columns",
                        "the Live Link Face app's order (JawRight before JawLeft, MouthRight "
                        "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
-                      {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"}};
+                      {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"},
+                      {"detail_weights", *detail}};
   if (auto r = folder->finish(manifest); !r) return r.failure();
   ExportSummary summary;
   summary.path = folder->destination();
-  summary.files = 2;
+  summary.files = static_cast<int>(folder->files().size()) + 1;
   summary.bytes = folder->total_bytes();
   summary.seconds = seconds_since(start);
   return summary;

@@ -25,6 +25,7 @@
 #include "firmware/streaming/live_json.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/detail_weights.hpp"
 #include "host/cli/frame_open.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/stats.hpp"
@@ -291,6 +292,27 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   }
   bool csv_started = false;
   const bool print_sse = options.flag("sse");
+  // --detail-weights: the session's wrinkle maps blended per frame (issue 40 item 5); the
+  // file gets each frame's map weights, one per captured expression with detail.
+  std::optional<SessionDetailBlend> detail;
+  std::optional<DetailWeightsCsv> detail_csv;
+  std::vector<float> map_weights;
+  if (const std::string file = options.get("detail-weights"); !file.empty()) {
+    if (!store || !session)
+      return report_failure(
+          {"--detail-weights needs --store DIR and --session ID (the session whose wrinkle "
+           "detail, from `facebooth wrinkles`, the weights blend)"});
+    auto guide = load_guide_expressions(model);
+    if (!guide) return report_failure(guide.error());
+    auto loaded = load_session_detail_blend(*store, *session, model, *guide);
+    if (!loaded) return report_failure(loaded.error());
+    for (const auto& why : loaded->skipped) std::cerr << "track: detail weights: " << why << "\n";
+    auto opened = DetailWeightsCsv::open(file, *loaded);
+    if (!opened) return report_failure(opened.error());
+    detail.emplace(std::move(*loaded));
+    detail_csv.emplace(std::move(*opened));
+    map_weights.resize(detail->captures.size());
+  }
 
   std::mt19937_64 rng(1);
   std::normal_distribution<float> noise(0.0f, static_cast<float>(kTruthLandmarkNoisePx));
@@ -385,6 +407,16 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
       if (auto r = take.add_frame(out.time_s, out.camera_from_model, out.weights); !r)
         return report_failure(r.error());
     }
+    if (detail_csv) {
+      detail->blend.map_weights(
+          std::span<const float>(report.weights.data(),
+                                 static_cast<std::size_t>(report.shape_count)),
+          map_weights);
+      if (auto r = detail_csv->append(static_cast<long long>(out.index), out.time_s, out.face_found,
+                                      map_weights);
+          !r)
+        return report_failure(r.error());
+    }
     if (print_sse) {
       format_sse_event(out, sse);
       std::cerr << sse;
@@ -425,6 +457,9 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   (*camera)->stop();
   if (csv) {
     if (auto r = csv->close(); !r) return report_failure(r.error());
+  }
+  if (detail_csv) {
+    if (auto r = detail_csv->close(); !r) return report_failure(r.error());
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json result;
@@ -494,6 +529,16 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
     result["osc_messages"] = sender->messages_sent();
   }
   if (csv) result["csv"] = options.get("csv");
+  if (detail) {
+    nlohmann::json layers = nlohmann::json::array();
+    for (std::size_t e = 0; e < detail->captures.size(); ++e)
+      layers.push_back({{"capture", detail->captures[e]}, {"expression", detail->expressions[e]}});
+    result["detail_weights"] = {{"file", options.get("detail-weights")},
+                                {"neutral_capture", detail->neutral_capture},
+                                {"layers", layers},
+                                {"skipped", detail->skipped},
+                                {"meaning", detail_weights_description()}};
+  }
   std::cout << result.dump(2) << std::endl;
   if (!camera_failed && !(*tracker)->calibrated()) {
     // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.
@@ -555,7 +600,12 @@ std::vector<Command> tracking_commands(TruthLandmarks truth_landmarks) {
           "model is missing), or depth only",
           "dlib"},
          {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
-         {"sse", "", "also print the kiosk's SSE events to stderr", ""}}},
+         {"sse", "", "also print the kiosk's SSE events to stderr", ""},
+         {"detail-weights", "FILE",
+          "write each frame's wrinkle map weights (CSV: one column per captured expression "
+          "with detail) for --session's maps from `facebooth wrinkles`; the frame's detail is "
+          "N + sum c_e (D_e - N) (docs/wrinkles.md)",
+          ""}}},
        [truth_landmarks](const ParsedOptions& o) { return run_track(o, truth_landmarks); }}};
 }
 

@@ -144,7 +144,8 @@ Result<nlohmann::json> bench_detail_blend(const FaceModel& model, const GuideSet
       {"write_only_ms", write_ms},
       {"map_weights_note",
        "c = P^T a alone: what a renderer holding the captures' maps needs per frame (the "
-       "blend then runs on its side; not built: no exporter carries per-frame map weights)"},
+       "blend then runs on its side): what `track --detail-weights` and `export --take` "
+       "write per frame"},
       {"map_weights_checksum", checksum},
       {"map", std::to_string(map->width) + "x" + std::to_string(map->height)},
       {"support_texels", blend->support().size()},

@@ -132,11 +132,15 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   if (!setup) return report_failure(setup.error());
   const bool vary = options.get("light") == "vary";
   const bool given = options.get("regions") == "truth";
+  const bool zones = options.get("regions") == "zones";
+  if (!given && !zones && options.get("regions") != "detected")
+    return report_failure({"--regions takes detected, zones or truth"});
   const auto distance = options.get_double("distance-mm");
   if (!distance || *distance < 500 || *distance > 1500)
     return report_failure({"--distance-mm takes a distance in 500-1500 mm"});
   WrinkleDetailOptions wo;
   wo.exemplar_mm_per_px = setup->exemplars.mm_per_px;
+  wo.regions.wrinkle_zones = zones;
   nlohmann::json runs = nlohmann::json::array(), summary;
   WrinkleScore worst{0, 0, 0, 1, 1, 1, 0};
   Progress progress("eval wrinkles", 2 * static_cast<int>(*subjects));
@@ -197,8 +201,9 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   out["by_relief"] = summary;
   out["light"] = vary ? "vary (per-take light drawn from the seed)" : "the booth's key light";
   out["distance_mm"] = *distance;
-  out["regions"] = given ? "given: the true windows + 5 px (the paper's user rectangles)"
-                         : "detected (salient regions)";
+  out["regions"] = given   ? "given: the true windows + 5 px (the paper's user rectangles)"
+                   : zones ? "detected in the wrinkle zones (forehead, glabella, crow's feet)"
+                           : "detected (salient regions)";
   out["budget"] = {{"height_mae_mm", "<= 0.15"},
                    {"region_recall", ">= 0.9"},
                    {"region_precision", ">= 0.8"},
@@ -292,8 +297,9 @@ std::vector<Command> wrinkles_eval_commands() {
              {"first-seed", "N", "seed of the first subject", "1"},
              {"light", "booth|vary", "the booth's key light or a per-take one", "booth"},
              {"distance-mm", "MM", "the face's distance from the camera", "700"},
-             {"regions", "detected|truth",
-              "detected regions, or the true windows + 5 px given as the paper's user "
+             {"regions", "detected|zones|truth",
+              "detected regions; detected only in the wrinkle zones (SalientOptions::"
+              "wrinkle_zones); or the true windows + 5 px given as the paper's user "
               "rectangles (scores the synthesis alone)",
               "detected"},
              {"png-prefix", "P", "figures", ""},

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <map>
 
+#include "algo/wrinkles/detail_mesh.hpp"
 #include "storage/export/export_folder.hpp"
 #include "storage/export/facewarehouse.hpp"
 #include "storage/export/gltf.hpp"
@@ -189,11 +190,10 @@ const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
   return &c.pose_details.front().normal_png;
 }
 
-std::string skin_mtl(bool texture, bool normal_map) {
-  return std::string(
-             "# facebooth: the skin material of the exported meshes\n"
-             "newmtl skin\n"
-             "Ka 0 0 0\n") +
+constexpr const char* kDisplacedMaterialName = "skin_displaced";
+
+std::string material(const char* name, bool texture, bool normal_map) {
+  return std::string("newmtl ") + name + "\nKa 0 0 0\n" +
          (texture ? "Kd 1 1 1\n" : "Kd 0.8 0.6 0.5\n") +
          "Ks 0.05 0.05 0.05\n"
          "Ns 20\n"
@@ -202,6 +202,61 @@ std::string skin_mtl(bool texture, bool normal_map) {
          (texture ? std::string("map_Kd ") + kTextureFile + "\n" : std::string()) +
          // `norm`: the tangent-space normal map extension (Blender, assimp read it).
          (normal_map ? std::string("norm ") + kNormalFile + "\n" : std::string());
+}
+
+// skin; with displaced meshes also skin_displaced, without the normal map (their geometry
+// carries the detail already: the map on top would double it).
+std::string skin_mtl(bool texture, bool normal_map, bool displaced) {
+  return "# facebooth: the skin material of the exported meshes\n" +
+         material(kMaterialName, texture, normal_map) +
+         (displaced ? "\n" + material(kDisplacedMaterialName, texture, false) : std::string());
+}
+
+bool has_detail_meshes(const ExportContent& c) {
+  for (std::size_t i = 0; i < c.poses.size() && i < c.pose_details.size(); ++i)
+    if (c.pose_details[i].width > 0 && c.uvs.fits(c.poses[i].triangles)) return true;
+  return false;
+}
+
+// poses/pose_I_detail.obj for every pose with wrinkle detail: the pose's mesh subdivided under
+// the detail and displaced by its heights (algo/wrinkles/detail_mesh.hpp), for tools that read
+// OBJ geometry and no displacement map.
+Result<int> write_detail_meshes(ExportFolder& folder, const ExportContent& c) {
+  int written = 0;
+  for (std::size_t i = 0; i < c.poses.size() && i < c.pose_details.size(); ++i) {
+    const WrinkleDetailData& d = c.pose_details[i];
+    if (d.width <= 0 || !c.uvs.fits(c.poses[i].triangles)) continue;
+    FloatImage disp;
+    disp.resize(d.width, d.height);
+    disp.pixels = d.displacement_mm;
+    DetailMeshInput in;
+    in.vertices = c.poses[i].positions;
+    in.triangles = c.poses[i].triangles;
+    in.uvs = c.uvs.uvs;
+    in.triangle_uvs = c.uvs.triangle_uvs;
+    in.displacement_mm = &disp;
+    auto mesh = subdivided_detail_mesh(in);
+    if (!mesh) return mesh.failure();
+    MeshUvs uvs;
+    uvs.uvs = std::move(mesh->uvs);
+    uvs.triangle_uvs = std::move(mesh->triangle_uvs);
+    ObjExtras extras;
+    extras.uvs = &uvs;
+    extras.normals = true;
+    extras.mtllib = std::string("../") + kMtlFile;
+    extras.material = kDisplacedMaterialName;
+    const std::string name = i < c.pose_names.size() ? c.pose_names[i] : "";
+    const MeshData out{std::move(mesh->positions), std::move(mesh->triangles)};
+    if (auto r = folder.write_text(
+            "poses/pose_" + std::to_string(i) + "_detail.obj",
+            encode_obj(out,
+                       name + ", millimetres; subdivided under the wrinkle detail and displaced",
+                       &extras));
+        !r)
+      return r.failure();
+    ++written;
+  }
+  return written;
 }
 
 // Every pose's wrinkle detail: wrinkles/pose_I_normal.png (tangent space, x along +u, y along
@@ -240,7 +295,10 @@ Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, const Ri
   if (!ply) {
     const bool texture = !c.texture_png.empty() && c.uvs.fits(rig.triangles);
     const auto* normal = c.uvs.fits(rig.triangles) ? neutral_normal_png(c) : nullptr;
-    if (auto r = folder.write_text(kMtlFile, skin_mtl(texture, normal != nullptr)); !r) return r;
+    if (auto r =
+            folder.write_text(kMtlFile, skin_mtl(texture, normal != nullptr, has_detail_meshes(c)));
+        !r)
+      return r;
     if (texture) {
       if (auto r = folder.write_file(kTextureFile, c.texture_png); !r) return r;
     }
@@ -274,6 +332,9 @@ Result<void> write_meshes(ExportFolder& folder, const ExportContent& c, const Ri
         !r) {
       return r;
     }
+  }
+  if (!ply) {
+    if (auto r = write_detail_meshes(folder, c); !r) return r.failure();
   }
   return success();
 }
@@ -414,6 +475,13 @@ Result<ExportSummary> export_content(const ExportContent& c, const ExportRequest
         manifest.details["material"] = has_uvs && !c.texture_png.empty()
                                            ? "face.mtl (skin, map_Kd face.png)"
                                            : "face.mtl (skin, diffuse colour)";
+        if (has_uvs && has_detail_meshes(c))
+          manifest.details["detail_meshes"] =
+              "poses/pose_I_detail.obj per pose with wrinkle detail: the pose's mesh with the "
+              "triangles under the detail (and one ring around) subdivided twice at their edge "
+              "midpoints, UVs interpolated, vertices moved along their normals by the "
+              "displacement map (smoothed over 2 rings at the detail's border); material "
+              "skin_displaced (no normal map: the geometry carries the detail)";
       }
       break;
   }

@@ -16,10 +16,12 @@
 #include "drivers/camera/common/device_json.hpp"
 #include "sim/lab/wrinkle_case.hpp"
 #include "storage/asset_files.hpp"
+#include "storage/export/mesh_files.hpp"
 #include "storage/export/png_file.hpp"
 #include "storage/session_store.hpp"
 #include "tests/common/gltf_validator.hpp"
 #include "tests/common/run_command.hpp"
+#include "tests/wrinkles/wrinkle_store.hpp"
 
 namespace fb {
 namespace {
@@ -38,37 +40,7 @@ class WrinklesCli : public ::testing::Test {
   fs::path dir_;
 };
 
-CaptureInput capture_of(const cli::WrinkleCase& c, const FaceModel& model,
-                        const KinectRegistration& registration) {
-  CaptureInput in;
-  auto frame = cli::wrinkle_case_frame(c, model, registration);
-  EXPECT_TRUE(frame) << frame.error().message;
-  in.fused_depth = frame->depth_mm;
-  in.frames.push_back(std::move(*frame));
-  for (int l = 0; l < 68; ++l) {
-    const auto& p = c.landmarks_3d[static_cast<std::size_t>(l)];
-    const auto& q = c.landmarks[static_cast<std::size_t>(l)];
-    (void)q;  // the case's landmarks are in the depth image; the colour ones are not needed
-    in.landmarks.push_back({0.0f, 0.0f, true, static_cast<float>(p.x()), static_cast<float>(p.y()),
-                            static_cast<float>(p.z())});
-  }
-  return in;
-}
-
-// The generic rig on the subject's neutral: neutral + each fitting expression of the model.
-RigData generic_rig(const FaceModel& model, const std::vector<float>& neutral) {
-  RigData rig;
-  rig.neutral = neutral;
-  rig.triangles = model.triangles;
-  for (int j = 0; j < model.fitting_expression_count; ++j) {
-    std::vector<float> shape = neutral;
-    const auto e = model.expression_shape(j);
-    for (std::size_t i = 0; i < shape.size(); ++i) shape[i] += e[i];
-    rig.shapes.push_back(std::move(shape));
-    rig.shape_names.push_back(model.expression_names[static_cast<std::size_t>(j)]);
-  }
-  return rig;
-}
+using test::generic_rig;
 
 struct UvScore {
   int inside = 0, inside_detail = 0, outside = 0, outside_detail = 0;
@@ -122,26 +94,10 @@ TEST_F(WrinklesCli, StoresDetailWhereTheWrinklesAreAndExportsIt) {
   ASSERT_TRUE(neutral) << neutral.error().message;
   auto brows = cli::make_wrinkle_case(*model, {});  // grooves, seed 1, brows raised
   ASSERT_TRUE(brows) << brows.error().message;
-  const KinectCalibration calibration = KinectCalibration::defaults();
-  const KinectRegistration registration(calibration);
   const fs::path root = dir_ / "store";
-  SessionId session = 0;
-  SubjectId subject = 0;
-  {
-    auto store = SessionStore::open(root);
-    ASSERT_TRUE(store) << store.error().message;
-    subject = *store->add_subject("wrinkled");
-    session = *store->create_session(subject, {"neutral", "brow_raiser"});
-    ASSERT_TRUE(store->set_session_calibration(session, to_device_json(calibration)));
-    const cli::WrinkleCase* cases[2] = {&*neutral, &*brows};
-    for (int i = 0; i < 2; ++i) {
-      ASSERT_TRUE(store->begin_capture(session, i));
-      ASSERT_TRUE(store->commit_capture(session, i, capture_of(*cases[i], *model, registration)));
-      ASSERT_TRUE(store->add_mesh(session, i, i == 0 ? MeshRole::kNeutral : MeshRole::kFitted,
-                                  i == 0 ? "neutral" : "brow_raiser",
-                                  {cases[i]->vertices, model->triangles}));
-    }
-  }
+  const test::WrinkleStore made = test::make_wrinkle_store(root, *model, *neutral, *brows, false);
+  const SessionId session = made.session;
+  const SubjectId subject = made.subject;
   // No rig yet: a clear error saying what to run.
   const std::string args =
       "wrinkles --size 256 --store " + root.string() + " --session " + std::to_string(session);
@@ -211,6 +167,14 @@ TEST_F(WrinklesCli, StoresDetailWhereTheWrinklesAreAndExportsIt) {
   EXPECT_TRUE(fs::exists(dir_ / "obj" / "face_normal.png"));
   EXPECT_TRUE(fs::exists(dir_ / "obj" / "wrinkles" / "pose_1_normal.png"));
   EXPECT_TRUE(fs::exists(dir_ / "obj" / "wrinkles" / "pose_1_displacement.pgm"));
+  // The detail as geometry: the brow raiser subdivided under its detail (item 4).
+  auto displaced = read_obj(dir_ / "obj" / "poses" / "pose_1_detail.obj");
+  ASSERT_TRUE(displaced) << displaced.error().message;
+  std::printf("pose_1_detail.obj: %d vertices, %d triangles (the pose: %d), %.1f MB\n",
+              displaced->mesh.vertex_count(), displaced->mesh.triangle_count(),
+              model->triangle_count(),
+              fs::file_size(dir_ / "obj" / "poses" / "pose_1_detail.obj") / 1e6);
+  EXPECT_GT(displaced->mesh.triangle_count(), model->triangle_count() + 1000);
   std::ifstream mtl(dir_ / "obj" / "face.mtl");
   const std::string mtl_text((std::istreambuf_iterator<char>(mtl)), {});
   EXPECT_NE(mtl_text.find("norm face_normal.png"), std::string::npos) << mtl_text;

@@ -1,0 +1,212 @@
+#include "host/cli/detail_weights.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "algo/tracking/arkit.hpp"
+#include "storage/export/png_file.hpp"
+
+namespace fb::cli {
+
+namespace {
+
+struct DecodedMaps {
+  FloatImage displacement;
+  ColorImage normal;
+};
+
+Result<DecodedMaps> decode(const WrinkleDetailData& d) {
+  DecodedMaps out;
+  out.displacement.resize(d.width, d.height);
+  out.displacement.pixels = d.displacement_mm;
+  auto normal = decode_png(d.normal_png);
+  if (!normal) return normal.failure();
+  if (normal->width != d.width || normal->height != d.height)
+    return fail("a stored wrinkle normal map is " + std::to_string(normal->width) + " x " +
+                std::to_string(normal->height) + ", its displacement map " +
+                std::to_string(d.width) + " x " + std::to_string(d.height) +
+                "; rebuild the detail with facebooth wrinkles");
+  out.normal = std::move(*normal);
+  return out;
+}
+
+std::string column_name(const SessionDetailBlend& b, std::size_t e) {
+  return b.expressions[e] + "@" + std::to_string(b.captures[e]);
+}
+
+}  // namespace
+
+Result<SessionDetailBlend> load_session_detail_blend(const SessionStore& store, SessionId session,
+                                                     const FaceModel& model,
+                                                     const GuideSet& guide) {
+  auto details = store.wrinkle_details(session);
+  if (!details) return details.failure();
+  std::map<int, WrinkleDetailId> newest;
+  for (const auto& d : *details) newest[d.capture_index] = d.id;  // listed oldest first
+  const std::string run = "facebooth wrinkles --store " + store.root().string() + " --session " +
+                          std::to_string(session);
+  if (newest.find(0) == newest.end())
+    return fail("session " + std::to_string(session) +
+                " has no wrinkle detail on its neutral (capture 0), so there are no map weights "
+                "to compute; run `" +
+                run + "` first");
+  auto captures = store.captures(session);
+  if (!captures) return captures.failure();
+  SessionDetailBlend out;
+  std::vector<DecodedMaps> decoded;
+  std::vector<std::vector<float>> recipes;
+  for (const auto& [index, id] : newest) {
+    std::string expression;
+    for (const auto& c : *captures)
+      if (c.index == index) expression = c.expression;
+    std::vector<float> recipe;
+    if (index != 0) {
+      const int g = guide.find(expression);
+      if (g <= 0) {
+        out.skipped.push_back("capture " + std::to_string(index) + " ('" + expression +
+                              "'): not a guide expression, so its blendshape weights are unknown");
+        continue;
+      }
+      auto w = guide_weights(guide.expressions[static_cast<std::size_t>(g)], model);
+      if (!w) return w.failure();
+      w->resize(static_cast<std::size_t>(model.fitting_expression_count));
+      recipe = std::move(*w);
+    }
+    auto data = store.read_wrinkle_detail(id);
+    if (!data) return data.failure();
+    auto maps = decode(*data);
+    if (!maps) return maps.failure();
+    if (!decoded.empty() && (maps->displacement.width != decoded.front().displacement.width ||
+                             maps->displacement.height != decoded.front().displacement.height))
+      return fail("capture " + std::to_string(index) + "'s wrinkle maps are " +
+                  std::to_string(maps->displacement.width) + " x " +
+                  std::to_string(maps->displacement.height) +
+                  ", the neutral's differ; rebuild them at one size: `" + run + "`");
+    decoded.push_back(std::move(*maps));
+    out.maps.push_back(std::move(*data));
+    if (index == 0) continue;
+    out.captures.push_back(index);
+    out.expressions.push_back(expression);
+    recipes.push_back(std::move(recipe));
+  }
+  if (out.captures.empty())
+    return fail("session " + std::to_string(session) +
+                " has wrinkle detail on its neutral only; the map weights need detail on its "
+                "expressions (`" +
+                run + "` builds every fitted capture's)");
+  std::vector<DetailLayerView> layers;
+  for (std::size_t e = 1; e < decoded.size(); ++e)
+    layers.push_back({&decoded[e].displacement, &decoded[e].normal});
+  auto blend = DetailBlend::build({&decoded[0].displacement, &decoded[0].normal}, layers, recipes,
+                                  model.fitting_expression_count);
+  if (!blend) return blend.failure();
+  out.blend = std::move(*blend);
+  return out;
+}
+
+Result<DetailWeightsCsv> DetailWeightsCsv::open(const std::filesystem::path& path,
+                                                const SessionDetailBlend& blend) {
+  DetailWeightsCsv csv;
+  csv.path_ = path;
+  csv.out_.open(path, std::ios::binary | std::ios::trunc);
+  if (!csv.out_)
+    return fail("cannot write the detail weights file " + path.string() +
+                " (does its folder exist and is it writable?)");
+  csv.out_ << header(blend) << "\n";
+  return csv;
+}
+
+std::string DetailWeightsCsv::header(const SessionDetailBlend& blend) {
+  std::string h = "frame,time_s,face_found";
+  for (std::size_t e = 0; e < blend.captures.size(); ++e) h += "," + column_name(blend, e);
+  return h;
+}
+
+std::string DetailWeightsCsv::row(long long frame, double time_s, bool face_found,
+                                  std::span<const float> weights) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%lld,%.6f,%d", frame, time_s, face_found ? 1 : 0);
+  std::string r = buf;
+  for (const float w : weights) {
+    std::snprintf(buf, sizeof buf, ",%.6f", static_cast<double>(w));
+    r += buf;
+  }
+  return r;
+}
+
+Result<void> DetailWeightsCsv::append(long long frame, double time_s, bool face_found,
+                                      std::span<const float> weights) {
+  out_ << row(frame, time_s, face_found, weights) << "\n";
+  if (!out_) return fail("writing the detail weights file " + path_.string() + " failed");
+  return success();
+}
+
+Result<void> DetailWeightsCsv::close() {
+  out_.flush();
+  const bool ok = static_cast<bool>(out_);
+  out_.close();
+  if (!ok) return fail("writing the detail weights file " + path_.string() + " failed");
+  return success();
+}
+
+std::string detail_weights_description() {
+  return "per frame one weight c_e per captured expression with wrinkle detail (column "
+         "EXPRESSION@CAPTURE); the frame's detail maps are E = N + sum_e c_e (D_e - N) on the "
+         "displacement (mm) and on the normal map's slopes (x/z, y/z; the normal is (sx, sy, 1) "
+         "normalised), N the neutral's maps, D_e capture e's; c = pinv(W)^T a, W the captures' "
+         "guide recipes over the face model's shapes, a the frame's shape weights "
+         "(docs/wrinkles.md)";
+}
+
+Result<int> write_take_detail_weights(ExportFolder& folder, const TakeData& take,
+                                      const SessionDetailBlend& blend, const FaceModel& model) {
+  auto mapping = make_arkit_mapping(model);
+  if (!mapping) return mapping.failure();
+  // The take's columns by ARKit name (camelCase or Live Link's), back to the model's shapes.
+  std::array<int, kArkitShapeCount> column;
+  column.fill(-1);
+  const auto& names = take.info.shape_names;
+  for (int k = 0; k < kArkitShapeCount; ++k)
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (names[i] == kArkitNames[k] || names[i] == kLiveLinkNames[k]) {
+        column[k] = static_cast<int>(i);
+        break;
+      }
+  std::string text = DetailWeightsCsv::header(blend) + "\n";
+  std::array<float, kArkitShapeCount> arkit{};
+  std::vector<float> weights(static_cast<std::size_t>(model.fitting_expression_count));
+  std::vector<float> c(blend.captures.size());
+  for (int f = 0; f < take.info.frame_count; ++f) {
+    const auto v = take.frame(f);
+    for (int k = 0; k < kArkitShapeCount; ++k)
+      arkit[k] = column[k] >= 0 ? v[kTakePoseValues + column[k]] : 0.0f;
+    std::fill(weights.begin(), weights.end(), 0.0f);
+    mapping->to_model(arkit, weights);
+    blend.blend.map_weights(weights, c);
+    text += DetailWeightsCsv::row(f, take.times_s[static_cast<std::size_t>(f)], true, c) + "\n";
+  }
+  if (auto r =
+          folder.write_text("take_" + std::to_string(take.info.id) + "_detail_weights.csv", text);
+      !r)
+    return r.failure();
+  std::vector<int> indices{blend.neutral_capture};
+  indices.insert(indices.end(), blend.captures.begin(), blend.captures.end());
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    const WrinkleDetailData& d = blend.maps[i];
+    const std::string stem = "wrinkles/capture_" + std::to_string(indices[i]);
+    if (auto r = folder.write_file(stem + "_normal.png", d.normal_png); !r) return r.failure();
+    DepthImage pgm;
+    pgm.resize(d.width, d.height);
+    for (std::size_t k = 0; k < d.displacement_mm.size(); ++k)
+      pgm.pixels[k] = static_cast<std::uint16_t>(
+          std::clamp(std::lround(32768.0 + 1000.0 * d.displacement_mm[k]), 0L, 65535L));
+    if (auto r = folder.write_text(stem + "_displacement.pgm", encode_pgm16(pgm)); !r)
+      return r.failure();
+  }
+  return static_cast<int>(blend.captures.size());
+}
+
+}  // namespace fb::cli

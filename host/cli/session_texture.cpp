@@ -25,8 +25,6 @@ Result<KinectCalibration> session_calibration(const SessionInfo& session, std::s
   return *c;
 }
 
-namespace {
-
 // The newest fitted mesh of each capture (a neutral mesh counts for its capture).
 Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session) {
   auto meshes = store.meshes(session);
@@ -39,8 +37,6 @@ Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId
   }
   return out;
 }
-
-}  // namespace
 
 Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session, int capture_index,
                                     const FaceModel& model, const TexelMap& map,

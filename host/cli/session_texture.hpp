@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,10 @@ struct CaptureTextureReport {
   double observed_fraction = 0.0;  // of the atlas's covered texels
   double seconds = 0.0;
 };
+
+// The newest fitted mesh of each capture of `session` (a neutral mesh counts for its capture,
+// 0 when it names none), by capture index.
+Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session);
 
 // The unit calibration a session recorded, or the defaults (with `note` saying so).
 Result<KinectCalibration> session_calibration(const SessionInfo& session, std::string& note);

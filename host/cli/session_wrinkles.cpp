@@ -15,19 +15,6 @@ namespace fb::cli {
 
 namespace {
 
-// The newest fitted mesh of each capture (a neutral mesh counts for capture 0).
-Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session) {
-  auto meshes = store.meshes(session);
-  if (!meshes) return meshes.failure();
-  std::map<int, MeshId> out;
-  for (const auto& m : *meshes) {
-    if (m.role == MeshRole::kScan) continue;
-    const int index = m.capture_index.value_or(m.role == MeshRole::kNeutral ? 0 : -1);
-    if (index >= 0) out[index] = m.id;  // listed oldest first: the newest wins
-  }
-  return out;
-}
-
 // Where the fitted mesh is in the depth camera: its landmark vertices against the capture's
 // interior 3D landmarks (the contour's 0-16 have no reliable 3D).
 Result<RigidPose> mesh_pose(const MeshData& mesh, const CaptureData& capture,

@@ -173,6 +173,16 @@ struct SessionStore::Impl {
     return sqlite3_last_insert_rowid(db.get());
   }
 
+  // A new session's folder, sessions/<id> under the root, recorded in its row.
+  Result<std::string> record_session_folder(std::int64_t session) const {
+    const std::string folder = "sessions/" + std::to_string(session);
+    auto update = sql::prepare(db.get(), "UPDATE sessions SET folder=? WHERE id=?");
+    if (!update) return update.failure();
+    update->bind_all(folder, session);
+    if (auto r = update->run(); !r) return r.failure();
+    return folder;
+  }
+
   // Best effort: removes data files whose commit failed (the orphan cleanup would get them
   // at the next open anyway).
   void discard(const std::vector<StoredFile>& files) const {

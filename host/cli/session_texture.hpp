@@ -32,6 +32,21 @@ struct CaptureTextureReport {
 // 0 when it names none), by capture index.
 Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session);
 
+// What texturing a session, or adding its wrinkle detail, starts from: the unit calibration it
+// recorded (`note` says when the defaults stand in), the atlas's texel map at `size` texels a
+// tile, the newest fitted mesh of each capture (the neutral, capture 0, among them) and its
+// captures.
+struct SessionAtlasInputs {
+  std::string note;
+  KinectCalibration calibration;
+  std::vector<float> uvs;
+  TexelMap map;
+  std::map<int, MeshId> meshes;
+  std::vector<CaptureInfo> captures;
+};
+Result<SessionAtlasInputs> session_atlas_inputs(const SessionStore& store, const SessionInfo& info,
+                                                const FaceModel& model, int size);
+
 // The unit calibration a session recorded, or the defaults (with `note` saying so).
 Result<KinectCalibration> session_calibration(const SessionInfo& session, std::string& note);
 

@@ -69,6 +69,18 @@ Result<SessionStore> open_reader(const ParsedOptions& options) {
   return SessionStore::open(options.get("store"), ro);
 }
 
+// Writes the manifest and says what the export holds (`files` including the manifest).
+Result<ExportSummary> finish_export(ExportFolder& folder, const ExportManifest& manifest, int files,
+                                    Clock::time_point start) {
+  if (auto r = folder.finish(manifest); !r) return r.failure();
+  ExportSummary summary;
+  summary.path = folder.destination();
+  summary.files = files;
+  summary.bytes = folder.total_bytes();
+  summary.seconds = seconds_since(start);
+  return summary;
+}
+
 // A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name).
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
                                   bool overwrite) {
@@ -135,13 +147,7 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                        "the Live Link Face app's order (JawRight before JawLeft, MouthRight "
                        "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
                       {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"}};
-  if (auto r = folder->finish(manifest); !r) return r.failure();
-  ExportSummary summary;
-  summary.path = folder->destination();
-  summary.files = 2;
-  summary.bytes = folder->total_bytes();
-  summary.seconds = seconds_since(start);
-  return summary;
+  return finish_export(*folder, manifest, 2, start);
 }
 
 // A stored model (e.g. the bilinear model) as its file plus a manifest.
@@ -166,13 +172,7 @@ Result<ExportSummary> export_model(const SessionStore& store, ModelId id, const 
       {"kind", "model"}, {"store", store.root().string()}, {"model", std::to_string(id)}};
   manifest.details = {
       {"model_kind", info->kind}, {"params", info->params_json}, {"created_at", info->created_at}};
-  if (auto r = folder->finish(manifest); !r) return r.failure();
-  ExportSummary summary;
-  summary.path = folder->destination();
-  summary.files = 2;
-  summary.bytes = folder->total_bytes();
-  summary.seconds = seconds_since(start);
-  return summary;
+  return finish_export(*folder, manifest, 2, start);
 }
 
 int run_export_stored_item(const ParsedOptions& options) {

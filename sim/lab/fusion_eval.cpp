@@ -424,18 +424,12 @@ int eval_fusion_once(const ParsedOptions& options, const std::string& world, nlo
 int run_eval_fusion(const ParsedOptions& options) {
   const std::string scenario = options.get("scenario");
   if (scenario.empty()) return eval_fusion_once(options, "", nullptr);
-  SyntheticOptions probe;
-  if (auto ok = apply_world_preset(scenario, 1, probe); !ok) return report_failure(ok.error());
   // A plain baseline and every part alone for realistic, then the scenario (the top level);
   // the real dump is not part of a scenario run.
-  std::vector<std::string> parts;
-  if (scenario == "realistic") {
-    parts.push_back("baseline");
-    for (const auto& p : world_parts()) parts.push_back(p);
-  }
-  parts.push_back(scenario);
+  auto parts = scenario_parts(scenario);
+  if (!parts) return report_failure(parts.error());
   nlohmann::json scenarios, out;
-  for (const auto& part : parts) {
+  for (const auto& part : *parts) {
     nlohmann::json j;
     if (int rc = eval_fusion_once(options, part == "baseline" ? "none" : part, &j); rc != kExitOk)
       return rc;

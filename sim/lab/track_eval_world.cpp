@@ -127,14 +127,8 @@ int run_world_scenarios(const ParsedOptions& options, const FaceModel& model,
   TakeSpec design = design_in;
   // The realistic world: each part (and, for realistic, a plain baseline) then the scenario;
   // only the plain and depth-only runs (no known-identity or occluder takes).
-  SyntheticOptions probe;
-  if (auto ok = apply_world_preset(scenario, 1, probe); !ok) return report_failure(ok.error());
-  std::vector<std::string> parts;
-  if (scenario == "realistic") {
-    parts.push_back("baseline");
-    for (const auto& p : world_parts()) parts.push_back(p);
-  }
-  parts.push_back(scenario);
+  auto parts = scenario_parts(scenario);
+  if (!parts) return report_failure(parts.error());
   design.frames = static_cast<int>(frames);
   std::optional<TrackLandmarkSource> dlib;
   if (landmark_source == "dlib") {
@@ -157,7 +151,7 @@ int run_world_scenarios(const ParsedOptions& options, const FaceModel& model,
   base.tracker = overrides;
   base.bilinear = bilinear;
   nlohmann::json scenarios, out;
-  for (const auto& part : parts) {
+  for (const auto& part : *parts) {
     auto j = evaluate_world(model, mapping, design, seeds, part, base, dlib ? &*dlib : nullptr,
                             reacquire_source);
     if (!j) return report_failure(j.error());

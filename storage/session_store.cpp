@@ -230,11 +230,9 @@ Result<SessionId> SessionStore::create_session(SubjectId subject,
   stmt->bind(1, subject);
   if (auto r = stmt->run(); !r) return r.failure();
   const SessionId id = sqlite3_last_insert_rowid(db);
-  const std::string folder = "sessions/" + std::to_string(id);
-  auto update = sql::prepare(db, "UPDATE sessions SET folder=? WHERE id=?");
-  if (!update) return update.failure();
-  update->bind_all(folder, id);
-  if (auto r = update->run(); !r) return r.failure();
+  auto recorded = impl_->record_session_folder(id);
+  if (!recorded) return recorded.failure();
+  const std::string folder = *recorded;
   auto insert = sql::prepare(db, "INSERT INTO captures(session_id, idx, expression) VALUES(?,?,?)");
   if (!insert) return insert.failure();
   for (std::size_t i = 0; i < guide.size(); ++i) {
@@ -262,15 +260,14 @@ Result<SessionInfo> SessionStore::session(SessionId id) const {
 }
 
 Result<std::vector<SessionInfo>> SessionStore::sessions() const {
-  auto stmt =
-      sql::prepare(impl_->db.get(),
-                   "SELECT s.id, s.subject_id, s.created_at, s.state, s.folder, "
-                   "(SELECT count(*) FROM captures c WHERE c.session_id=s.id), "
-                   "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done'), " +
-                       std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
-                       (impl_->schema_version >= 5 ? ", s.origin_booth, s.origin_id"
-                                                   : ", NULL, NULL") +
-                       " FROM sessions s ORDER BY s.id");
+  auto stmt = sql::prepare(
+      impl_->db.get(),
+      "SELECT s.id, s.subject_id, s.created_at, s.state, s.folder, "
+      "(SELECT count(*) FROM captures c WHERE c.session_id=s.id), "
+      "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done'), " +
+          std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
+          (impl_->schema_version >= 5 ? ", s.origin_booth, s.origin_id" : ", NULL, NULL") +
+          " FROM sessions s ORDER BY s.id");
   if (!stmt) return stmt.failure();
   std::vector<SessionInfo> out;
   for (;;) {
@@ -294,7 +291,7 @@ Result<std::vector<SessionInfo>> SessionStore::sessions() const {
 }
 
 Result<void> SessionStore::set_session_calibration(SessionId session,
-                                                  const std::string& device_json) {
+                                                   const std::string& device_json) {
   if (auto r = impl_->require_writer(); !r) return r.failure();
   if (auto folder = impl_->session_folder(session); !folder) return folder.failure();
   auto stmt = sql::prepare(impl_->db.get(), "UPDATE sessions SET calibration_json=? WHERE id=?");

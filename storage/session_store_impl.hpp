@@ -173,6 +173,16 @@ struct SessionStore::Impl {
     return sqlite3_last_insert_rowid(db.get());
   }
 
+  // A new session's folder, sessions/<id> under the root, recorded in its row.
+  Result<std::string> record_session_folder(std::int64_t session) const {
+    const std::string folder = "sessions/" + std::to_string(session);
+    auto update = sql::prepare(db.get(), "UPDATE sessions SET folder=? WHERE id=?");
+    if (!update) return update.failure();
+    update->bind_all(folder, session);
+    if (auto r = update->run(); !r) return r.failure();
+    return folder;
+  }
+
   // Best effort: removes data files whose commit failed (the orphan cleanup would get them
   // at the next open anyway).
   void discard(const std::vector<StoredFile>& files) const {
@@ -180,6 +190,50 @@ struct SessionStore::Impl {
       std::error_code ec;
       fs::remove(root / f.relpath, ec);
     }
+  }
+
+  // One row over data files already written durably, in one transaction: the files' rows, then
+  // `insert_sql` bound by `bind(statement, the files' row ids)`; returns its row id. When anything
+  // fails the files are removed again, so a failed add leaves nothing behind.
+  template <class Bind>
+  Result<std::int64_t> insert_with_files(const std::vector<StoredFile>& files,
+                                         std::string_view insert_sql, Bind bind) const {
+    auto insert = [&]() -> Result<std::int64_t> {
+      auto tx = sql::Transaction::begin(db.get());
+      if (!tx) return tx.failure();
+      std::vector<std::int64_t> file_ids;
+      for (const auto& f : files) {
+        auto id = insert_file_row(f);
+        if (!id) return id.failure();
+        file_ids.push_back(*id);
+      }
+      auto stmt = sql::prepare(db.get(), insert_sql);
+      if (!stmt) return stmt.failure();
+      bind(*stmt, file_ids);
+      if (auto r = stmt->run(); !r) return r.failure();
+      const std::int64_t row = sqlite3_last_insert_rowid(db.get());
+      if (auto r = tx->commit(); !r) return r.failure();
+      return row;
+    };
+    auto row = insert();
+    if (!row) discard(files);
+    return row;
+  }
+
+  // Every row `query` (one parameter: `key`) selects, each made into a T by `read(statement)`.
+  template <class T, class Read>
+  Result<std::vector<T>> rows(std::string_view query, std::int64_t key, Read read) const {
+    std::vector<T> out;
+    auto stmt = sql::prepare(db.get(), query);
+    if (!stmt) return stmt.failure();
+    stmt->bind(1, key);
+    for (;;) {
+      auto row = stmt->step();
+      if (!row) return row.failure();
+      if (!*row) break;
+      out.push_back(read(*stmt));
+    }
+    return out;
   }
 
   struct DataFile {

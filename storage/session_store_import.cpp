@@ -205,11 +205,9 @@ Result<SessionId> SessionStore::import_session(const SessionImport& in) {
                    in.booth, in.origin_session);
     if (auto r = stmt->run(); !r) return r.failure();
     const SessionId id = sqlite3_last_insert_rowid(db);
-    const std::string folder = "sessions/" + std::to_string(id);
-    auto update = sql::prepare(db, "UPDATE sessions SET folder=? WHERE id=?");
-    if (!update) return update.failure();
-    update->bind_all(folder, id);
-    if (auto r = update->run(); !r) return r.failure();
+    auto recorded = impl_->record_session_folder(id);
+    if (!recorded) return recorded.failure();
+    const std::string folder = *recorded;
     std::error_code ec;
     fs::create_directories(impl_->root / folder, ec);
     if (ec) return fail("cannot create " + (impl_->root / folder).string() + ": " + ec.message());

@@ -142,26 +142,14 @@ Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> 
   const std::string folder = "subjects/" + std::to_string(subject);
   auto file = impl_->write_data_file(folder, "rig.fbrig", w.bytes);
   if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<RigId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
-                             "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
-                   static_cast<int>(rig.triangles.size() / 3), *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const RigId rig_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return rig_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
+  return impl_->insert_with_files(
+      {*file},
+      "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
+      "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)",
+      [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+        stmt.bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
+                      static_cast<int>(rig.triangles.size() / 3), ids[0]);
+      });
 }
 
 Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
@@ -229,23 +217,11 @@ Result<ModelId> SessionStore::add_model(const std::string& kind, const std::stri
   if (auto r = impl_->require_writer(); !r) return r.failure();
   auto file = impl_->write_data_file("models", kind + ".bin", bytes);
   if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<ModelId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db, "INSERT INTO models(kind, params_json, file_id) VALUES(?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(kind, params_json, *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const ModelId model_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return model_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
+  return impl_->insert_with_files({*file},
+                                  "INSERT INTO models(kind, params_json, file_id) VALUES(?,?,?)",
+                                  [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+                                    stmt.bind_all(kind, params_json, ids[0]);
+                                  });
 }
 
 Result<std::vector<ModelInfo>> SessionStore::models() const {
@@ -295,26 +271,14 @@ Result<TakeId> SessionStore::add_take(const TakeData& take) {
   auto file =
       impl_->write_data_file("subjects/" + std::to_string(info.subject), "take.fbtak", w.bytes);
   if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<TakeId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO takes(subject_id, session_id, fps, shape_names_json, "
-                             "frame_count, file_id, time_source) VALUES(?,?,?,?,?,?,'file')");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(info.subject, info.session, info.fps, names_to_json(info.shape_names),
-                   info.frame_count, *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const TakeId take_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return take_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
+  return impl_->insert_with_files(
+      {*file},
+      "INSERT INTO takes(subject_id, session_id, fps, shape_names_json, "
+      "frame_count, file_id, time_source) VALUES(?,?,?,?,?,?,'file')",
+      [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+        stmt.bind_all(info.subject, info.session, info.fps, names_to_json(info.shape_names),
+                      info.frame_count, ids[0]);
+      });
 }
 
 namespace {

@@ -21,54 +21,35 @@ Result<TextureId> SessionStore::add_texture(SessionId session, std::optional<int
   if (!folder) return folder.failure();
   auto file = impl_->write_data_file(*folder, "texture.png", png);
   if (!file) return file.failure();
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<TextureId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto id = impl_->insert_file_row(*file);
-    if (!id) return id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO textures(session_id, capture_idx, width, height, "
-                             "params_json, file_id) VALUES(?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(session,
-                   capture_index ? std::optional<std::int64_t>(*capture_index) : std::nullopt,
-                   width, height, params_json, *id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const TextureId texture_id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return texture_id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*file});
-  return id;
+  return impl_->insert_with_files(
+      {*file},
+      "INSERT INTO textures(session_id, capture_idx, width, height, "
+      "params_json, file_id) VALUES(?,?,?,?,?,?)",
+      [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+        stmt.bind_all(session,
+                      capture_index ? std::optional<std::int64_t>(*capture_index) : std::nullopt,
+                      width, height, params_json, ids[0]);
+      });
 }
 
 Result<std::vector<TextureInfo>> SessionStore::textures(SessionId session) const {
-  std::vector<TextureInfo> out;
-  if (impl_->schema_version < 4) return out;
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT t.id, t.session_id, t.capture_idx, t.width, t.height, "
-                           "t.params_json, f.bytes, t.created_at FROM textures t JOIN files f ON "
-                           "f.id=t.file_id WHERE t.session_id=? ORDER BY t.id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, session);
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    TextureInfo t;
-    t.id = stmt->int64(0);
-    t.session = stmt->int64(1);
-    if (!stmt->is_null(2)) t.capture_index = stmt->int32(2);
-    t.width = stmt->int32(3);
-    t.height = stmt->int32(4);
-    t.params_json = stmt->text(5);
-    t.bytes = stmt->int64(6);
-    t.created_at = stmt->text(7);
-    out.push_back(std::move(t));
-  }
-  return out;
+  if (impl_->schema_version < 4) return std::vector<TextureInfo>{};
+  return impl_->rows<TextureInfo>(
+      "SELECT t.id, t.session_id, t.capture_idx, t.width, t.height, t.params_json, f.bytes, "
+      "t.created_at FROM textures t JOIN files f ON f.id=t.file_id WHERE t.session_id=? ORDER BY "
+      "t.id",
+      session, [](sql::Statement& stmt) {
+        TextureInfo t;
+        t.id = stmt.int64(0);
+        t.session = stmt.int64(1);
+        if (!stmt.is_null(2)) t.capture_index = stmt.int32(2);
+        t.width = stmt.int32(3);
+        t.height = stmt.int32(4);
+        t.params_json = stmt.text(5);
+        t.bytes = stmt.int64(6);
+        t.created_at = stmt.text(7);
+        return t;
+      });
 }
 
 Result<std::vector<std::uint8_t>> SessionStore::read_texture(TextureId id) const {

@@ -67,56 +67,34 @@ Result<WrinkleDetailId> SessionStore::add_wrinkle_detail(SessionId session, int 
     impl_->discard({*disp});
     return normal.failure();
   }
-  sqlite3* db = impl_->db.get();
-  auto insert = [&]() -> Result<WrinkleDetailId> {
-    auto tx = sql::Transaction::begin(db);
-    if (!tx) return tx.failure();
-    auto disp_id = impl_->insert_file_row(*disp);
-    if (!disp_id) return disp_id.failure();
-    auto normal_id = impl_->insert_file_row(*normal);
-    if (!normal_id) return normal_id.failure();
-    auto stmt = sql::prepare(db,
-                             "INSERT INTO wrinkle_details(session_id, capture_idx, rig_id, width, "
-                             "height, params_json, displacement_file_id, normal_file_id) "
-                             "VALUES(?,?,?,?,?,?,?,?)");
-    if (!stmt) return stmt.failure();
-    stmt->bind_all(session, capture_index, rig, detail.width, detail.height, params_json, *disp_id,
-                   *normal_id);
-    if (auto r = stmt->run(); !r) return r.failure();
-    const WrinkleDetailId id = sqlite3_last_insert_rowid(db);
-    if (auto r = tx->commit(); !r) return r.failure();
-    return id;
-  };
-  auto id = insert();
-  if (!id) impl_->discard({*disp, *normal});
-  return id;
+  return impl_->insert_with_files(
+      {*disp, *normal},
+      "INSERT INTO wrinkle_details(session_id, capture_idx, rig_id, width, "
+      "height, params_json, displacement_file_id, normal_file_id) "
+      "VALUES(?,?,?,?,?,?,?,?)",
+      [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+        stmt.bind_all(session, capture_index, rig, detail.width, detail.height, params_json, ids[0],
+                      ids[1]);
+      });
 }
 
 Result<std::vector<WrinkleDetailInfo>> SessionStore::wrinkle_details(SessionId session) const {
-  std::vector<WrinkleDetailInfo> out;
-  if (impl_->schema_version < 6) return out;
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, session_id, capture_idx, rig_id, width, height, "
-                           "params_json, created_at FROM wrinkle_details WHERE session_id=? "
-                           "ORDER BY id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, session);
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    WrinkleDetailInfo w;
-    w.id = stmt->int64(0);
-    w.session = stmt->int64(1);
-    w.capture_index = stmt->int32(2);
-    if (!stmt->is_null(3)) w.rig = stmt->int64(3);
-    w.width = stmt->int32(4);
-    w.height = stmt->int32(5);
-    w.params_json = stmt->text(6);
-    w.created_at = stmt->text(7);
-    out.push_back(std::move(w));
-  }
-  return out;
+  if (impl_->schema_version < 6) return std::vector<WrinkleDetailInfo>{};
+  return impl_->rows<WrinkleDetailInfo>(
+      "SELECT id, session_id, capture_idx, rig_id, width, height, params_json, created_at FROM "
+      "wrinkle_details WHERE session_id=? ORDER BY id",
+      session, [](sql::Statement& stmt) {
+        WrinkleDetailInfo w;
+        w.id = stmt.int64(0);
+        w.session = stmt.int64(1);
+        w.capture_index = stmt.int32(2);
+        if (!stmt.is_null(3)) w.rig = stmt.int64(3);
+        w.width = stmt.int32(4);
+        w.height = stmt.int32(5);
+        w.params_json = stmt.text(6);
+        w.created_at = stmt.text(7);
+        return w;
+      });
 }
 
 Result<WrinkleDetailData> SessionStore::read_wrinkle_detail(WrinkleDetailId id) const {

@@ -25,8 +25,6 @@ Result<KinectCalibration> session_calibration(const SessionInfo& session, std::s
   return *c;
 }
 
-namespace {
-
 // The newest fitted mesh of each capture (a neutral mesh counts for its capture).
 Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session) {
   auto meshes = store.meshes(session);
@@ -40,7 +38,27 @@ Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId
   return out;
 }
 
-}  // namespace
+Result<SessionAtlasInputs> session_atlas_inputs(const SessionStore& store, const SessionInfo& info,
+                                                const FaceModel& model, int size) {
+  SessionAtlasInputs in;
+  auto calibration = session_calibration(info, in.note);
+  if (!calibration) return calibration.failure();
+  in.calibration = *calibration;
+  in.uvs = model.atlas_uvs();
+  auto map = make_texel_map(in.uvs, model.triangle_uvs, size * model.uv_tiles(), size);
+  if (!map) return map.failure();
+  in.map = std::move(*map);
+  auto meshes = fitted_meshes(store, info.id);
+  if (!meshes) return meshes.failure();
+  if (meshes->find(0) == meshes->end())
+    return fail("session " + std::to_string(info.id) +
+                " has no fitted neutral (capture 0); finish or refit the session first");
+  in.meshes = std::move(*meshes);
+  auto captures = store.captures(info.id);
+  if (!captures) return captures.failure();
+  in.captures = std::move(*captures);
+  return in;
+}
 
 Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session, int capture_index,
                                     const FaceModel& model, const TexelMap& map,
@@ -86,20 +104,13 @@ Result<std::vector<CaptureTextureReport>> texture_session(
         "the face model asset has no UV layout; reconvert it with facebooth-convert-facemodel");
   auto info = store.session(session);
   if (!info) return info.failure();
-  std::string note;
-  auto calibration = session_calibration(*info, note);
-  if (!calibration) return calibration.failure();
-  const KinectRegistration registration(*calibration);
-  const std::vector<float> uvs = model.atlas_uvs();
-  auto map = make_texel_map(uvs, model.triangle_uvs, size * model.uv_tiles(), size);
-  if (!map) return map.failure();
-  auto meshes = fitted_meshes(store, session);
-  if (!meshes) return meshes.failure();
-  if (meshes->find(0) == meshes->end())
-    return fail("session " + std::to_string(session) +
-                " has no fitted neutral (capture 0); finish or refit the session first");
-  auto captures = store.captures(session);
-  if (!captures) return captures.failure();
+  auto inputs = session_atlas_inputs(store, *info, model, size);
+  if (!inputs) return inputs.failure();
+  const std::string& note = inputs->note;
+  const KinectRegistration registration(inputs->calibration);
+  const TexelMap* map = &inputs->map;
+  const std::map<int, MeshId>* meshes = &inputs->meshes;
+  const std::vector<CaptureInfo>* captures = &inputs->captures;
   std::vector<int> todo;
   for (const auto& [index, id] : *meshes)
     if (index == 0 || expressions) todo.push_back(index);

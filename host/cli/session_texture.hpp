@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +27,25 @@ struct CaptureTextureReport {
   double observed_fraction = 0.0;  // of the atlas's covered texels
   double seconds = 0.0;
 };
+
+// The newest fitted mesh of each capture of `session` (a neutral mesh counts for its capture,
+// 0 when it names none), by capture index.
+Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session);
+
+// What texturing a session, or adding its wrinkle detail, starts from: the unit calibration it
+// recorded (`note` says when the defaults stand in), the atlas's texel map at `size` texels a
+// tile, the newest fitted mesh of each capture (the neutral, capture 0, among them) and its
+// captures.
+struct SessionAtlasInputs {
+  std::string note;
+  KinectCalibration calibration;
+  std::vector<float> uvs;
+  TexelMap map;
+  std::map<int, MeshId> meshes;
+  std::vector<CaptureInfo> captures;
+};
+Result<SessionAtlasInputs> session_atlas_inputs(const SessionStore& store, const SessionInfo& info,
+                                                const FaceModel& model, int size);
 
 // The unit calibration a session recorded, or the defaults (with `note` saying so).
 Result<KinectCalibration> session_calibration(const SessionInfo& session, std::string& note);

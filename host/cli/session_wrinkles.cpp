@@ -15,19 +15,6 @@ namespace fb::cli {
 
 namespace {
 
-// The newest fitted mesh of each capture (a neutral mesh counts for capture 0).
-Result<std::map<int, MeshId>> fitted_meshes(const SessionStore& store, SessionId session) {
-  auto meshes = store.meshes(session);
-  if (!meshes) return meshes.failure();
-  std::map<int, MeshId> out;
-  for (const auto& m : *meshes) {
-    if (m.role == MeshRole::kScan) continue;
-    const int index = m.capture_index.value_or(m.role == MeshRole::kNeutral ? 0 : -1);
-    if (index >= 0) out[index] = m.id;  // listed oldest first: the newest wins
-  }
-  return out;
-}
-
 // Where the fitted mesh is in the depth camera: its landmark vertices against the capture's
 // interior 3D landmarks (the contour's 0-16 have no reliable 3D).
 Result<RigidPose> mesh_pose(const MeshData& mesh, const CaptureData& capture,
@@ -67,20 +54,14 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
                 "'s subject has no rig to add wrinkle detail to; build one first: facebooth rig "
                 "--store DIR --session " +
                 std::to_string(session));
-  std::string note;
-  auto calibration = session_calibration(*info, note);
-  if (!calibration) return calibration.failure();
-  const KinectRegistration registration(*calibration);
-  const std::vector<float> uvs = model.atlas_uvs();
-  auto map = make_texel_map(uvs, model.triangle_uvs, options.size * model.uv_tiles(), options.size);
-  if (!map) return map.failure();
-  auto meshes = fitted_meshes(store, session);
-  if (!meshes) return meshes.failure();
-  if (meshes->find(0) == meshes->end())
-    return fail("session " + std::to_string(session) +
-                " has no fitted neutral (capture 0); finish or refit the session first");
-  auto captures = store.captures(session);
-  if (!captures) return captures.failure();
+  auto inputs = session_atlas_inputs(store, *info, model, options.size);
+  if (!inputs) return inputs.failure();
+  const std::string& note = inputs->note;
+  const KinectRegistration registration(inputs->calibration);
+  const TexelMap* map = &inputs->map;
+  const std::map<int, MeshId>* meshes = &inputs->meshes;
+  const std::vector<float>& uvs = inputs->uvs;
+  const std::vector<CaptureInfo>* captures = &inputs->captures;
   CaptureDetailOptions detail_options;
   detail_options.detail.exemplar_mm_per_px = options.exemplar_mm_per_px;
   std::vector<CaptureWrinkleReport> out;

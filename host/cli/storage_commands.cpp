@@ -95,6 +95,18 @@ Result<std::string> take_detail_weights(const SessionStore& store, const TakeDat
          std::to_string(blend->neutral_capture) + " is N";
 }
 
+// Writes the manifest and says what the export holds (`files` including the manifest).
+Result<ExportSummary> finish_export(ExportFolder& folder, const ExportManifest& manifest, int files,
+                                    Clock::time_point start) {
+  if (auto r = folder.finish(manifest); !r) return r.failure();
+  ExportSummary summary;
+  summary.path = folder.destination();
+  summary.files = files;
+  summary.bytes = folder.total_bytes();
+  summary.seconds = seconds_since(start);
+  return summary;
+}
+
 // A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name).
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
                                   bool overwrite) {
@@ -164,13 +176,7 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                        "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
                       {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"},
                       {"detail_weights", *detail}};
-  if (auto r = folder->finish(manifest); !r) return r.failure();
-  ExportSummary summary;
-  summary.path = folder->destination();
-  summary.files = static_cast<int>(folder->files().size()) + 1;
-  summary.bytes = folder->total_bytes();
-  summary.seconds = seconds_since(start);
-  return summary;
+  return finish_export(*folder, manifest, static_cast<int>(folder->files().size()) + 1, start);
 }
 
 // A stored model (e.g. the bilinear model) as its file plus a manifest.
@@ -195,13 +201,7 @@ Result<ExportSummary> export_model(const SessionStore& store, ModelId id, const 
       {"kind", "model"}, {"store", store.root().string()}, {"model", std::to_string(id)}};
   manifest.details = {
       {"model_kind", info->kind}, {"params", info->params_json}, {"created_at", info->created_at}};
-  if (auto r = folder->finish(manifest); !r) return r.failure();
-  ExportSummary summary;
-  summary.path = folder->destination();
-  summary.files = 2;
-  summary.bytes = folder->total_bytes();
-  summary.seconds = seconds_since(start);
-  return summary;
+  return finish_export(*folder, manifest, 2, start);
 }
 
 int run_export_stored_item(const ParsedOptions& options) {

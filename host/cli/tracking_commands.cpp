@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
@@ -127,6 +128,408 @@ RigData calibrated_rig(const FaceModel& face, std::span<const float> identity,
   return rig;
 }
 
+// Where the take goes (--store, --subject, --session) and whether a stored rig is used or kept.
+struct TrackStore {
+  std::string path;
+  bool rig_from_store = false;
+  bool save_rig = false;
+  std::optional<SessionStore> store;
+  std::optional<SubjectId> subject;
+  std::optional<SessionId> session;
+};
+
+// Storage: takes go to --store (a new subject unless --subject names one); --rig-from-store
+// tracks with the subject's newest stored rig instead of calibrating an identity.
+Result<TrackStore> open_track_store(const ParsedOptions& options) {
+  TrackStore t;
+  t.path = options.get("store");
+  t.rig_from_store = options.flag("rig-from-store");
+  if (!options.get("session").empty()) {
+    auto id = options.get_int("session");
+    if (!id || *id <= 0) return fail("--session must be a session id (see `facebooth store info`)");
+    if (!options.get("subject").empty())
+      return fail("give --session or --subject, not both (a session names its subject)");
+    t.session = *id;
+  }
+  if (!options.get("subject").empty()) {
+    auto id = options.get_int("subject");
+    if (!id || *id <= 0) return fail("--subject must be a subject id (see `facebooth store info`)");
+    t.subject = *id;
+  }
+  if ((t.subject || t.session || t.rig_from_store) && t.path.empty()) {
+    return fail("--subject, --session and --rig-from-store need --store DIR");
+  }
+  if (t.rig_from_store && !t.subject && !t.session) {
+    return fail("--rig-from-store needs --session ID or --subject ID (whose rig to load)");
+  }
+  t.save_rig = options.flag("save-rig");
+  if (t.save_rig && t.path.empty()) {
+    return fail("--save-rig needs --store DIR (where to keep the subject's rig)");
+  }
+  if (t.save_rig && t.rig_from_store) {
+    return fail(
+        "--save-rig stores a calibrated subject; with --rig-from-store "
+        "nothing is calibrated (drop one of them)");
+  }
+  if (t.path.empty()) return t;
+  auto opened = SessionStore::open(t.path);
+  if (!opened) return opened.failure();
+  t.store.emplace(std::move(*opened));
+  if (t.session) {
+    auto known = t.store->session(*t.session);
+    if (!known) {
+      return fail("there is no session " + std::to_string(*t.session) + " in " + t.path +
+                  " (see `facebooth store info --store " + t.path + "`)");
+    }
+    t.subject = known->subject;
+  } else if (t.subject) {
+    if (auto known = t.store->subject(*t.subject); !known) {
+      return fail("there is no subject " + std::to_string(*t.subject) + " in " + t.path +
+                  " (see `facebooth store info --store " + t.path +
+                  "`), or omit --subject to record under a new subject");
+    }
+  }
+  return t;
+}
+
+// One run of track: what it sends and records, and what it counts for the summary.
+struct TrackRun {
+  std::string landmark_source, reacquire;
+  TruthLandmarks truth_landmarks_of = nullptr;
+  const ArkitMapping* mapping = nullptr;
+  FaceTracker* tracker = nullptr;
+  int calibration_frames = 0;
+  bool recording = false;  // a store takes the take
+  std::optional<TakeWriter> take;
+  std::optional<TrackLandmarkSource> detector;
+  std::string reacquire_note = "depth only (nearest surface, last pose)";
+  std::unique_ptr<VmcSender> sender;
+  std::optional<LiveLinkCsvWriter> csv;
+  bool csv_started = false;
+  bool print_sse = false;
+  // --detail-weights: the session's wrinkle maps blended per frame (issue 40 item 5); the file
+  // gets each frame's map weights, one per captured expression with detail.
+  std::optional<SessionDetailBlend> detail;
+  std::optional<DetailWeightsCsv> detail_csv;
+  std::vector<float> map_weights;
+
+  std::mt19937_64 rng{1};
+  std::normal_distribution<float> noise{0.0f, static_cast<float>(kTruthLandmarkNoisePx)};
+  std::vector<Eigen::Vector2f> landmark_points = std::vector<Eigen::Vector2f>(68);
+  TrackReport report;
+  ArkitFrame out;
+  std::string sse;
+
+  std::vector<double> landmark_ms, latency, cost;
+  long long detections = 0, detection_misses = 0;
+  bool face_before = false;
+  long long read = 0, found = 0, lost_reports = 0;
+  std::string last_reason;  // the tracker's loss reason on the previous frame
+  // Why a take never calibrated: the most calibration frames that came in, and the full sets
+  // the tracker rejected (it starts over with a loss reason saying why).
+  int most_calibration_frames = 0, rejected_sets = 0;
+  std::string rejection;
+  OcclusionLog occlusion;
+  std::map<std::string, long long> states;
+  std::string stop_reason = "end of stream";
+  bool camera_failed = false;
+
+  std::string never_calibrated() const {
+    return never_calibrated_message(calibration_frames, read, found, most_calibration_frames,
+                                    rejected_sets, rejection, last_reason);
+  }
+};
+
+// dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
+// for (--reacquire dlib: detection gives the tracker a starting pose after loss, not the
+// nearest surface, which a hand, a desk or the chest can be) and while the identity
+// calibrates (depth alone lets hair and noise pull the calibration off). Then the VMC sender
+// (--osc) and the Live Link CSV (--csv).
+Result<void> open_outputs(const ParsedOptions& options, const CameraInfo& info, TrackRun& t) {
+  if (t.landmark_source == "dlib" || t.reacquire == "dlib") {
+    auto loaded = load_landmark_detector(options.get("shape-predictor"));
+    if (loaded) {
+      t.detector.emplace(std::move(*loaded), info.calibration);
+      t.reacquire_note = t.reacquire == "dlib" ? "dlib detection on the colour image, then depth"
+                                               : t.reacquire_note;
+    } else if (t.landmark_source == "dlib") {
+      return loaded.failure();
+    } else {
+      std::cerr << "track: " << loaded.error().message << "; re-acquiring from depth only\n";
+    }
+  }
+  if (!options.get("osc").empty()) {
+    auto destination = parse_osc_destination(options.get("osc"));
+    if (!destination) return destination.failure();
+    auto opened = VmcSender::open(*destination);
+    if (!opened) return opened.failure();
+    t.sender = std::move(*opened);
+  }
+  if (!options.get("csv").empty()) {
+    auto opened = LiveLinkCsvWriter::open(options.get("csv"), info.fps > 0 ? info.fps : 30.0);
+    if (!opened) return opened.failure();
+    t.csv.emplace(std::move(*opened));
+  }
+  t.print_sse = options.flag("sse");
+  return success();
+}
+
+// --detail-weights FILE: the session's wrinkle detail maps (from `facebooth wrinkles`) and the
+// CSV their per-frame weights go to.
+Result<void> open_detail_weights(const ParsedOptions& options, const TrackStore& where,
+                                 const FaceModel& model, TrackRun& t) {
+  const std::string file = options.get("detail-weights");
+  if (file.empty()) return success();
+  if (!where.store || !where.session)
+    return fail(
+        "--detail-weights needs --store DIR and --session ID (the session whose wrinkle "
+        "detail, from `facebooth wrinkles`, the weights blend)");
+  auto guide = load_guide_expressions(model);
+  if (!guide) return guide.failure();
+  auto loaded = load_session_detail_blend(*where.store, *where.session, model, *guide);
+  if (!loaded) return loaded.failure();
+  for (const auto& why : loaded->skipped) std::cerr << "track: detail weights: " << why << "\n";
+  auto opened = DetailWeightsCsv::open(file, *loaded);
+  if (!opened) return opened.failure();
+  t.detail.emplace(std::move(*loaded));
+  t.detail_csv.emplace(std::move(*opened));
+  t.map_weights.resize(t.detail->captures.size());
+  return success();
+}
+
+// What the track's JSON says of the detail weights it wrote.
+nlohmann::json detail_weights_json(const TrackRun& t, const std::string& file) {
+  nlohmann::json layers = nlohmann::json::array();
+  for (std::size_t e = 0; e < t.detail->captures.size(); ++e)
+    layers.push_back(
+        {{"capture", t.detail->captures[e]}, {"expression", t.detail->expressions[e]}});
+  return {{"file", file},
+          {"neutral_capture", t.detail->neutral_capture},
+          {"layers", layers},
+          {"skipped", t.detail->skipped},
+          {"meaning", detail_weights_description()}};
+}
+
+// The frame's 2D landmarks: the truth plus noise (--landmarks truth) and/or dlib's; null when
+// there are none. `truth` holds the truth's.
+const TrackLandmarks* frame_landmarks(TrackRun& t, const DepthCamera& camera,
+                                      const RgbdFrame& frame, TrackLandmarks& truth) {
+  const TrackLandmarks* landmarks = nullptr;
+  if (t.landmark_source == "truth") {
+    if (const auto* truth_px = t.truth_landmarks_of(camera)) {
+      for (int l = 0; l < 68; ++l) {
+        t.landmark_points[static_cast<std::size_t>(l)] =
+            (*truth_px)[static_cast<std::size_t>(l)].cast<float>() +
+            Eigen::Vector2f(t.noise(t.rng), t.noise(t.rng));
+      }
+      truth.points = t.landmark_points;
+      landmarks = &truth;
+    }
+  }
+  const bool reacquiring = t.reacquire == "dlib" && (!t.face_before || !t.tracker->calibrated());
+  if (t.detector && (t.landmark_source == "dlib" || reacquiring)) {
+    const LandmarkFrameResult found = t.detector->detect(frame.color, frame.depth_mm);
+    t.landmark_ms.push_back(found.ms);
+    if (found.found) {
+      ++t.detections;
+      landmarks = t.detector->landmarks();
+    } else {
+      ++t.detection_misses;
+    }
+  }
+  return landmarks;
+}
+
+// The tracked frame out: VMC, the CSV row, the take's frame, the SSE event.
+Result<void> emit_frame(TrackRun& t, Clock::time_point arrival) {
+  if (t.sender) {
+    if (auto sent = t.sender->send(t.out); !sent) {
+      std::cerr << "facebooth: " << sent.error().message << "\n";
+    }
+  }
+  t.latency.push_back(ms_since(arrival));
+  t.cost.push_back(t.report.times.total_ms());
+  if (t.csv) {
+    // The Timecode is the time of day (as the app writes it): the first row's is now.
+    if (!t.csv_started) {
+      t.csv->set_start_of_day_s(local_time_of_day_s(std::chrono::system_clock::now()) -
+                                t.out.time_s);
+      t.csv_started = true;
+    }
+    if (auto r = t.csv->append(to_livelink_row(t.out)); !r) return r.failure();
+  }
+  if (t.recording) {
+    if (auto r = t.take->add_frame(t.out.time_s, t.out.camera_from_model, t.out.weights); !r)
+      return r.failure();
+  }
+  if (t.detail_csv) {
+    t.detail->blend.map_weights(
+        std::span<const float>(t.report.weights.data(),
+                               static_cast<std::size_t>(t.report.shape_count)),
+        t.map_weights);
+    if (auto r = t.detail_csv->append(static_cast<long long>(t.out.index), t.out.time_s,
+                                      t.out.face_found, t.map_weights);
+        !r)
+      return r.failure();
+  }
+  if (t.print_sse) {
+    format_sse_event(t.out, t.sse);
+    std::cerr << t.sse;
+  }
+  return success();
+}
+
+// Counts the frame's report and says on stderr what changed (loss, search, occlusion).
+void log_report(TrackRun& t, const RgbdFrame& frame) {
+  const TrackReport& report = t.report;
+  ++t.read;
+  if (report.face_found) ++t.found;
+  if (report.state == TrackState::kLost) {
+    ++t.lost_reports;
+    std::cerr << "track: frame " << frame.index << ": face lost (" << report.loss_reason << ")\n";
+  } else if (report.state == TrackState::kSearching && *report.loss_reason &&
+             t.last_reason != report.loss_reason) {
+    // Once per reason: "no face found" every frame of an empty room says nothing new.
+    std::cerr << "track: frame " << frame.index << ": searching (" << report.loss_reason << ")\n";
+  }
+  if (report.state == TrackState::kCalibrating)
+    t.most_calibration_frames =
+        std::max(t.most_calibration_frames, t.calibration_frames - report.calibration_frames_left);
+  if (!report.face_found && std::string_view(report.loss_reason).starts_with("calibration")) {
+    ++t.rejected_sets;
+    t.rejection = report.loss_reason;
+  }
+  t.last_reason = report.loss_reason;
+  switch (t.occlusion.add(report.occluded)) {
+    case OcclusionLog::Change::kOccluded:
+      std::cerr << "track: frame " << frame.index << ": face occluded ("
+                << std::lround(100.0 * report.occluded_fraction) << " % of it hidden)\n";
+      break;
+    case OcclusionLog::Change::kClear:
+      std::cerr << "track: frame " << frame.index << ": face clear again\n";
+      break;
+    case OcclusionLog::Change::kNone:
+      break;
+  }
+  ++t.states[to_string(report.state)];
+}
+
+// Tracks the camera's frames until the stream ends, `max_frames` are read (0: no limit) or
+// the camera fails (stop_reason says which).
+Result<void> track_frames(TrackRun& t, DepthCamera& camera, long long max_frames,
+                          Progress& progress) {
+  RgbdFrame frame;
+  long long timeouts_in_row = 0;
+  while (max_frames <= 0 || t.read < max_frames) {
+    auto status = camera.next_frame(frame, std::chrono::milliseconds(1000));
+    if (!status) {
+      t.stop_reason = "camera error: " + status.error().message;
+      t.camera_failed = true;
+      break;
+    }
+    if (*status == FrameStatus::kEndOfStream) break;
+    if (*status == FrameStatus::kTimeout) {
+      if (++timeouts_in_row >= 5) {
+        t.stop_reason = "the camera stopped delivering frames (5 s without a frame)";
+        t.camera_failed = true;
+        break;
+      }
+      continue;
+    }
+    timeouts_in_row = 0;
+    const auto arrival = Clock::now();
+    TrackLandmarks truth_landmarks;
+    const TrackLandmarks* landmarks = frame_landmarks(t, camera, frame, truth_landmarks);
+    t.tracker->track(frame.depth_mm, frame.depth_host_time_s, landmarks, t.report);
+    t.face_before = t.report.face_found;
+    t.out.index = frame.index;
+    t.out.time_s = frame.depth_host_time_s;
+    t.out.face_found = t.report.face_found;
+    t.out.occluded = t.report.occluded;
+    t.out.occluded_fraction = t.report.occluded_fraction;
+    t.out.camera_from_model = t.report.camera_from_model;
+    t.mapping->to_arkit(std::span<const float>(t.report.weights.data(),
+                                               static_cast<std::size_t>(t.report.shape_count)),
+                        t.out.weights);
+    if (auto r = emit_frame(t, arrival); !r) return r.failure();
+    log_report(t, frame);
+    progress.update(t.read);
+  }
+  return success();
+}
+
+// The summary's figures of the run (what was tracked, how fast, what went where).
+void summary_json(const TrackRun& t, const std::string& uri, double seconds,
+                  nlohmann::json& result) {
+  result["camera"] = uri;
+  result["frames"] = t.read;
+  result["frames_with_face"] = t.found;
+  result["loss_reports"] = t.lost_reports;
+  result["occluded_frames"] = t.occlusion.occluded_frames();
+  result["states"] = t.states;
+  result["calibrated"] = t.tracker->calibrated();
+  result["stopped"] = t.stop_reason;
+  result["fps"] = seconds > 0 ? static_cast<double>(t.read) / seconds : 0.0;
+  result["ms_per_frame"] = stats_of(t.cost).mean;
+  result["latency_ms"] = to_json(stats_of(t.latency));
+  result["landmarks"] =
+      t.landmark_source == "truth"  ? "ground truth + N(0, 1.5 px) (synthetic camera only)"
+      : t.landmark_source == "dlib" ? "dlib HOG + shape_predictor_68 on the colour image"
+                                    : "none (depth only)";
+  result["reacquire"] = t.reacquire_note;
+  if (t.detector) {
+    result["detections"] = t.detections;
+    result["detection_misses"] = t.detection_misses;
+    result["landmark_ms"] = to_json(stats_of(t.landmark_ms));
+  }
+  if (t.sender) {
+    result["osc"] = t.sender->options().host + ":" + std::to_string(t.sender->options().port);
+    result["osc_datagrams"] = t.sender->datagrams_sent();
+    result["osc_messages"] = t.sender->messages_sent();
+  }
+}
+
+// After the take: stores it (a new subject unless one was named) and, with --save-rig, the
+// calibrated subject as a rig; their ids go into `result`.
+Result<void> store_results(TrackStore& where, TrackRun& t, const FaceModel& tracker_model,
+                           const BilinearSubjectModel* bilinear, nlohmann::json& result) {
+  if (where.store && t.take->frame_count() > 0) {
+    if (!where.subject) {
+      auto added = where.store->add_subject("tracking take");
+      if (!added) return added.failure();
+      where.subject = *added;
+    }
+    auto id = t.take->store(*where.store, *where.subject, where.session);
+    if (!id) return id.failure();
+    result["take"] = *id;
+    result["subject"] = *where.subject;
+    result["session"] = where.session ? nlohmann::json(*where.session) : nlohmann::json(nullptr);
+    std::cerr << "track: stored take " << *id << " (" << t.take->frame_count()
+              << " frames; the face was "
+              << "occluded on " << t.occlusion.occluded_frames() << ")\n";
+    result["store"] = where.path;
+  } else if (where.store) {
+    result["take"] = nullptr;  // no frame: nothing to store
+  }
+  if (!where.save_rig) return success();
+  // Only a subject the tracker calibrated itself (a stored rig loaded instead was refused
+  // above, and one that fell back to calibration for want of a rig is calibrated here).
+  if (!t.tracker->calibrated() || !where.subject) {
+    std::cout << result.dump(2) << std::endl;
+    return fail(t.never_calibrated() + "; --save-rig stored no rig");
+  }
+  const RigData saved = calibrated_rig(tracker_model, t.tracker->identity(),
+                                       bilinear ? &*bilinear->blendshapes : nullptr);
+  auto id = where.store->add_rig(*where.subject, std::nullopt, saved);
+  if (!id) return id.failure();
+  result["rig"] = *id;
+  result["subject"] = *where.subject;
+  std::cerr << "track: stored the calibrated subject as rig " << *id << " of subject "
+            << *where.subject << " (" << saved.shape_count() << " shapes); track with it: "
+            << "--store " << where.path << " --subject " << *where.subject << " --rig-from-store\n";
+  return success();
+}
+
 int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   const std::string uri = options.get("camera");
   if (uri.empty())
@@ -136,17 +539,19 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   auto calibration = options.get_int("calibration-frames");
   if (!calibration || *calibration < 1)
     return report_failure({"--calibration-frames must be >= 1"});
-  const std::string landmark_source = options.get("landmarks");
-  if (landmark_source != "truth" && landmark_source != "none" && landmark_source != "dlib") {
+  TrackRun t;
+  t.landmark_source = options.get("landmarks");
+  if (t.landmark_source != "truth" && t.landmark_source != "none" && t.landmark_source != "dlib") {
     return report_failure({"--landmarks must be dlib, truth or none"});
   }
-  if (landmark_source == "truth" && truth_landmarks_of == nullptr) {
+  if (t.landmark_source == "truth" && truth_landmarks_of == nullptr) {
     return report_failure(
         {"--landmarks truth needs the laboratory's ground truth: run it as "
          "`facebooth-lab track` (synthetic camera), or use dlib or none"});
   }
-  const std::string reacquire = options.get("reacquire");
-  if (reacquire != "dlib" && reacquire != "depth") {
+  t.truth_landmarks_of = truth_landmarks_of;
+  t.reacquire = options.get("reacquire");
+  if (t.reacquire != "dlib" && t.reacquire != "depth") {
     return report_failure({"--reacquire must be dlib or depth"});
   }
   auto model_result = load_face_model();
@@ -154,72 +559,17 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   const FaceModel& model = *model_result;
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return report_failure(mapping.error());
+  t.mapping = &*mapping;
 
-  // Storage: takes go to --store (a new subject unless --subject names one); --rig-from-store
-  // tracks with the subject's newest stored rig instead of calibrating an identity.
-  const std::string store_path = options.get("store");
-  const bool rig_from_store = options.flag("rig-from-store");
-  std::optional<SessionStore> store;
-  std::optional<SubjectId> subject;
-  std::optional<SessionId> session;
-  if (!options.get("session").empty()) {
-    auto id = options.get_int("session");
-    if (!id || *id <= 0)
-      return report_failure({"--session must be a session id (see `facebooth store info`)"});
-    if (!options.get("subject").empty())
-      return report_failure(
-          {"give --session or --subject, not both (a session names its subject)"});
-    session = *id;
-  }
-  if (!options.get("subject").empty()) {
-    auto id = options.get_int("subject");
-    if (!id || *id <= 0)
-      return report_failure({"--subject must be a subject id (see `facebooth store info`)"});
-    subject = *id;
-  }
-  if ((subject || session || rig_from_store) && store_path.empty()) {
-    return report_failure({"--subject, --session and --rig-from-store need --store DIR"});
-  }
-  if (rig_from_store && !subject && !session) {
-    return report_failure(
-        {"--rig-from-store needs --session ID or --subject ID (whose rig to load)"});
-  }
-  const bool save_rig = options.flag("save-rig");
-  if (save_rig && store_path.empty()) {
-    return report_failure({"--save-rig needs --store DIR (where to keep the subject's rig)"});
-  }
-  if (save_rig && rig_from_store) {
-    return report_failure(
-        {"--save-rig stores a calibrated subject; with --rig-from-store "
-         "nothing is calibrated (drop one of them)"});
-  }
-  if (!store_path.empty()) {
-    auto opened = SessionStore::open(store_path);
-    if (!opened) return report_failure(opened.error());
-    store.emplace(std::move(*opened));
-    if (session) {
-      auto known = store->session(*session);
-      if (!known) {
-        return report_failure({"there is no session " + std::to_string(*session) + " in " +
-                               store_path + " (see `facebooth store info --store " + store_path +
-                               "`)"});
-      }
-      subject = known->subject;
-    } else if (subject) {
-      if (auto known = store->subject(*subject); !known) {
-        return report_failure({"there is no subject " + std::to_string(*subject) + " in " +
-                               store_path + " (see `facebooth store info --store " + store_path +
-                               "`), or omit --subject to record under a new subject"});
-      }
-    }
-  }
+  auto where = open_track_store(options);
+  if (!where) return report_failure(where.error());
   std::optional<LoadedRig> rig;
-  if (rig_from_store) {
-    auto loaded = load_stored_rig(*store, *subject, session, model, *mapping);
+  if (where->rig_from_store) {
+    auto loaded = load_stored_rig(*where->store, *where->subject, where->session, model, *mapping);
     if (!loaded) return report_failure(loaded.error());
     rig = std::move(*loaded);
     // A take tracked with a session's rig belongs to that session (issue 37).
-    if (rig && !session) session = rig->session;
+    if (rig && !where->session) where->session = rig->session;
   }
 
   auto camera = open_started_camera(uri);
@@ -227,6 +577,7 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   const CameraInfo info = (*camera)->info();
   TrackerOptions tracker_options;
   tracker_options.calibration.calibration_frames = static_cast<int>(*calibration);
+  t.calibration_frames = tracker_options.calibration.calibration_frames;
   // --model: calibrate in a bilinear model's identity space and track with the subject's own
   // blendshapes from it (a stored rig, when loaded, still takes precedence).
   std::unique_ptr<BilinearSubjectModel> bilinear;
@@ -238,315 +589,55 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   const FaceModel& tracker_model = bilinear ? bilinear->tracking.face : model;
   auto tracker = FaceTracker::create(tracker_model, info.depth_intrinsics, tracker_options);
   if (!tracker) return report_failure(tracker.error());
-  if (bilinear) (*tracker)->set_subject_blendshapes(&*bilinear->blendshapes);
+  t.tracker = tracker->get();
+  if (bilinear) t.tracker->set_subject_blendshapes(&*bilinear->blendshapes);
   std::string subject_model = bilinear ? "identity calibrated on the first frames with the " +
                                              bilinear->describe() +
                                              ", the subject's own blendshapes from it"
                                        : "identity calibrated on the first frames";
   if (rig) {
-    if (auto r = (*tracker)->set_rig(rig->view); !r) return report_failure(r.error());
+    if (auto r = t.tracker->set_rig(rig->view); !r) return report_failure(r.error());
     subject_model =
         "stored rig " + std::to_string(rig->id) + " (" + std::to_string(rig->matched) + " shapes)";
-  } else if (rig_from_store) {
-    subject_model = "subject " + std::to_string(*subject) + " has no stored rig: " + subject_model;
+  } else if (where->rig_from_store) {
+    subject_model =
+        "subject " + std::to_string(*where->subject) + " has no stored rig: " + subject_model;
   }
   // The take as the store keeps it (storage/take_writer.hpp): the streamed pose, the 52 ARKit
   // curves under their camelCase names, each frame's camera time.
-  TakeWriter take(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()),
-                  info.fps > 0 ? info.fps : 30.0);
-  // dlib on the colour image: every frame (--landmarks dlib) and/or while the face is searched
-  // for (--reacquire dlib: detection gives the tracker a starting pose after loss, not the
-  // nearest surface, which a hand, a desk or the chest can be) and while the identity
-  // calibrates (depth alone lets hair and noise pull the calibration off).
-  std::optional<TrackLandmarkSource> detector;
-  std::string reacquire_note = "depth only (nearest surface, last pose)";
-  if (landmark_source == "dlib" || reacquire == "dlib") {
-    auto loaded = load_landmark_detector(options.get("shape-predictor"));
-    if (loaded) {
-      detector.emplace(std::move(*loaded), info.calibration);
-      reacquire_note =
-          reacquire == "dlib" ? "dlib detection on the colour image, then depth" : reacquire_note;
-    } else if (landmark_source == "dlib") {
-      return report_failure(loaded.error());
-    } else {
-      std::cerr << "track: " << loaded.error().message << "; re-acquiring from depth only\n";
-    }
-  }
-  std::vector<double> landmark_ms;
-  long long detections = 0, detection_misses = 0;
-  bool face_before = false;
+  t.take.emplace(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()),
+                 info.fps > 0 ? info.fps : 30.0);
+  t.recording = where->store.has_value();
+  if (auto ok = open_outputs(options, info, t); !ok) return report_failure(ok.error());
+  if (auto ok = open_detail_weights(options, *where, model, t); !ok)
+    return report_failure(ok.error());
 
-  std::unique_ptr<VmcSender> sender;
-  if (!options.get("osc").empty()) {
-    auto destination = parse_osc_destination(options.get("osc"));
-    if (!destination) return report_failure(destination.error());
-    auto opened = VmcSender::open(*destination);
-    if (!opened) return report_failure(opened.error());
-    sender = std::move(*opened);
-  }
-  std::optional<LiveLinkCsvWriter> csv;
-  if (!options.get("csv").empty()) {
-    auto opened = LiveLinkCsvWriter::open(options.get("csv"), info.fps > 0 ? info.fps : 30.0);
-    if (!opened) return report_failure(opened.error());
-    csv.emplace(std::move(*opened));
-  }
-  bool csv_started = false;
-  const bool print_sse = options.flag("sse");
-  // --detail-weights: the session's wrinkle maps blended per frame (issue 40 item 5); the
-  // file gets each frame's map weights, one per captured expression with detail.
-  std::optional<SessionDetailBlend> detail;
-  std::optional<DetailWeightsCsv> detail_csv;
-  std::vector<float> map_weights;
-  if (const std::string file = options.get("detail-weights"); !file.empty()) {
-    if (!store || !session)
-      return report_failure(
-          {"--detail-weights needs --store DIR and --session ID (the session whose wrinkle "
-           "detail, from `facebooth wrinkles`, the weights blend)"});
-    auto guide = load_guide_expressions(model);
-    if (!guide) return report_failure(guide.error());
-    auto loaded = load_session_detail_blend(*store, *session, model, *guide);
-    if (!loaded) return report_failure(loaded.error());
-    for (const auto& why : loaded->skipped) std::cerr << "track: detail weights: " << why << "\n";
-    auto opened = DetailWeightsCsv::open(file, *loaded);
-    if (!opened) return report_failure(opened.error());
-    detail.emplace(std::move(*loaded));
-    detail_csv.emplace(std::move(*opened));
-    map_weights.resize(detail->captures.size());
-  }
-
-  std::mt19937_64 rng(1);
-  std::normal_distribution<float> noise(0.0f, static_cast<float>(kTruthLandmarkNoisePx));
-  std::vector<Eigen::Vector2f> landmark_points(68);
-  RgbdFrame frame;
-  TrackReport report;
-  ArkitFrame out;
-  std::string sse;
-  std::vector<double> latency, cost;
-  long long read = 0, found = 0, lost_reports = 0, timeouts_in_row = 0;
-  std::string last_reason;  // the tracker's loss reason on the previous frame
-  // Why a take never calibrated: the most calibration frames that came in, and the full sets
-  // the tracker rejected (it starts over with a loss reason saying why).
-  int most_calibration_frames = 0, rejected_sets = 0;
-  std::string rejection;
-  OcclusionLog occlusion;
-  std::map<std::string, long long> states;
-  std::string stop_reason = "end of stream";
-  bool camera_failed = false;
   const long long total = *max_frames > 0 ? *max_frames : info.frame_count;
   Progress progress("track", total > 0 ? total : 0);
   const auto t0 = Clock::now();
-  while (*max_frames <= 0 || read < *max_frames) {
-    auto status = (*camera)->next_frame(frame, std::chrono::milliseconds(1000));
-    if (!status) {
-      stop_reason = "camera error: " + status.error().message;
-      camera_failed = true;
-      break;
-    }
-    if (*status == FrameStatus::kEndOfStream) break;
-    if (*status == FrameStatus::kTimeout) {
-      if (++timeouts_in_row >= 5) {
-        stop_reason = "the camera stopped delivering frames (5 s without a frame)";
-        camera_failed = true;
-        break;
-      }
-      continue;
-    }
-    timeouts_in_row = 0;
-    const auto arrival = Clock::now();
-    const TrackLandmarks* landmarks = nullptr;
-    TrackLandmarks truth_landmarks;
-    if (landmark_source == "truth") {
-      if (const auto* truth_px = truth_landmarks_of(**camera)) {
-        for (int l = 0; l < 68; ++l) {
-          landmark_points[static_cast<std::size_t>(l)] =
-              (*truth_px)[static_cast<std::size_t>(l)].cast<float>() +
-              Eigen::Vector2f(noise(rng), noise(rng));
-        }
-        truth_landmarks.points = landmark_points;
-        landmarks = &truth_landmarks;
-      }
-    }
-    const bool reacquiring = reacquire == "dlib" && (!face_before || !(*tracker)->calibrated());
-    if (detector && (landmark_source == "dlib" || reacquiring)) {
-      const LandmarkFrameResult found = detector->detect(frame.color, frame.depth_mm);
-      landmark_ms.push_back(found.ms);
-      if (found.found) {
-        ++detections;
-        landmarks = detector->landmarks();
-      } else {
-        ++detection_misses;
-      }
-    }
-    (*tracker)->track(frame.depth_mm, frame.depth_host_time_s, landmarks, report);
-    face_before = report.face_found;
-    out.index = frame.index;
-    out.time_s = frame.depth_host_time_s;
-    out.face_found = report.face_found;
-    out.occluded = report.occluded;
-    out.occluded_fraction = report.occluded_fraction;
-    out.camera_from_model = report.camera_from_model;
-    mapping->to_arkit(
-        std::span<const float>(report.weights.data(), static_cast<std::size_t>(report.shape_count)),
-        out.weights);
-    if (sender) {
-      if (auto sent = sender->send(out); !sent) {
-        std::cerr << "facebooth: " << sent.error().message << "\n";
-      }
-    }
-    latency.push_back(ms_since(arrival));
-    cost.push_back(report.times.total_ms());
-    if (csv) {
-      // The Timecode is the time of day (as the app writes it): the first row's is now.
-      if (!csv_started) {
-        csv->set_start_of_day_s(local_time_of_day_s(std::chrono::system_clock::now()) - out.time_s);
-        csv_started = true;
-      }
-      if (auto r = csv->append(to_livelink_row(out)); !r) return report_failure(r.error());
-    }
-    if (store) {
-      if (auto r = take.add_frame(out.time_s, out.camera_from_model, out.weights); !r)
-        return report_failure(r.error());
-    }
-    if (detail_csv) {
-      detail->blend.map_weights(
-          std::span<const float>(report.weights.data(),
-                                 static_cast<std::size_t>(report.shape_count)),
-          map_weights);
-      if (auto r = detail_csv->append(static_cast<long long>(out.index), out.time_s, out.face_found,
-                                      map_weights);
-          !r)
-        return report_failure(r.error());
-    }
-    if (print_sse) {
-      format_sse_event(out, sse);
-      std::cerr << sse;
-    }
-    ++read;
-    if (report.face_found) ++found;
-    if (report.state == TrackState::kLost) {
-      ++lost_reports;
-      std::cerr << "track: frame " << frame.index << ": face lost (" << report.loss_reason << ")\n";
-    } else if (report.state == TrackState::kSearching && *report.loss_reason &&
-               last_reason != report.loss_reason) {
-      // Once per reason: "no face found" every frame of an empty room says nothing new.
-      std::cerr << "track: frame " << frame.index << ": searching (" << report.loss_reason << ")\n";
-    }
-    if (report.state == TrackState::kCalibrating)
-      most_calibration_frames =
-          std::max(most_calibration_frames,
-                   tracker_options.calibration.calibration_frames - report.calibration_frames_left);
-    if (!report.face_found && std::string_view(report.loss_reason).starts_with("calibration")) {
-      ++rejected_sets;
-      rejection = report.loss_reason;
-    }
-    last_reason = report.loss_reason;
-    switch (occlusion.add(report.occluded)) {
-      case OcclusionLog::Change::kOccluded:
-        std::cerr << "track: frame " << frame.index << ": face occluded ("
-                  << std::lround(100.0 * report.occluded_fraction) << " % of it hidden)\n";
-        break;
-      case OcclusionLog::Change::kClear:
-        std::cerr << "track: frame " << frame.index << ": face clear again\n";
-        break;
-      case OcclusionLog::Change::kNone:
-        break;
-    }
-    ++states[to_string(report.state)];
-    progress.update(read);
-  }
+  if (auto ok = track_frames(t, **camera, *max_frames, progress); !ok)
+    return report_failure(ok.error());
   (*camera)->stop();
-  if (csv) {
-    if (auto r = csv->close(); !r) return report_failure(r.error());
+  if (t.csv) {
+    if (auto r = t.csv->close(); !r) return report_failure(r.error());
   }
-  if (detail_csv) {
-    if (auto r = detail_csv->close(); !r) return report_failure(r.error());
+  if (t.detail_csv) {
+    if (auto r = t.detail_csv->close(); !r) return report_failure(r.error());
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json result;
-  if (store && take.frame_count() > 0) {
-    if (!subject) {
-      auto added = store->add_subject("tracking take");
-      if (!added) return report_failure(added.error());
-      subject = *added;
-    }
-    auto id = take.store(*store, *subject, session);
-    if (!id) return report_failure(id.error());
-    result["take"] = *id;
-    result["subject"] = *subject;
-    result["session"] = session ? nlohmann::json(*session) : nlohmann::json(nullptr);
-    std::cerr << "track: stored take " << *id << " (" << take.frame_count()
-              << " frames; the face was "
-              << "occluded on " << occlusion.occluded_frames() << ")\n";
-    result["store"] = store_path;
-  } else if (store) {
-    result["take"] = nullptr;  // no frame: nothing to store
-  }
-  if (save_rig) {
-    // Only a subject the tracker calibrated itself (a stored rig loaded instead was refused
-    // above, and one that fell back to calibration for want of a rig is calibrated here).
-    if (!(*tracker)->calibrated() || !subject) {
-      std::cout << result.dump(2) << std::endl;
-      return report_failure({never_calibrated_message(
-                                 tracker_options.calibration.calibration_frames, read, found,
-                                 most_calibration_frames, rejected_sets, rejection, last_reason) +
-                             "; --save-rig stored no rig"});
-    }
-    const RigData saved = calibrated_rig(tracker_model, (*tracker)->identity(),
-                                         bilinear ? &*bilinear->blendshapes : nullptr);
-    auto id = store->add_rig(*subject, std::nullopt, saved);
-    if (!id) return report_failure(id.error());
-    result["rig"] = *id;
-    result["subject"] = *subject;
-    std::cerr << "track: stored the calibrated subject as rig " << *id << " of subject " << *subject
-              << " (" << saved.shape_count() << " shapes); track with it: "
-              << "--store " << store_path << " --subject " << *subject << " --rig-from-store\n";
-  }
+  if (auto ok = store_results(*where, t, tracker_model, bilinear.get(), result); !ok)
+    return report_failure(ok.error());
   result["subject_model"] = subject_model;
-  result["camera"] = uri;
-  result["frames"] = read;
-  result["frames_with_face"] = found;
-  result["loss_reports"] = lost_reports;
-  result["occluded_frames"] = occlusion.occluded_frames();
-  result["states"] = states;
-  result["calibrated"] = (*tracker)->calibrated();
-  result["stopped"] = stop_reason;
-  result["fps"] = seconds > 0 ? static_cast<double>(read) / seconds : 0.0;
-  result["ms_per_frame"] = stats_of(cost).mean;
-  result["latency_ms"] = to_json(stats_of(latency));
-  result["landmarks"] =
-      landmark_source == "truth"  ? "ground truth + N(0, 1.5 px) (synthetic camera only)"
-      : landmark_source == "dlib" ? "dlib HOG + shape_predictor_68 on the colour image"
-                                  : "none (depth only)";
-  result["reacquire"] = reacquire_note;
-  if (detector) {
-    result["detections"] = detections;
-    result["detection_misses"] = detection_misses;
-    result["landmark_ms"] = to_json(stats_of(landmark_ms));
-  }
-  if (sender) {
-    result["osc"] = sender->options().host + ":" + std::to_string(sender->options().port);
-    result["osc_datagrams"] = sender->datagrams_sent();
-    result["osc_messages"] = sender->messages_sent();
-  }
-  if (csv) result["csv"] = options.get("csv");
-  if (detail) {
-    nlohmann::json layers = nlohmann::json::array();
-    for (std::size_t e = 0; e < detail->captures.size(); ++e)
-      layers.push_back({{"capture", detail->captures[e]}, {"expression", detail->expressions[e]}});
-    result["detail_weights"] = {{"file", options.get("detail-weights")},
-                                {"neutral_capture", detail->neutral_capture},
-                                {"layers", layers},
-                                {"skipped", detail->skipped},
-                                {"meaning", detail_weights_description()}};
-  }
+  summary_json(t, uri, seconds, result);
+  if (t.csv) result["csv"] = options.get("csv");
+  if (t.detail) result["detail_weights"] = detail_weights_json(t, options.get("detail-weights"));
   std::cout << result.dump(2) << std::endl;
-  if (!camera_failed && !(*tracker)->calibrated()) {
+  if (!t.camera_failed && !t.tracker->calibrated()) {
     // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.
-    return report_failure(
-        {never_calibrated_message(tracker_options.calibration.calibration_frames, read, found,
-                                  most_calibration_frames, rejected_sets, rejection, last_reason)});
+    return report_failure({t.never_calibrated()});
   }
-  return camera_failed ? kExitFailure : kExitOk;
+  return t.camera_failed ? kExitFailure : kExitOk;
 }
 
 }  // namespace

@@ -42,6 +42,18 @@ const std::vector<std::string>& world_parts() {
   return parts;
 }
 
+Result<std::vector<std::string>> scenario_parts(const std::string& scenario) {
+  SyntheticOptions probe;
+  if (auto ok = apply_world_preset(scenario, 1, probe); !ok) return ok.failure();
+  std::vector<std::string> parts;
+  if (scenario == "realistic") {
+    parts.push_back("baseline");
+    for (const auto& p : world_parts()) parts.push_back(p);
+  }
+  parts.push_back(scenario);
+  return parts;
+}
+
 Result<void> apply_world_preset(std::string_view part, std::uint64_t seed, SyntheticOptions& o) {
   SyntheticWorld& w = o.world;
   w.seed = seed;

@@ -32,6 +32,10 @@ namespace fb {
 // The parts, in the order the evals report them (not "realistic", which is all of them).
 const std::vector<std::string>& world_parts();
 
+// The runs of an eval's --scenario: for realistic a plain "baseline", every part alone, then
+// realistic itself; for one part, that part. Unknown names are errors listing the accepted ones.
+Result<std::vector<std::string>> scenario_parts(const std::string& scenario);
+
 // Sets the options of scenario `part` (a world_parts() name, "realistic", or "none") for the
 // subject `subject_seed`. Unknown names are errors that list the accepted ones.
 Result<void> apply_world_preset(std::string_view part, std::uint64_t subject_seed,

@@ -151,6 +151,101 @@ Result<double> calibrate(const CrashTrialOptions& options) {
   return mean_ms;
 }
 
+// Where the next child must resume: the newest incomplete session's next capture.
+struct ResumePoint {
+  SessionId session = -1;
+  int index = -1;
+};
+
+// Every session's done captures byte for byte, and its folder and completeness flag; returns
+// the done captures counted (and sets `complete` to the completed sessions).
+int check_sessions(const CrashTrialOptions& options, SessionStore& store,
+                   const std::vector<SessionInfo>& sessions, int& complete,
+                   std::vector<std::string>& problems) {
+  int done_total = 0;
+  for (const auto& s : sessions) {
+    complete += s.complete ? 1 : 0;
+    auto captures = store.captures(s.id);
+    if (!captures) {
+      problems.push_back(captures.error().message);
+      continue;
+    }
+    int done = 0;
+    for (const auto& c : *captures) {
+      if (c.state != CaptureState::kDone) continue;
+      ++done;
+      auto data = store.read_capture(s.id, c.index);
+      if (!data) {
+        problems.push_back("committed capture unreadable: " + data.error().message);
+        continue;
+      }
+      const std::string diff = compare_test_capture(
+          *data, s.id, c.index, options.frames_per_capture, options.width, options.height);
+      if (!diff.empty()) problems.push_back("capture " + std::to_string(c.index) + ": " + diff);
+    }
+    done_total += done;
+    // Nothing half-written: exactly two data files (frames + fused depth) per done capture.
+    const int files = count_files(s.folder, false);
+    if (files != 2 * done) {
+      problems.push_back("session " + std::to_string(s.id) + " folder holds " +
+                         std::to_string(files) + " files for " + std::to_string(done) +
+                         " done captures");
+    }
+    if (s.complete != (done == s.capture_count)) {
+      problems.push_back("session completeness flag disagrees with its captures");
+    }
+  }
+  return done_total;
+}
+
+// After a kill: reopens the store as the writer (migrations, orphan cleanup) and checks it,
+// its sessions and the last commit that returned; sets where the next child must resume.
+void check_reopened_store(const CrashTrialOptions& options, const Shared& shared,
+                          CrashTrialReport& report, ResumePoint& expected,
+                          std::vector<std::string>& problems) {
+  auto store = SessionStore::open(options.root);
+  if (!store) {
+    problems.push_back("reopen failed: " + store.error().message);
+    return;
+  }
+  report.orphans_removed += store->orphans_removed();
+  auto verified = store->verify();
+  if (!verified) {
+    problems.push_back("verify failed: " + verified.error().message);
+  } else if (!verified->ok()) {
+    problems.push_back("verify: integrity " + verified->integrity +
+                       (verified->problems.empty() ? "" : ", " + verified->problems[0]));
+  }
+  if (const int temps = count_files(options.root, true); temps > 0) {
+    problems.push_back(std::to_string(temps) + " temporary files survived the cleanup");
+  }
+  auto sessions = store->sessions();
+  int done_total = 0, complete = 0;
+  if (!sessions) {
+    problems.push_back(sessions.error().message);
+  } else {
+    done_total = check_sessions(options, *store, *sessions, complete, problems);
+  }
+  // A commit that returned must have survived the kill.
+  if (shared.committed_session >= 0) {
+    auto c = store->capture(shared.committed_session, shared.committed_index);
+    if (!c || c->state != CaptureState::kDone) {
+      problems.push_back("a capture whose commit returned is not done after the kill");
+    }
+  }
+  expected = ResumePoint{};
+  if (sessions) {
+    for (auto it = sessions->rbegin(); it != sessions->rend(); ++it) {
+      if (it->complete) continue;
+      auto next = store->next_capture(it->id);
+      if (next && *next) expected = {it->id, (*next)->index};
+      break;
+    }
+  }
+  report.captures_committed = done_total;
+  report.sessions_completed = complete;
+}
+
 }  // namespace
 
 CaptureInput make_test_capture(SessionId session, int index, int frames, int width, int height) {
@@ -240,9 +335,8 @@ Result<CrashTrialReport> run_crash_trials(const CrashTrialOptions& options) {
 
   std::mt19937_64 rng(options.seed);
   std::uniform_real_distribution<double> delay(0.0, report.max_kill_delay_ms);
-  // Where the next child must start (-1: no open session, the child creates one).
-  SessionId expected_session = -1;
-  int expected_index = -1;
+  // Where the next child must start (session -1: no open session, the child creates one).
+  ResumePoint expected;
 
   for (int trial = 0; trial < options.trials; ++trial) {
     auto* shared = new (mapping) Shared();
@@ -271,92 +365,18 @@ Result<CrashTrialReport> run_crash_trials(const CrashTrialOptions& options) {
       problems.push_back("child exited on its own: " + std::string(shared->error_text));
     }
     // Resume: the child's first capture must be the one the store said was next.
-    if (expected_session >= 0 && shared->first_session >= 0) {
-      if (shared->first_session != expected_session || shared->first_index != expected_index) {
+    if (expected.session >= 0 && shared->first_session >= 0) {
+      if (shared->first_session != expected.session || shared->first_index != expected.index) {
         problems.push_back("resumed at session " + std::to_string(shared->first_session) +
                            " capture " + std::to_string(shared->first_index) + ", expected " +
-                           std::to_string(expected_session) + "/" + std::to_string(expected_index));
+                           std::to_string(expected.session) + "/" + std::to_string(expected.index));
       } else {
         ++report.resumes_checked;
       }
     }
 
-    // Reopen as the writer: migrations, orphan cleanup.
-    auto store = SessionStore::open(options.root);
-    if (!store) {
-      problems.push_back("reopen failed: " + store.error().message);
-    } else {
-      report.orphans_removed += store->orphans_removed();
-      auto verified = store->verify();
-      if (!verified) {
-        problems.push_back("verify failed: " + verified.error().message);
-      } else if (!verified->ok()) {
-        problems.push_back("verify: integrity " + verified->integrity +
-                           (verified->problems.empty() ? "" : ", " + verified->problems[0]));
-      }
-      if (const int temps = count_files(options.root, true); temps > 0) {
-        problems.push_back(std::to_string(temps) + " temporary files survived the cleanup");
-      }
-      auto sessions = store->sessions();
-      int done_total = 0, complete = 0;
-      if (!sessions) {
-        problems.push_back(sessions.error().message);
-      } else {
-        for (const auto& s : *sessions) {
-          complete += s.complete ? 1 : 0;
-          auto captures = store->captures(s.id);
-          if (!captures) {
-            problems.push_back(captures.error().message);
-            continue;
-          }
-          int done = 0;
-          for (const auto& c : *captures) {
-            if (c.state != CaptureState::kDone) continue;
-            ++done;
-            auto data = store->read_capture(s.id, c.index);
-            if (!data) {
-              problems.push_back("committed capture unreadable: " + data.error().message);
-              continue;
-            }
-            const std::string diff = compare_test_capture(
-                *data, s.id, c.index, options.frames_per_capture, options.width, options.height);
-            if (!diff.empty())
-              problems.push_back("capture " + std::to_string(c.index) + ": " + diff);
-          }
-          done_total += done;
-          // Nothing half-written: exactly two data files (frames + fused depth) per done capture.
-          const int files = count_files(s.folder, false);
-          if (files != 2 * done) {
-            problems.push_back("session " + std::to_string(s.id) + " folder holds " +
-                               std::to_string(files) + " files for " + std::to_string(done) +
-                               " done captures");
-          }
-          if (s.complete != (done == s.capture_count)) {
-            problems.push_back("session completeness flag disagrees with its captures");
-          }
-        }
-      }
-      // A commit that returned must have survived the kill.
-      if (shared->committed_session >= 0) {
-        auto c = store->capture(shared->committed_session, shared->committed_index);
-        if (!c || c->state != CaptureState::kDone) {
-          problems.push_back("a capture whose commit returned is not done after the kill");
-        }
-      }
-      // Where the next child must resume.
-      expected_session = -1;
-      expected_index = -1;
-      if (sessions) {
-        for (auto it = sessions->rbegin(); it != sessions->rend(); ++it) {
-          if (it->complete) continue;
-          auto next = store->next_capture(it->id);
-          if (next && *next) expected_session = it->id, expected_index = (*next)->index;
-          break;
-        }
-      }
-      report.captures_committed = done_total;
-      report.sessions_completed = complete;
-    }
+    // Reopen as the writer: migrations, orphan cleanup; then every check of the store.
+    check_reopened_store(options, *shared, report, expected, problems);
     if (problems.empty()) {
       ++report.survived;
     } else {

@@ -19,6 +19,7 @@
 #include "host/cli/command_line.hpp"
 #include "host/cli/scratch_directory.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/subject/synthetic_rigs.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/session_store.hpp"
 
@@ -38,39 +39,14 @@ fs::path facebooth_binary(const std::string& given) {
   return {};
 }
 
-// Synthetic subject i's rig: a face-model identity, and each of the 53 fitting shapes at its
-// own amplitude in [0.6, 1.4] (personal, so the tensor is not the face model's factored one).
-RigData synthetic_rig(const FaceModel& m, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<float> n(0, 1);
-  std::uniform_real_distribution<float> amp(0.6f, 1.4f);
-  std::vector<float> id(static_cast<std::size_t>(m.identity_count));
-  for (auto& c : id) c = n(rng);
-  RigData r;
-  r.neutral.resize(static_cast<std::size_t>(m.vertex_count) * 3);
-  m.evaluate(id, {}, r.neutral);
-  for (int j = 0; j < m.fitting_expression_count; ++j) {
-    const float a = amp(rng);
-    const auto delta = m.expression_shape(j);
-    std::vector<float> s(r.neutral.size());
-    for (std::size_t k = 0; k < s.size(); ++k) s[k] = r.neutral[k] + a * delta[k];
-    r.shapes.push_back(std::move(s));
-    r.shape_names.push_back(m.expression_names[static_cast<std::size_t>(j)]);
-  }
-  r.triangles = m.triangles;
-  return r;
-}
-
 Result<double> make_store(const FaceModel& m, const fs::path& dir, int subjects) {
   const auto t0 = Clock::now();
   auto store = SessionStore::open(dir);
   if (!store) return store.failure();
   for (int i = 0; i < subjects; ++i) {
-    auto subject = store->add_subject("synthetic " + std::to_string(i + 1));
-    if (!subject) return subject.failure();
-    auto session = store->create_session(*subject, {"neutral"});
-    if (!session) return session.failure();
-    if (auto r = store->add_rig(*subject, *session, synthetic_rig(m, 1000 + i)); !r)
+    if (auto r = add_synthetic_rig_subject(*store, m, "synthetic " + std::to_string(i + 1),
+                                           1000 + static_cast<std::uint64_t>(i));
+        !r)
       return r.failure();
     if ((i + 1) % 50 == 0 || i + 1 == subjects)
       std::cerr << "bench model: store " << i + 1 << "/" << subjects << " rigs\n";

@@ -27,6 +27,54 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Capture commit latency at the real frame size: a head-turn capture of `frames` frames of
+// 640x480 depth (mm), raw disparity and colour, plus the fused map and landmarks, committed
+// `commits` times in a store under `scratch`; the figures go into `result`.
+Result<void> time_capture_commits(const fs::path& scratch, long long commits, long long frames,
+                                  nlohmann::json& result) {
+  std::cerr << "eval storage: " << commits << " capture commits of " << frames
+            << " 640x480 frames...\n";
+  std::vector<double> commit_ms;
+  std::uint64_t capture_bytes = 0;
+  {
+    auto store = SessionStore::open(scratch / "latency-store");
+    if (!store) return store.failure();
+    auto subject = store->add_subject("latency");
+    if (!subject) return subject.failure();
+    std::vector<std::string> guide;
+    for (long long i = 0; i < commits; ++i) guide.push_back("pose_" + std::to_string(i));
+    auto session = store->create_session(*subject, guide);
+    if (!session) return session.failure();
+    for (int i = 0; i < static_cast<int>(commits); ++i) {
+      const CaptureInput input =
+          make_test_capture(*session, i, static_cast<int>(frames), kKinectWidth, kKinectHeight);
+      if (auto r = store->begin_capture(*session, i); !r) return r.failure();
+      const auto t0 = Clock::now();
+      if (auto r = store->commit_capture(*session, i, input); !r) return r.failure();
+      commit_ms.push_back(seconds_since(t0) * 1000.0);
+    }
+    auto bytes = folder_bytes(store->session(*session)->folder);
+    if (!bytes) return bytes.failure();
+    capture_bytes = *bytes / static_cast<std::uint64_t>(commits);
+    const auto t0 = Clock::now();
+    auto data = store->read_capture(*session, 0);
+    if (!data) return data.failure();
+    result["capture_read_ms"] = seconds_since(t0) * 1000.0;
+  }
+  result["capture_commit_ms"] = percentile(commit_ms, 0.5);
+  result["capture_commit_ms_p95"] = percentile(commit_ms, 0.95);
+  result["capture_commit_ms_max"] = *std::max_element(commit_ms.begin(), commit_ms.end());
+  result["capture_commits"] = commit_ms.size();
+  result["capture_frames"] = frames;
+  result["capture_bytes"] = capture_bytes;
+  result["capture_commit_mb_per_s"] =
+      static_cast<double>(capture_bytes) / 1e6 / (percentile(commit_ms, 0.5) / 1000.0);
+  result["capture_commit_note"] =
+      "frames file + fused depth written and fsynced, renamed, directory fsynced, then one "
+      "synchronous=FULL SQLite commit; median over the commits";
+  return success();
+}
+
 int run_eval_storage(const ParsedOptions& options) {
   auto trials = options.get_int("trials");
   auto commits = options.get_int("commits");
@@ -65,48 +113,9 @@ int run_eval_storage(const ParsedOptions& options) {
   result["crash_s"] = seconds_since(start);
   for (const auto& f : report->failures) std::cerr << "  " << f << "\n";
 
-  // 2. Capture commit latency at the real frame size: a head-turn capture of N frames of
-  // 640x480 depth (mm), raw disparity and colour, plus the fused map and landmarks.
-  std::cerr << "eval storage: " << *commits << " capture commits of " << *frames
-            << " 640x480 frames...\n";
-  std::vector<double> commit_ms;
-  std::uint64_t capture_bytes = 0;
-  {
-    auto store = SessionStore::open(scratch->path() / "latency-store");
-    if (!store) return report_failure(store.error());
-    auto subject = store->add_subject("latency");
-    if (!subject) return report_failure(subject.error());
-    std::vector<std::string> guide;
-    for (long long i = 0; i < *commits; ++i) guide.push_back("pose_" + std::to_string(i));
-    auto session = store->create_session(*subject, guide);
-    if (!session) return report_failure(session.error());
-    for (int i = 0; i < static_cast<int>(*commits); ++i) {
-      const CaptureInput input =
-          make_test_capture(*session, i, static_cast<int>(*frames), kKinectWidth, kKinectHeight);
-      if (auto r = store->begin_capture(*session, i); !r) return report_failure(r.error());
-      const auto t0 = Clock::now();
-      if (auto r = store->commit_capture(*session, i, input); !r) return report_failure(r.error());
-      commit_ms.push_back(seconds_since(t0) * 1000.0);
-    }
-    auto bytes = folder_bytes(store->session(*session)->folder);
-    if (!bytes) return report_failure(bytes.error());
-    capture_bytes = *bytes / static_cast<std::uint64_t>(*commits);
-    const auto t0 = Clock::now();
-    auto data = store->read_capture(*session, 0);
-    if (!data) return report_failure(data.error());
-    result["capture_read_ms"] = seconds_since(t0) * 1000.0;
-  }
-  result["capture_commit_ms"] = percentile(commit_ms, 0.5);
-  result["capture_commit_ms_p95"] = percentile(commit_ms, 0.95);
-  result["capture_commit_ms_max"] = *std::max_element(commit_ms.begin(), commit_ms.end());
-  result["capture_commits"] = commit_ms.size();
-  result["capture_frames"] = *frames;
-  result["capture_bytes"] = capture_bytes;
-  result["capture_commit_mb_per_s"] =
-      static_cast<double>(capture_bytes) / 1e6 / (percentile(commit_ms, 0.5) / 1000.0);
-  result["capture_commit_note"] =
-      "frames file + fused depth written and fsynced, renamed, directory fsynced, then one "
-      "synchronous=FULL SQLite commit; median over the commits";
+  // 2. Capture commit latency at the real frame size.
+  if (auto ok = time_capture_commits(scratch->path(), *commits, *frames, result); !ok)
+    return report_failure(ok.error());
 
   // 3. One full subject: the face model with a random identity, 20 captures (640x480 colour),
   // the rig and 20 fitted meshes in a store; then every export format from that session.

@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "sim/scoring/take_runner.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/scoring/take_runner.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
 
@@ -43,6 +43,33 @@ class SinkSocket {
   UniqueFd fd_;
   int port_ = 0;
 };
+
+// What each figure of bench track measures.
+nlohmann::json bench_track_setup() {
+  return {
+      {"ms_per_frame",
+       "mean wall time of track() on steady-state frames: temporal smoothing "
+       "(k = 5) + rigid ICP + blendshape solve, depth only"},
+      {"calibration_ms",
+       "the identity fit, once per subject on the frame that ends calibration (not in "
+       "ms_per_frame): calibration_rounds Gauss-Newton rounds of the joint identity + pose fit "
+       "over the stored frames, then one re-tracking of them"},
+      {"ms_per_frame_with_landmarks",
+       "the same plus dlib on the colour image (HOG detection in a window around the last "
+       "face, 68-point shape prediction, mapping into the depth image) and the 51 landmark "
+       "rows in the weight solve; dlib_ms_per_frame is the detection part alone"},
+      {"ms_per_frame_landmark_rows",
+       "tracker only, with ground-truth landmarks (+ 1.5 px noise) in the weight solve: the "
+       "solve's landmark cost without detection"},
+      {"ms_per_frame_with_landmarks_cpu", "thread CPU time of the dlib run (detection included)"},
+      {"ms_per_frame_cpu",
+       "thread CPU time of the same calls (the one-core cost even when other "
+       "processes share the core; wall times include their preemption)"},
+      {"latency_ms",
+       "frame arrival (before detection and track()) -> the last VMC datagram handed to the "
+       "kernel (lo_send_bundle returned), loopback UDP, with dlib landmarks"},
+      {"frames", "pre-rendered synthetic take in memory (seed 7, sensor noise on)"}};
+}
 
 int run_bench_track(const ParsedOptions& options) {
   auto frames = options.get_int("frames");
@@ -141,29 +168,7 @@ int run_bench_track(const ParsedOptions& options) {
   result["shapes"] = model.fitting_expression_count;
   result["frames"] = spec.frames;
   result["threads"] = 1;
-  result["setup"] = {
-      {"ms_per_frame",
-       "mean wall time of track() on steady-state frames: temporal smoothing "
-       "(k = 5) + rigid ICP + blendshape solve, depth only"},
-      {"calibration_ms",
-       "the identity fit, once per subject on the frame that ends calibration (not in "
-       "ms_per_frame): calibration_rounds Gauss-Newton rounds of the joint identity + pose fit "
-       "over the stored frames, then one re-tracking of them"},
-      {"ms_per_frame_with_landmarks",
-       "the same plus dlib on the colour image (HOG detection in a window around the last "
-       "face, 68-point shape prediction, mapping into the depth image) and the 51 landmark "
-       "rows in the weight solve; dlib_ms_per_frame is the detection part alone"},
-      {"ms_per_frame_landmark_rows",
-       "tracker only, with ground-truth landmarks (+ 1.5 px noise) in the weight solve: the "
-       "solve's landmark cost without detection"},
-      {"ms_per_frame_with_landmarks_cpu", "thread CPU time of the dlib run (detection included)"},
-      {"ms_per_frame_cpu",
-       "thread CPU time of the same calls (the one-core cost even when other "
-       "processes share the core; wall times include their preemption)"},
-      {"latency_ms",
-       "frame arrival (before detection and track()) -> the last VMC datagram handed to the "
-       "kernel (lo_send_bundle returned), loopback UDP, with dlib landmarks"},
-      {"frames", "pre-rendered synthetic take in memory (seed 7, sensor noise on)"}};
+  result["setup"] = bench_track_setup();
   std::cout << result.dump(2) << std::endl;
   return kExitOk;
 }

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/bilinear/bilinear_model.hpp"
+#include "sim/subject/synthetic_rigs.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/session_store.hpp"
@@ -31,28 +32,6 @@ struct TempDir {
   }
 };
 
-// A subject's rig: a random identity, every fitting shape at its own amplitude.
-RigData rig(const FaceModel& m, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> n(0, 1);
-  std::uniform_real_distribution<float> amp(0.6f, 1.4f);
-  std::vector<float> id(static_cast<std::size_t>(m.identity_count));
-  for (auto& c : id) c = n(rng);
-  RigData r;
-  r.neutral.resize(static_cast<std::size_t>(m.vertex_count) * 3);
-  m.evaluate(id, {}, r.neutral);
-  for (int j = 0; j < m.fitting_expression_count; ++j) {
-    const float a = amp(rng);
-    const auto d = m.expression_shape(j);
-    std::vector<float> s(r.neutral.size());
-    for (std::size_t k = 0; k < s.size(); ++k) s[k] = r.neutral[k] + a * d[k];
-    r.shapes.push_back(std::move(s));
-    r.shape_names.push_back(m.expression_names[static_cast<std::size_t>(j)]);
-  }
-  r.triangles = m.triangles;
-  return r;
-}
-
 BilinearModel read_model(const fs::path& p) {
   auto bytes = read_file_bytes(p);
   EXPECT_TRUE(bytes.ok());
@@ -70,11 +49,7 @@ TEST(ModelBuildCli, StreamedFromTheStoreEqualsTheInMemoryBuild) {
     auto store = SessionStore::open(dir.path / "store");
     ASSERT_TRUE(store.ok());
     for (int i = 0; i < subjects; ++i) {
-      auto subject = store->add_subject("s" + std::to_string(i));
-      ASSERT_TRUE(subject.ok());
-      auto session = store->create_session(*subject, {"neutral"});
-      ASSERT_TRUE(session.ok());
-      ASSERT_TRUE(store->add_rig(*subject, *session, rig(*face, 40 + i)).ok());
+      ASSERT_TRUE(add_synthetic_rig_subject(*store, *face, "s" + std::to_string(i), 40 + i).ok());
     }
   }
   auto build = [&](const std::string& name, const std::string& extra) {

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -93,6 +94,20 @@ class DaemonFixture : public ::testing::Test {
       const std::string name = e.path().filename().string();
       EXPECT_NE(name.rfind(kDurableTempPrefix, 0), 0u) << "partial file left: " << e.path();
     }
+  }
+
+  // The store holds one session, complete or not, with `done` captures done (unchecked when
+  // nullopt); its id goes to `id` when given.
+  void expect_one_session(bool complete, std::optional<int> done,
+                          std::int64_t* id = nullptr) const {
+    auto store = open_store();
+    ASSERT_TRUE(store) << store.error().message;
+    auto sessions = store->sessions();
+    ASSERT_TRUE(sessions) << sessions.error().message;
+    ASSERT_EQ(sessions->size(), 1u);
+    EXPECT_EQ(sessions->front().complete, complete);
+    if (done) EXPECT_EQ(sessions->front().done_count, *done);
+    if (id != nullptr) *id = sessions->front().id;
   }
 
   std::filesystem::path dir_;

@@ -190,15 +190,7 @@ TEST_F(DaemonSigterm, EachOtherPhaseStopsCleanlyAndTheNextStartGoesOn) {
     EXPECT_EQ(p->terminate(), 0) << "exporting at the end of the session";
     expect_store_consistent();
   }
-  {
-    auto store = open_store();
-    ASSERT_TRUE(store);
-    auto sessions = store->sessions();
-    ASSERT_TRUE(sessions);
-    ASSERT_EQ(sessions->size(), 1u);
-    EXPECT_TRUE(sessions->front().complete);
-    EXPECT_EQ(sessions->front().done_count, 3);
-  }
+  ASSERT_NO_FATAL_FAILURE(expect_one_session(true, 3));
   // Tracking mode (the session's subject): the take tracked so far is stored.
   {
     auto p = spawn();

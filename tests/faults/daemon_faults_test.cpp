@@ -103,25 +103,11 @@ TEST_F(DaemonFaults, FullDiskDuringCaptureCommitLosesNothingAndResumes) {
   EXPECT_NE(log.find("no space left"), std::string::npos) << log;
   EXPECT_NE(log.find("free space"), std::string::npos) << log;
   expect_store_consistent();
-  {
-    auto store = open_store();
-    ASSERT_TRUE(store);
-    auto sessions = store->sessions();
-    ASSERT_TRUE(sessions);
-    ASSERT_EQ(sessions->size(), 1u);
-    EXPECT_EQ(sessions->front().done_count, 0);
-    EXPECT_FALSE(sessions->front().complete);
-  }
+  ASSERT_NO_FATAL_FAILURE(expect_one_session(false, 0));
   // Space again: the same session is resumed and completed.
   EXPECT_EQ(run_headless("", log), 0) << log;
   expect_store_consistent();
-  auto store = open_store();
-  ASSERT_TRUE(store);
-  auto sessions = store->sessions();
-  ASSERT_TRUE(sessions);
-  ASSERT_EQ(sessions->size(), 1u);
-  EXPECT_TRUE(sessions->front().complete);
-  EXPECT_EQ(sessions->front().done_count, 2);
+  ASSERT_NO_FATAL_FAILURE(expect_one_session(true, 2));
 }
 
 TEST_F(DaemonFaults, FullDiskDuringExportPublishesNothingAndKeepsTheSession) {
@@ -144,15 +130,7 @@ TEST_F(DaemonFaults, FullDiskDuringExportPublishesNothingAndKeepsTheSession) {
   EXPECT_EQ(published, 0);
   // The session itself is complete and stored; with space again it exports.
   std::int64_t session = 0;
-  {
-    auto store = open_store();
-    ASSERT_TRUE(store);
-    auto sessions = store->sessions();
-    ASSERT_TRUE(sessions);
-    ASSERT_EQ(sessions->size(), 1u);
-    EXPECT_TRUE(sessions->front().complete);
-    session = sessions->front().id;
-  }
+  ASSERT_NO_FATAL_FAILURE(expect_one_session(true, std::nullopt, &session));
   auto records = open_session_records(dir_ / "data");
   ASSERT_TRUE(records) << records.error().message;
   auto out = (*records)->export_session(session, dir_ / "data" / "exports");

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "algo/tracking/arkit.hpp"
+#include "storage/export/export_session.hpp"
 #include "storage/export/png_file.hpp"
 
 namespace fb::cli {
@@ -196,14 +197,9 @@ Result<int> write_take_detail_weights(ExportFolder& folder, const TakeData& take
   indices.insert(indices.end(), blend.captures.begin(), blend.captures.end());
   for (std::size_t i = 0; i < indices.size(); ++i) {
     const WrinkleDetailData& d = blend.maps[i];
-    const std::string stem = "wrinkles/capture_" + std::to_string(indices[i]);
-    if (auto r = folder.write_file(stem + "_normal.png", d.normal_png); !r) return r.failure();
-    DepthImage pgm;
-    pgm.resize(d.width, d.height);
-    for (std::size_t k = 0; k < d.displacement_mm.size(); ++k)
-      pgm.pixels[k] = static_cast<std::uint16_t>(
-          std::clamp(std::lround(32768.0 + 1000.0 * d.displacement_mm[k]), 0L, 65535L));
-    if (auto r = folder.write_text(stem + "_displacement.pgm", encode_pgm16(pgm)); !r)
+    if (auto r =
+            write_detail_map_files(folder, "wrinkles/capture_" + std::to_string(indices[i]), d);
+        !r)
       return r.failure();
   }
   return static_cast<int>(blend.captures.size());

@@ -259,6 +259,21 @@ Result<int> write_detail_meshes(ExportFolder& folder, const ExportContent& c) {
   return written;
 }
 
+}  // namespace
+
+Result<void> write_detail_map_files(ExportFolder& folder, const std::string& stem,
+                                    const WrinkleDetailData& d) {
+  if (auto r = folder.write_file(stem + "_normal.png", d.normal_png); !r) return r.failure();
+  DepthImage pgm;
+  pgm.resize(d.width, d.height);
+  for (std::size_t k = 0; k < d.displacement_mm.size(); ++k)
+    pgm.pixels[k] = static_cast<std::uint16_t>(
+        std::clamp(std::lround(32768.0 + 1000.0 * d.displacement_mm[k]), 0L, 65535L));
+  return folder.write_text(stem + "_displacement.pgm", encode_pgm16(pgm));
+}
+
+namespace {
+
 // Every pose's wrinkle detail: wrinkles/pose_I_normal.png (tangent space, x along +u, y along
 // +v) and wrinkles/pose_I_displacement.pgm (16-bit, mm = (value - 32768) / 1000).
 Result<int> write_wrinkle_maps(ExportFolder& folder, const ExportContent& c) {
@@ -266,14 +281,7 @@ Result<int> write_wrinkle_maps(ExportFolder& folder, const ExportContent& c) {
   for (std::size_t i = 0; i < c.pose_details.size(); ++i) {
     const WrinkleDetailData& d = c.pose_details[i];
     if (d.width <= 0) continue;
-    const std::string stem = "wrinkles/pose_" + std::to_string(i);
-    if (auto r = folder.write_file(stem + "_normal.png", d.normal_png); !r) return r.failure();
-    DepthImage pgm;
-    pgm.resize(d.width, d.height);
-    for (std::size_t k = 0; k < d.displacement_mm.size(); ++k)
-      pgm.pixels[k] = static_cast<std::uint16_t>(
-          std::clamp(std::lround(32768.0 + 1000.0 * d.displacement_mm[k]), 0L, 65535L));
-    if (auto r = folder.write_text(stem + "_displacement.pgm", encode_pgm16(pgm)); !r)
+    if (auto r = write_detail_map_files(folder, "wrinkles/pose_" + std::to_string(i), d); !r)
       return r.failure();
     ++written;
   }

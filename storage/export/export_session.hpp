@@ -83,4 +83,10 @@ struct ExportSummary {
 // -> neutral.EXT, blendshapes/NN_NAME.EXT, poses/pose_I.EXT. Always plus manifest.json.
 Result<ExportSummary> export_content(const ExportContent& content, const ExportRequest& request);
 
+class ExportFolder;
+// One wrinkle detail map as files: STEM_normal.png (tangent space, x along +u, y along +v) and
+// STEM_displacement.pgm (16-bit, mm = (value - 32768) / 1000).
+Result<void> write_detail_map_files(ExportFolder& folder, const std::string& stem,
+                                    const WrinkleDetailData& detail);
+
 }  // namespace fb

@@ -4,7 +4,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
+#include <Eigen/SVD>  // Eigen::umeyama
 
 namespace fb::cli {
 
@@ -87,20 +87,20 @@ VertexErrorParts vertex_error_parts(std::span<const float> fitted, const RigidPo
   ca /= static_cast<double>(a.size());
   cb /= static_cast<double>(b.size());
   out.mean_offset_mm = ca - cb;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   double moved = 0;
+  Eigen::Matrix3Xd src(3, static_cast<Eigen::Index>(a.size())), dst(3, src.cols());
   for (std::size_t k = 0; k < a.size(); ++k) {
     moved += ((a[k] - ca) - (b[k] - cb)).norm();
-    cov += (a[k] - ca) * (b[k] - cb).transpose();
+    src.col(static_cast<Eigen::Index>(k)) = a[k];
+    dst.col(static_cast<Eigen::Index>(k)) = b[k];
   }
   out.after_translation_mm = moved / static_cast<double>(a.size());
-  // Kabsch: the rotation taking the fitted shape onto the truth's.
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0) d(2, 2) = -1;
-  const Eigen::Matrix3d r = svd.matrixV() * d * svd.matrixU().transpose();
+  // The best rigid motion of the fitted shape onto the truth's, as elsewhere (Eigen's Umeyama).
+  const Eigen::Matrix4d m = Eigen::umeyama(src, dst, false);
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = m.topRightCorner<3, 1>();
   double rigid = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) rigid += (r * (a[k] - ca) - (b[k] - cb)).norm();
+  for (std::size_t k = 0; k < a.size(); ++k) rigid += (r * a[k] + t - b[k]).norm();
   out.after_rigid_mm = rigid / static_cast<double>(a.size());
   out.rigid_rotation_deg = Eigen::AngleAxisd(r).angle() * 180.0 / M_PI;
   return out;

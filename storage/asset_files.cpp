@@ -97,4 +97,22 @@ Result<FaceModel> load_face_model(const std::filesystem::path& path) {
   return model;
 }
 
+std::filesystem::path default_landmark_embedding_path() {
+  return data_directory() / "dlib_landmark_embedding.csv";
+}
+
+Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model,
+                                                  const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    return fail("cannot read dlib's landmark embedding " + path.string() +
+                " (the data directory is " + data_directory().string() +
+                "; set $FACEBOOTH_DATA_DIR to the directory holding dlib_landmark_embedding.csv)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  auto embedding = parse_landmark_embedding(text.str(), model);
+  if (!embedding) return fail(path.string() + ": " + embedding.error().message);
+  return embedding;
+}
+
 }  // namespace fb

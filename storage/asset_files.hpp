@@ -7,6 +7,7 @@
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
 #include "algo/guide/guide_expressions.hpp"
+#include "algo/facemodel/landmark_embedding.hpp"
 
 namespace fb {
 
@@ -29,6 +30,16 @@ std::filesystem::path default_guide_path();
 Result<GuideSet> load_guide_expressions(const FaceModel& model, const std::filesystem::path& path);
 inline Result<GuideSet> load_guide_expressions(const FaceModel& model) {
   return load_guide_expressions(model, default_guide_path());
+}
+
+// data_directory() / "dlib_landmark_embedding.csv".
+std::filesystem::path default_landmark_embedding_path();
+
+// dlib's landmark convention on `model` (algo/facemodel/landmark_embedding.hpp).
+Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model,
+                                                  const std::filesystem::path& path);
+inline Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model) {
+  return load_landmark_embedding(model, default_landmark_embedding_path());
 }
 
 }  // namespace fb

@@ -102,6 +102,11 @@ bool procrustes(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen
   return r.allFinite() && t.allFinite();
 }
 
+std::uint32_t marked_vertex(const FaceModel& model, const FitTarget& target, int landmark) {
+  const auto i = static_cast<std::size_t>(landmark);
+  return target.landmark_vertices ? (*target.landmark_vertices)[i] : model.landmark_vertices[i];
+}
+
 // Contour sliding (section 3.2.1, after Yang et al.): project the face vertices, take the 2D
 // convex hull, and give each contour landmark the nearest hull vertex; if none is within
 // `max_px`, the model's fixed landmark vertex stays.
@@ -110,8 +115,7 @@ std::array<int, kFitLandmarkCount> landmark_vertices(const FaceModel& model,
                                                      double max_px = 12.0) {
   std::array<int, kFitLandmarkCount> out{};
   for (int i = 0; i < kFitLandmarkCount; ++i)
-    out[static_cast<std::size_t>(i)] =
-        static_cast<int>(model.landmark_vertices[static_cast<std::size_t>(i)]);
+    out[static_cast<std::size_t>(i)] = static_cast<int>(marked_vertex(model, target, i));
   std::vector<Eigen::Vector2d> proj;
   std::vector<int> ids;
   proj.reserve(model.fitting_vertices.size());
@@ -222,6 +226,12 @@ Result<void> check_ready(const FaceModel& model, const FitTarget& target) {
     return fail(
         "fit: fewer than 6 interior landmarks have depth (no face found, or no depth in "
         "the face region)");
+  if (target.landmark_vertices)
+    for (std::uint32_t v : *target.landmark_vertices)
+      if (v >= static_cast<std::uint32_t>(model.vertex_count))
+        return fail("fit: the landmark convention names vertex " + std::to_string(v) +
+                    ", which this face model (" + std::to_string(model.vertex_count) +
+                    " vertices) does not have; rebuild the landmark embedding for this model");
   return success();
 }
 
@@ -364,7 +374,7 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
   } else {
     std::vector<Eigen::Vector3d> src, dst;
     for (int l : interior) {
-      src.push_back(v.row(model.landmark_vertices[static_cast<std::size_t>(l)]).transpose());
+      src.push_back(v.row(marked_vertex(model, target, l)).transpose());
       dst.push_back(*target.landmarks[static_cast<std::size_t>(l)].point);
     }
     if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
@@ -396,8 +406,7 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
       g += j * res;
     }
     for (int l : interior) {
-      const Eigen::Vector3d a =
-          r * v.row(model.landmark_vertices[static_cast<std::size_t>(l)]).transpose();
+      const Eigen::Vector3d a = r * v.row(marked_vertex(model, target, l)).transpose();
       const Eigen::Vector3d res = a + t - *target.landmarks[static_cast<std::size_t>(l)].point;
       Eigen::Matrix<double, 3, 6> j;
       j << -skew(a), Eigen::Matrix3d::Identity();

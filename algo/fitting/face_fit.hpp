@@ -53,6 +53,10 @@ struct FitTarget {
   // PCA step (step 1) does not use it (docs/tuning.md: it cost vertex error). Empty = all 1.
   Image<float> confidence;
   std::array<FitLandmark, kFitLandmarkCount> landmarks;
+  // The mesh vertex each landmark marks when the landmarks follow a detector's convention
+  // rather than the model's (dlib: algo/facemodel/landmark_embedding.hpp); unset = the model's
+  // landmark_vertices. The contour (0-16) slides along the silhouette either way.
+  std::optional<std::array<std::uint32_t, kFitLandmarkCount>> landmark_vertices;
 };
 
 // Fills target.normals from target.depth_mm (central differences, unit, towards the camera),

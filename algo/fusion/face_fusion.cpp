@@ -74,6 +74,7 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   box_ = box;
   start_box_ = box;
   anchor_depth_ = 0.0f;
+  chin_world_ = down_world_ = Eigen::Vector3f::Zero();
   if (runner_->parts() != options.threads)
     runner_ = std::make_unique<ParallelRunner>(options.threads);
   preprocessor_.configure(options_);
@@ -140,6 +141,24 @@ void FaceFusion::place_volume(const RigidPoseF& world_from_camera) {
   anchor_depth_ = z;
 }
 
+void FaceFusion::set_chin_cut(const RigidPoseF& world_from_camera) {
+  if (!started_) {
+    // The detection's frame is the first fused one: the cut enters the world frame with it.
+    const bool cut = start_box_.down.squaredNorm() > 0.0f && options_.below_chin_mm > 0.0f;
+    chin_world_ = cut ? world_from_camera.apply(start_box_.chin_mm) : Eigen::Vector3f::Zero();
+    down_world_ = cut ? Eigen::Vector3f(world_from_camera.r * start_box_.down.normalized())
+                      : Eigen::Vector3f::Zero();
+  }
+  if (down_world_.squaredNorm() == 0.0f) {
+    preprocessor_.clear_plane_gate();
+    return;
+  }
+  // down . (R p + t - chin) > margin  <=>  (R^T down) . p > margin + down . (chin - t)
+  preprocessor_.set_plane_gate(
+      world_from_camera.r.transpose() * down_world_,
+      options_.below_chin_mm + down_world_.dot(chin_world_ - world_from_camera.t));
+}
+
 FaceBox FaceFusion::box_at(const RigidPoseF& world_from_camera) const {
   if (!options_.box_follows_face || !(anchor_depth_ > 0.0f)) return start_box_;
   const Eigen::Vector3f p = world_from_camera.inverse().apply(anchor_world_);
@@ -204,6 +223,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
     preprocessor_.set_depth_gate(
         std::max(options_.min_depth_mm, box_.face_depth_mm - options_.face_band_front_mm),
         std::min(options_.max_depth_mm, box_.face_depth_mm + options_.face_band_back_mm));
+  set_chin_cut(started_ ? last_good_ : (known_pose ? RigidPoseF::from(*known_pose) : RigidPoseF{}));
   preprocessor_.run(depth_mm, pyramid_, *runner_);
   t.lap(report.times.preprocess_ms, report.cpu_times.preprocess_ms);
   report.valid_pixels = pyramid_.valid_pixels;
@@ -297,8 +317,8 @@ void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
   else
     render_level_.move_box(box);
   std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
-  ray_caster_.cast(volume_, RigidPoseF::from(world_from_camera), nullptr, false, true, render_level_,
-                   *runner_);
+  ray_caster_.cast(volume_, RigidPoseF::from(world_from_camera), nullptr, false, true,
+                   render_level_, *runner_);
   out.depth_mm = render_level_.depth;
   out.normals = render_level_.normals;
 }

@@ -72,6 +72,7 @@ class FaceFusion {
   void place_volume(const RigidPoseF& world_from_camera);
   void cast_model(const RigidPoseF& pose);
   FaceBox box_at(const RigidPoseF& world_from_camera) const;
+  void set_chin_cut(const RigidPoseF& world_from_camera);
 
   FusionOptions options_;
   PinholeIntrinsics intrinsics_;
@@ -81,6 +82,9 @@ class FaceFusion {
   // in the first frame (0 until fusion starts).
   Eigen::Vector3f anchor_world_ = Eigen::Vector3f::Zero();
   float anchor_depth_ = 0.0f;
+  // The cut below the chin (FaceBox::chin_mm / down) in the world frame; down = 0: none.
+  Eigen::Vector3f chin_world_ = Eigen::Vector3f::Zero();
+  Eigen::Vector3f down_world_ = Eigen::Vector3f::Zero();
   std::unique_ptr<ParallelRunner> runner_;
   DepthPreprocessor preprocessor_;
   IcpTracker tracker_;

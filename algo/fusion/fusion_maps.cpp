@@ -7,14 +7,24 @@ namespace fb {
 FaceBox FaceBox::clipped(int w, int h) const {
   const int x0 = std::clamp(x, 0, w), y0 = std::clamp(y, 0, h);
   const int x1 = std::clamp(x + width, 0, w), y1 = std::clamp(y + height, 0, h);
-  return {x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0), face_depth_mm};
+  FaceBox out = *this;
+  out.x = x0;
+  out.y = y0;
+  out.width = std::max(0, x1 - x0);
+  out.height = std::max(0, y1 - y0);
+  return out;
 }
 
 FaceBox FaceBox::at_level(int level) const {
   const int x0 = x >> level, y0 = y >> level;
   const int x1 = (x + width + (1 << level) - 1) >> level;
   const int y1 = (y + height + (1 << level) - 1) >> level;
-  return {x0, y0, x1 - x0, y1 - y0, face_depth_mm};
+  FaceBox out = *this;
+  out.x = x0;
+  out.y = y0;
+  out.width = x1 - x0;
+  out.height = y1 - y0;
+  return out;
 }
 
 FaceBox default_face_box(int width, int height) {

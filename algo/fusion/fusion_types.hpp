@@ -24,6 +24,12 @@ struct FaceBox {
   // Depth of the detected face in this box (median of its landmarks' depths), 0 = unknown. With
   // it the volume is placed on the face, not on the nearest surface (a hand, the chest, a desk).
   float face_depth_mm = 0.0f;
+  // Where the face ends below, in the camera frame of the frame the face was found in: the
+  // chin and the face's downward axis (nose bridge to chin). Fusion leaves out what lies more
+  // than FusionOptions::below_chin_mm below the chin in the head's own frame: the neck and the
+  // chest do not turn with the head. down = 0: no cut (the kiosk's fixed box).
+  Eigen::Vector3f chin_mm = Eigen::Vector3f::Zero();
+  Eigen::Vector3f down = Eigen::Vector3f::Zero();
 
   bool empty() const { return width <= 0 || height <= 0; }
   bool contains(int px, int py) const {
@@ -58,6 +64,9 @@ struct FusionOptions {
   // face: a hand 130 mm in front, the chest, a desk.
   float face_band_front_mm = 80.0f;
   float face_band_back_mm = 150.0f;
+  // With a detected face (FaceBox::down), depth further below the chin than this along the
+  // face's axis is not fused: it keeps the jaw's underside and leaves out the neck and chest.
+  float below_chin_mm = 20.0f;
   // The face box follows the fused pose: each frame's box is the first frame's box moved (and
   // scaled) with the face, predicted from the last good pose, so a face that turns or moves
   // stays in its box. false: the box stays where reset() put it.

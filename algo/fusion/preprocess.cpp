@@ -111,13 +111,21 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
   const FaceBox box = l0.box;
   const float dmin = gate_min_, dmax = gate_max_;
   // Gate the raw depth into float (inside the box only; outside stays 0 from allocate()).
+  // The plane gate on the ray through (x, y) at depth d: d * (n . ray) <= offset, with
+  // n . ray = ax * x + (ay * y + c) linear along the row.
+  const LevelIntrinsics& k = l0.k;
+  const float ax = plane_gate_ ? plane_normal_.x() / k.fx : 0.0f;
+  const float ay = plane_gate_ ? plane_normal_.y() / k.fy : 0.0f;
+  const float c0 = plane_gate_ ? plane_normal_.z() - ax * k.cx - ay * k.cy : 0.0f;
+  const float offset = plane_gate_ ? plane_offset_ : 1.0f;
   int valid = 0;
   for (int y = box.y; y < box.y + box.height; ++y) {
     const std::uint16_t* src = &depth.pixels[static_cast<std::size_t>(y) * depth.width];
     float* dst = &pyramid.raw.at(0, y);
+    const float row = ay * static_cast<float>(y) + c0;
     for (int x = box.x; x < box.x + box.width; ++x) {
       const float d = static_cast<float>(src[x]);
-      const bool ok = d >= dmin && d <= dmax;
+      const bool ok = d >= dmin && d <= dmax && d * (ax * static_cast<float>(x) + row) <= offset;
       dst[x] = ok ? d : 0.0f;
       valid += ok;
     }

@@ -19,12 +19,22 @@ class DepthPreprocessor {
     gate_min_ = min_mm;
     gate_max_ = max_mm;
   }
+  // Camera points p with normal . p > offset are dropped too (the cut below the chin).
+  void set_plane_gate(const Eigen::Vector3f& normal, float offset) {
+    plane_normal_ = normal;
+    plane_offset_ = offset;
+    plane_gate_ = true;
+  }
+  void clear_plane_gate() { plane_gate_ = false; }
   // Fills `pyramid` (already allocated for this image size and face box) from `depth`.
   void run(const DepthImage& depth, DepthPyramid& pyramid, ParallelRunner& runner) const;
 
  private:
   FusionOptions options_;
   float gate_min_ = 0.0f, gate_max_ = 0.0f;
+  bool plane_gate_ = false;
+  Eigen::Vector3f plane_normal_ = Eigen::Vector3f::Zero();
+  float plane_offset_ = 0.0f;
   std::vector<float> spatial_weights_;  // (2r+1)^2
   std::vector<float> range_weights_;    // exp(-d^2 / 2 sigma^2) sampled every kRangeStep mm
   static constexpr float kRangeStep = 0.25f;

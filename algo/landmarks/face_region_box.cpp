@@ -102,6 +102,35 @@ Result<FaceBox> face_box_from_landmarks(std::span<const FitLandmark> landmarks,
   return box;
 }
 
+void set_chin_cut(std::span<const FitLandmark> landmarks, const PinholeIntrinsics& k,
+                  FaceBox& box) {
+  box.chin_mm = box.down = Eigen::Vector3f::Zero();
+  if (landmarks.size() != 68 || !(k.fx > 0.0) || !(k.fy > 0.0) || !landmarks[8].valid ||
+      !landmarks[27].valid || !(box.face_depth_mm > 0.0f))
+    return;
+  // The depth of a group of lifted points (strict lifting leaves rims 2D), else the face's.
+  auto depth_of = [&](int first, int last) {
+    double sum = 0.0;
+    int n = 0;
+    for (int i = first; i <= last; ++i)
+      if (const auto& p = landmarks[static_cast<std::size_t>(i)].point) {
+        sum += p->z();
+        ++n;
+      }
+    return n > 0 ? sum / n : static_cast<double>(box.face_depth_mm);
+  };
+  auto lift = [&](const Eigen::Vector2d& px, double z) {
+    return Eigen::Vector3d((px.x() - k.cx) / k.fx * z, (px.y() - k.cy) / k.fy * z, z);
+  };
+  const Eigen::Vector3d bridge = lift(landmarks[27].pixel, depth_of(27, 28));
+  const Eigen::Vector3d chin = lift(landmarks[8].pixel, depth_of(48, 59));
+  const Eigen::Vector3d axis = chin - bridge;
+  // Nasion to chin is 100-140 mm on adults; anything far outside is not a face.
+  if (!(axis.norm() > 60.0 && axis.norm() < 220.0)) return;
+  box.chin_mm = chin.cast<float>();
+  box.down = axis.normalized().cast<float>();
+}
+
 Result<DetectedFaceRegion> detect_face_region(LandmarkDetector& detector, const ColorImage& color,
                                               const DepthImage& depth,
                                               const KinectRegistration& registration,
@@ -118,6 +147,7 @@ Result<DetectedFaceRegion> detect_face_region(LandmarkDetector& detector, const 
   if (!box) return box.failure();
   DetectedFaceRegion out;
   out.box = *box;
+  set_chin_cut(*lifted, registration.depth_intrinsics(), out.box);
   out.color_points = found->points;
   return out;
 }

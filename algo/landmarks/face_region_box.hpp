@@ -50,6 +50,13 @@ Result<FaceBox> face_box_from_landmarks(std::span<const FitLandmark> landmarks,
                                         const FaceProportions& proportions, int width, int height,
                                         const FaceRegionOptions& options = {});
 
+// The cut below the chin (FaceBox::chin_mm, down) from the lifted landmarks: the face's axis
+// from the nose bridge (27) to the chin (8), each back-projected at the depth of the lifted
+// points near it (nose bridge; lips, since the chin is a contour point and not lifted), or the
+// face's depth when those stayed 2D. Needs the box's face_depth_mm; else no cut.
+void set_chin_cut(std::span<const FitLandmark> landmarks, const PinholeIntrinsics& depth_intrinsics,
+                  FaceBox& box);
+
 struct DetectedFaceRegion {
   FaceBox box;                                     // depth image
   std::array<Eigen::Vector2d, 68> color_points{};  // dlib's, colour image px

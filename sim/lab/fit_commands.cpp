@@ -175,6 +175,8 @@ struct FitEvalSetup {
   double noise = 1, robust_noise = 5;
   bool noiseless_depth = false;
   bool dlib_fit = false;  // fit dlib's points on frame 0's colour image instead of truth + noise
+  // The mesh vertices dlib's points mark (with dlib_fit); unset = the model's landmark vertices.
+  std::optional<LandmarkEmbedding> embedding;
   UnitCalibration unit_calibration = UnitCalibration::kSelfCalibrated;
 };
 
@@ -308,6 +310,8 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
         j["fit_landmark_error_px"] = sum / 68;
       }
       auto target = make_fit_target(*cap, fit_points, noiseless_depth);
+      if (target && setup.dlib_fit && setup.embedding)
+        target->landmark_vertices = setup.embedding->vertices;
       if (!target) {
         auto stop = failed("landmarks", target.error());
         if (!stop) return stop.failure();
@@ -658,6 +662,12 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.robust_noise = *robust_noise;
   setup.noiseless_depth = noiseless_depth;
   setup.dlib_fit = fit_landmarks == "dlib";
+  if (const std::string e = options.get("landmark-embedding"); e != "model") {
+    auto embedding = e == "dlib" ? load_landmark_embedding(*model)
+                                 : load_landmark_embedding(*model, std::filesystem::path(e));
+    if (!embedding) return report_failure(embedding.error());
+    setup.embedding = *embedding;
+  }
   auto unit_calibration = parse_unit_calibration(options.get("unit-calibration"));
   if (!unit_calibration) return report_failure(unit_calibration.error());
   setup.unit_calibration = *unit_calibration;
@@ -860,6 +870,11 @@ std::vector<Command> fit_commands() {
           "fit the fused depth (the figure) or, to isolate fusion "
           "error, the noiseless rendering",
           "fused"},
+         {"landmark-embedding", "dlib|model|FILE",
+          "the mesh vertices dlib's points mark in the fit: dlib = DATA_DIR/"
+          "dlib_landmark_embedding.csv (as the product), model = the model's own landmark "
+          "vertices, or a file from `landmarks embed`",
+          "dlib"},
          predictor_opt,
          guide_opt,
          json_opt}},

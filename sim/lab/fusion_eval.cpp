@@ -248,6 +248,7 @@ Result<SeedRun> eval_seed(const ParsedOptions& options, const std::string& world
   j["face_pixels"] = de.face_pixels;
   j["box"] = {frontal_box.x, frontal_box.y, frontal_box.width, frontal_box.height};
   j["face_box"] = box_json(*choice);
+  std::cerr << "  box " << j["face_box"].dump() << "\n";
   std::cerr << "  pose max " << pe.max_mm << " mm " << pe.max_deg << " deg; fused "
             << de.fused_mae_mm << " mm vs raw " << de.raw_mae_mm << " mm; fill " << de.fill
             << "; lost " << run->lost << ", dropped " << dropped << " of " << seq->depth.size()

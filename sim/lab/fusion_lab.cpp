@@ -78,6 +78,10 @@ std::vector<OptionSpec> fusion_option_specs() {
       {"max-weight", "N", "running-average weight cap (1-31)", "31"},
       {"max-angle-deg", "DEG", "integrate pixels seen at most this far from head-on (90: all)",
        "90"},
+      {"below-chin-mm", "MM",
+       "with a detected face, depth further below the chin than this (along the face's axis, in "
+       "the head's frame) is not fused; 0 = no cut",
+       "20"},
       {"icp-iterations", "C,M,F",
        "ICP iteration caps on the coarse, middle and full-resolution levels (each level stops "
        "earlier when converged)",
@@ -131,6 +135,10 @@ nlohmann::json box_json(const BoxChoice& c) {
                       {"width", c.box.width},
                       {"height", c.box.height}};
   if (c.box.face_depth_mm > 0.0f) j["face_depth_mm"] = c.box.face_depth_mm;
+  if (c.box.down.squaredNorm() > 0.0f) {
+    j["chin_mm"] = {c.box.chin_mm.x(), c.box.chin_mm.y(), c.box.chin_mm.z()};
+    j["down"] = {c.box.down.x(), c.box.down.y(), c.box.down.z()};
+  }
   if (!c.note.empty()) j["note"] = c.note;
   return j;
 }
@@ -152,6 +160,9 @@ Result<FusionOptions> parse_fusion_options(const ParsedOptions& options) {
   auto angle = options.get_double("max-angle-deg");
   if (!angle) return angle.failure();
   o.integrate_max_angle_deg = static_cast<float>(*angle);
+  auto below_chin = options.get_double("below-chin-mm");
+  if (!below_chin) return below_chin.failure();
+  o.below_chin_mm = static_cast<float>(*below_chin);
   o.volume_size_mm = static_cast<float>(*volume);
   o.volume_resolution = static_cast<int>(*resolution);
   o.truncation_mm = static_cast<float>(*truncation);

@@ -7,6 +7,7 @@
 #include "host/cli/run_cli.hpp"
 #include "sim/camera/frame_truth.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/lab/transfer_image_lab.hpp"
 
 namespace fb::cli {
 
@@ -35,7 +36,9 @@ int main(int argc, char** argv) {
         std::vector<Command>{bench_rig_command(), bench_model_command()},
         self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
-        wrinkles_eval_commands(), wrinkle_render_commands(), tracking_commands(&truth_landmarks)}) {
+        wrinkles_eval_commands(), wrinkle_render_commands(),
+        std::vector<Command>{render_transfer_image_command()},
+        tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth-lab",

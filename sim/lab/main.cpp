@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
         self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
         wrinkles_eval_commands(), wrinkle_render_commands(),
-        std::vector<Command>{render_transfer_image_command()},
+        std::vector<Command>{render_transfer_image_command(), eval_retarget_command()},
         tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }

@@ -20,6 +20,9 @@ Result<nlohmann::json> image_transfer_eval(const FaceModel& model, int subjects)
 // its true expression) as PNG files with their 68 landmarks as 'x y' text files.
 Command render_transfer_image_command();
 
+// `facebooth-lab eval retarget` (retarget_eval.cpp).
+Command eval_retarget_command();
+
 // VTC transfer on a 311 x 419 photograph beside the plain piecewise-affine warp, best of `runs`.
 Result<nlohmann::json> image_transfer_bench(const FaceModel& model, int runs);
 

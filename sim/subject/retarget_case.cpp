@@ -1,0 +1,62 @@
+#include "sim/subject/retarget_case.hpp"
+
+#include <array>
+
+#include "algo/tracking/arkit.hpp"
+#include "sim/camera/expressive_track.hpp"
+#include "sim/subject/synthetic_rigs.hpp"
+#include "storage/take_writer.hpp"
+
+namespace fb {
+
+Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const FaceModel& model,
+                                        int frames) {
+  auto store = SessionStore::open(dir);
+  if (!store) return store.failure();
+  if (auto ok = add_synthetic_rig_subject(*store, model, "A", 1); !ok) return ok.failure();
+  if (auto ok = add_synthetic_rig_subject(*store, model, "B", 2); !ok) return ok.failure();
+  auto subjects = store->subjects();
+  if (!subjects) return subjects.failure();
+  RetargetCase c;
+  for (const auto& s : *subjects) (s.name == "A" ? c.performer : c.target) = s.id;
+  auto mapping = make_arkit_mapping(model);
+  if (!mapping) return mapping.failure();
+  c.weights = expressive_track(model, frames);
+  TakeWriter writer(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()), 30.0);
+  std::array<float, kArkitShapeCount> arkit{};
+  for (int f = 0; f < frames; ++f) {
+    auto& w = c.weights[static_cast<std::size_t>(f)];
+    w.resize(static_cast<std::size_t>(model.fitting_expression_count), 0.0f);
+    mapping->to_arkit(w, arkit);
+    RigidPose pose;
+    pose.translation = Eigen::Vector3d(0, 0, 700);
+    if (auto ok = writer.add_frame(f / 30.0, pose, arkit); !ok) return ok.failure();
+  }
+  auto take = writer.store(*store, c.performer, std::nullopt);
+  if (!take) return take.failure();
+  c.take = *take;
+  auto rig = store->newest_rig(c.target);
+  if (!rig) return rig.failure();
+  if (!*rig) return fail("retarget case: subject B has no rig");
+  auto data = store->read_rig((*rig)->id);
+  if (!data) return data.failure();
+  c.target_rig = std::move(*data);
+  return c;
+}
+
+std::vector<float> retarget_truth(const RetargetCase& c, const FaceModel& model, int f) {
+  const RigData& rig = c.target_rig;
+  const auto& w = c.weights[static_cast<std::size_t>(f)];
+  std::vector<float> mesh = rig.neutral;
+  for (std::size_t j = 0; j < rig.shapes.size(); ++j) {
+    const int m = model.expression_index(rig.shape_names[j]);
+    if (m < 0 || m >= static_cast<int>(w.size()) || w[static_cast<std::size_t>(m)] == 0.0f)
+      continue;
+    const float wj = w[static_cast<std::size_t>(m)];
+    for (std::size_t i = 0; i < mesh.size(); ++i)
+      mesh[i] += wj * (rig.shapes[j][i] - rig.neutral[i]);
+  }
+  return mesh;
+}
+
+}  // namespace fb

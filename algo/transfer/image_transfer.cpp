@@ -361,23 +361,24 @@ Result<ImageTransferResult> transfer_image_expression(const FacePhoto& source_ne
       rows.push_back(tent_rows(ht, hs, he, w, x, y));
     }
   Solve s = solve_heights(rows, unknown, std::move(pixels), w, std::move(x0), options);
-  // Back to colour: the new luminance with the warped target's colour differences (R - Y,
-  // B - Y) plus the source's change of them (additive, faded as the luminance start). The paper
-  // keeps the target's chroma; the source's change carries what the expression uncovers (a
-  // mouth cavity is dark red, not stretched lip).
+  // Back to colour: the new luminance with the warped target's chromaticity (R / Y, B / Y)
+  // plus the source's change of it (additive, faded as the luminance start). The paper keeps
+  // the target's chroma; the source's change carries what the expression uncovers (a mouth
+  // cavity is dark red, not stretched lip). Ratios, not differences (R - Y): a colour
+  // difference shrinks with the luminance, so adding a bright lip's loss of it to a dark
+  // cavity's would overshoot into blue.
   FloatRgb rgb = warped->target;
   const FloatRgb& fs = warped->source;
   const FloatRgb& fe = warped->expression;
+  constexpr double kDark = 4.0;  // luminance floor of the ratios (levels)
   for (std::size_t i = 0; i < s.x.size(); ++i) {
-    const auto y = static_cast<float>(s.x[i] / k);
-    const auto f = fade[i];
-    const auto cr =
-        static_cast<float>(rgb.r[i] - yt[i] + f * ((fe.r[i] - ye[i]) - (fs.r[i] - ys[i])));
-    const auto cb =
-        static_cast<float>(rgb.b[i] - yt[i] + f * ((fe.b[i] - ye[i]) - (fs.b[i] - ys[i])));
-    rgb.r[i] = y + cr;
-    rgb.b[i] = y + cb;
-    rgb.g[i] = (y - 0.299f * rgb.r[i] - 0.114f * rgb.b[i]) / 0.587f;
+    const double y = std::max(s.x[i] / k, 0.0), f = fade[i];
+    auto ratio = [&](double c, double luma) { return c / (luma + kDark); };
+    const double r = ratio(rgb.r[i], yt[i]) + f * (ratio(fe.r[i], ye[i]) - ratio(fs.r[i], ys[i]));
+    const double b = ratio(rgb.b[i], yt[i]) + f * (ratio(fe.b[i], ye[i]) - ratio(fs.b[i], ys[i]));
+    rgb.r[i] = static_cast<float>(std::max(r, 0.0) * (y + kDark));
+    rgb.b[i] = static_cast<float>(std::max(b, 0.0) * (y + kDark));
+    rgb.g[i] = static_cast<float>((y - 0.299 * rgb.r[i] - 0.114 * rgb.b[i]) / 0.587);
   }
   out.image = to_color_image(rgb);
   out.warped = std::move(warped->target_image);

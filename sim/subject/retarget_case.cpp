@@ -11,6 +11,14 @@ namespace fb {
 
 Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const FaceModel& model,
                                         int frames) {
+  auto recipe = expressive_track(model, frames);
+  return make_retarget_case(dir, model, recipe, recipe);
+}
+
+Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const FaceModel& model,
+                                        std::vector<std::vector<float>> truth,
+                                        const std::vector<std::vector<float>>& take) {
+  if (truth.size() != take.size()) return fail("retarget case: truth and take lengths differ");
   auto store = SessionStore::open(dir);
   if (!store) return store.failure();
   if (auto ok = add_synthetic_rig_subject(*store, model, "A", 1); !ok) return ok.failure();
@@ -21,20 +29,23 @@ Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const 
   for (const auto& s : *subjects) (s.name == "A" ? c.performer : c.target) = s.id;
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return mapping.failure();
-  c.weights = expressive_track(model, frames);
+  c.weights = std::move(truth);
   TakeWriter writer(std::vector<std::string>(kArkitNames.begin(), kArkitNames.end()), 30.0);
   std::array<float, kArkitShapeCount> arkit{};
-  for (int f = 0; f < frames; ++f) {
-    auto& w = c.weights[static_cast<std::size_t>(f)];
-    w.resize(static_cast<std::size_t>(model.fitting_expression_count), 0.0f);
+  const auto fitting = static_cast<std::size_t>(model.fitting_expression_count);
+  for (std::size_t f = 0; f < take.size(); ++f) {
+    c.weights[f].resize(fitting, 0.0f);
+    std::vector<float> w = take[f];
+    w.resize(fitting, 0.0f);
     mapping->to_arkit(w, arkit);
     RigidPose pose;
     pose.translation = Eigen::Vector3d(0, 0, 700);
-    if (auto ok = writer.add_frame(f / 30.0, pose, arkit); !ok) return ok.failure();
+    if (auto ok = writer.add_frame(static_cast<double>(f) / 30.0, pose, arkit); !ok)
+      return ok.failure();
   }
-  auto take = writer.store(*store, c.performer, std::nullopt);
-  if (!take) return take.failure();
-  c.take = *take;
+  auto stored = writer.store(*store, c.performer, std::nullopt);
+  if (!stored) return stored.failure();
+  c.take = *stored;
   auto rig = store->newest_rig(c.target);
   if (!rig) return rig.failure();
   if (!*rig) return fail("retarget case: subject B has no rig");

@@ -26,6 +26,12 @@ struct RetargetCase {
 Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const FaceModel& model,
                                         int frames);
 
+// The same with a given recipe (`truth`, per frame one weight per model fitting shape) and the
+// weights A's take stores for it (`take`: e.g. tracked from A's rendered frames).
+Result<RetargetCase> make_retarget_case(const std::filesystem::path& dir, const FaceModel& model,
+                                        std::vector<std::vector<float>> truth,
+                                        const std::vector<std::vector<float>>& take);
+
 // B's truth for frame `f`: its rig's neutral + sum over its shapes of the recipe's weight of the
 // model shape of the same name x the shape's delta.
 std::vector<float> retarget_truth(const RetargetCase& c, const FaceModel& model, int f);

@@ -10,7 +10,8 @@
 //       Q = w(S^e) w(S)^T (w(S) w(S)^T)^-1 (tent_mesh.hpp's tents: the four edge neighbours and
 //       an apex on the normal), and the target luminance whose tents deform by the same Q's
 //       third row (the x and y of a pixel do not move, so only the height equations remain,
-//       with each tent's apex height free); back to RGB with the warped target's chroma.
+//       with each tent's apex height free); back to RGB with the warped target's chromaticity
+//       (R/Y, B/Y) plus the source's change of it (the paper keeps the target's chroma).
 // The face region is inside the jaw line and above the brows; outside it the warped target
 // keeps its luminance, blended over a few pixels towards the additive change S^e - S at the
 // region's edge, which is also the solve's boundary condition. Mapping an expression back onto

@@ -148,7 +148,9 @@ std::vector<Command> transfer_image_commands() {
         "(jaw line to above the brows), each image is a quad mesh over its pixels with the "
         "luminance as height, and the target's luminance is solved so that its vertex tents "
         "deform as the source's do (a sparse least squares, conjugate gradients); the colour "
-        "keeps the warped target's chroma. The two source photographs must have the same size "
+        "is the warped target's chromaticity plus the source's change of it. Outside the face "
+        "the warped target shows, the source's change fading out over 8 px. The two source "
+        "photographs must have the same size "
         "(one camera); the target may differ. Writes a PNG of the target's size; JSON summary "
         "on stdout.",
         {{"source-neutral", "A.png", "the source face, neutral", ""},

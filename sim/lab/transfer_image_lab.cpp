@@ -78,7 +78,7 @@ struct PsnrSamples {
 
 Result<nlohmann::json> image_transfer_eval(const FaceModel& model, int subjects) {
   const auto expressions = photo_expressions(model);
-  PsnrSamples self_vtc, cross_vtc, cross_warp, cross_none;
+  PsnrSamples self_vtc, cross_vtc, cross_warp, cross_none, cross_additive;
   Samples iterations, residual, ms;
   std::vector<FacePhoto> first;  // subject 1: neutral, then its expressions
   for (int s = 1; s <= subjects; ++s) {
@@ -103,6 +103,12 @@ Result<nlohmann::json> image_transfer_eval(const FaceModel& model, int subjects)
       auto cross = transfer_image_expression(first[0], first[e + 1], *neutral);
       if (!cross) return cross.failure();
       cross_vtc.add(cross->image, *expr);
+      // The solve's start alone (no iteration): T warped + the source's additive change.
+      ImageTransferOptions start;
+      start.max_iterations = 0;
+      auto additive = transfer_image_expression(first[0], first[e + 1], *neutral, start);
+      if (!additive) return additive.failure();
+      cross_additive.add(additive->image, *expr);
       cross_warp.add(cross->warped, *expr);
       cross_none.add(neutral->image, *expr);
       iterations.add(cross->iterations);
@@ -117,6 +123,7 @@ Result<nlohmann::json> image_transfer_eval(const FaceModel& model, int subjects)
   out["image"] = {{"self_vtc", self_vtc.json()},
                   {"cross_vtc", cross_vtc.json()},
                   {"cross_warp_only", cross_warp.json()},
+                  {"cross_additive_start", cross_additive.json()},
                   {"cross_target_unchanged", cross_none.json()},
                   {"cg_iterations_mean", iterations.mean()},
                   {"cg_relative_residual_mean", residual.mean()},

@@ -71,6 +71,9 @@ int run_transfer_image(const ParsedOptions& options) {
   if (fs::exists(out) && !options.flag("force"))
     return report_failure(
         {out.string() + " already exists: choose another --out, or pass --force to replace it"});
+  if (!options.get("warped").empty() && fs::exists(options.get("warped")) && !options.flag("force"))
+    return report_failure(
+        {options.get("warped") + " already exists: choose another --warped, or pass --force"});
   std::array<FacePhoto, 3> photos;
   for (std::size_t i = 0; i < 3; ++i) {
     auto image = read_png(options.get(names[i]), names[i]);

@@ -295,7 +295,8 @@ int run_eval_transfer(const ParsedOptions& options) {
       "(inside the jaw line, brows raised by 25 % towards the forehead, of the truth's "
       "landmarks); image_self_psnr_db: each expression onto its own neutral photograph against "
       "the expression photograph; image_cross_psnr_db: subject 1's onto subjects 2..N against "
-      "their own renders of the recipe, beside the plain landmark warp (warp_psnr).";
+      "their own renders of the recipe, beside the plain landmark warp (image_cross_warp_psnr_db) "
+      "and the solve's additive start alone (image.cross_additive_start).";
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }

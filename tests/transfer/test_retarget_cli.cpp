@@ -33,9 +33,9 @@ class RetargetCli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
   test::CommandRun facebooth(const std::string& args) {
-    return test::run_command(std::string(FB_CLI_PATH) + " retarget --store " +
-                                 (dir_ / "store").string() + " " + args,
-                             test::Stderr::kMerged);
+    return test::run_command(
+        std::string(FB_CLI_PATH) + " retarget --store " + (dir_ / "store").string() + " " + args,
+        test::Stderr::kMerged);
   }
   fs::path dir_;
   RetargetCase case_;
@@ -81,8 +81,8 @@ TEST_F(RetargetCli, SaysWhatIsWrong) {
                        " --format glb --out " + (dir_ / "c").string());
   EXPECT_NE(glb.exit_code, 0);
   EXPECT_NE(glb.out.find("no animation"), std::string::npos) << glb.out;
-  auto no_take = facebooth("--take 999 --to subject:" + std::to_string(case_.target) +
-                           " --out " + (dir_ / "d").string());
+  auto no_take = facebooth("--take 999 --to subject:" + std::to_string(case_.target) + " --out " +
+                           (dir_ / "d").string());
   EXPECT_NE(no_take.exit_code, 0);
   EXPECT_FALSE(fs::exists(dir_ / "d"));
 }

@@ -35,6 +35,7 @@ std::vector<Command> self_calibration_commands();  // camera self-calibrate
 std::vector<Command> camera_calibrate_commands();  // camera_calibrate.cpp
 std::vector<Command> texture_commands();           // texture_commands.cpp
 std::vector<Command> transfer_commands();          // transfer_commands.cpp
+std::vector<Command> transfer_image_commands();    // transfer_image_commands.cpp
 std::vector<Command> sync_commands();              // sync_commands.cpp: sync with booths
 std::vector<Command> wrinkle_commands();           // wrinkle_commands.cpp
 

@@ -7,6 +7,7 @@
 #include "host/cli/run_cli.hpp"
 #include "sim/camera/frame_truth.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/lab/transfer_image_lab.hpp"
 
 namespace fb::cli {
 
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
         self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
         wrinkles_eval_commands(), wrinkle_render_commands(), landmark_embed_commands(),
+        std::vector<Command>{render_transfer_image_command(), eval_retarget_command()},
         tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }

@@ -27,5 +27,6 @@ std::vector<Command> transfer_eval_commands();          // eval transfer
 Command bench_transfer_command();                       // transfer_bench.cpp
 std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench wrinkles
 std::vector<Command> wrinkle_render_commands();         // render wrinkles (wrinkle_render.cpp)
+std::vector<Command> wrinkle_diag_commands();           // diag wrinkles, diag wrinkle-scale
 
 }  // namespace fb::cli

@@ -25,6 +25,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "algo/core/mix64.hpp"
+#include "algo/render/rasterizer.hpp"
 #include "algo/wrinkles/wrinkle_detail.hpp"
 #include "host/cli/wrinkle_exemplar_files.hpp"
 #include "sim/lab/lab_commands.hpp"
@@ -140,6 +141,47 @@ void score_synthesis(const WrinkleCase& c, const FloatImage& h) {
       mae / p.n, zero / p.n, p.corr(), mag / p.n, best, bx, by);
 }
 
+// The neutral frame (brows down, no relief) warped into the expression's image through the two
+// meshes (one topology): per pixel the expression mesh's triangle and barycentrics, the same
+// point on the neutral mesh, projected into the neutral's frame. Off the mesh: 0.
+Result<FloatImage> warp_neutral(const FaceModel& model, const WrinkleCase& c,
+                                const WrinkleCase& neutral) {
+  const auto posed = [](const WrinkleCase& k) {
+    std::vector<Eigen::Vector3f> out(k.vertices.size() / 3);
+    for (std::size_t v = 0; v < out.size(); ++v)
+      out[v] = k.camera_from_model
+                   .apply(Eigen::Vector3d(k.vertices[3 * v], k.vertices[3 * v + 1],
+                                          k.vertices[3 * v + 2]))
+                   .cast<float>();
+    return out;
+  };
+  const std::vector<Eigen::Vector3f> e = posed(c), n = posed(neutral);
+  RasterBuffers raster;
+  raster.reset(c.intrinsics.width, c.intrinsics.height);
+  if (auto ok = rasterize(c.intrinsics, e, model.triangles, {}, raster); !ok) return ok.failure();
+  FloatImage out;
+  out.resize(c.luminance.width, c.luminance.height);
+  const FloatImage& src = neutral.luminance;
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      out.at(x, y) = 0.0f;
+      const std::size_t i = raster.index(x, y);
+      const std::int32_t t = raster.triangle[i];
+      if (t == kNoTriangle) continue;
+      const float b1 = raster.bary1[i], b2 = raster.bary2[i], b0 = 1.0f - b1 - b2;
+      const auto* tri = &model.triangles[3 * static_cast<std::size_t>(t)];
+      const Eigen::Vector3f p = b0 * n[tri[0]] + b1 * n[tri[1]] + b2 * n[tri[2]];
+      const double u = c.intrinsics.fx * p.x() / p.z() + c.intrinsics.cx;
+      const double v = c.intrinsics.fy * p.y() / p.z() + c.intrinsics.cy;
+      if (u < 0 || v < 0 || u > src.width - 2 || v > src.height - 2) continue;
+      const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+      const auto au = static_cast<float>(u - u0), av = static_cast<float>(v - v0);
+      out.at(x, y) = (1 - av) * ((1 - au) * src.at(u0, v0) + au * src.at(u0 + 1, v0)) +
+                     av * ((1 - au) * src.at(u0, v0 + 1) + au * src.at(u0 + 1, v0 + 1));
+    }
+  return out;
+}
+
 std::vector<double> parse_list(const std::string& s) {
   std::vector<double> out;
   std::stringstream in(s);
@@ -183,6 +225,16 @@ int run_diag(const ParsedOptions& options) {
         input.pixels[i] = static_cast<float>(0.55 * c->luminance.pixels[i] /
                                                  std::max(0.02f, flat->luminance.pixels[i]) +
                                              2.0 / 255.0 * noise(i));
+    if (options.flag("neutral-ratio")) {
+      co.raised_brows = false;
+      auto neutral = make_wrinkle_case(*model, co);
+      if (!neutral) return report_failure(neutral.error());
+      auto warped = warp_neutral(*model, *c, *neutral);
+      if (!warped) return report_failure(warped.error());
+      for (std::size_t i = 0; i < input.pixels.size(); ++i)
+        if (warped->pixels[i] > 0.02f)
+          input.pixels[i] = 0.55f * c->luminance.pixels[i] / warped->pixels[i];
+    }
     WrinkleDetailOptions wo;
     wo.exemplar_mm_per_px = oracle ? 0.25 : set->mm_per_px;
     for (const auto& r : c->true_regions)
@@ -273,7 +325,11 @@ std::vector<Command> wrinkle_diag_commands() {
          {"nx", "X", "with --local-light", "0"},
          {"ny", "Y", "with --local-light (the forehead: 0.3)", "0.3"},
          {"oracle", "", "synthetic grooves as the exemplars", ""},
-         {"ratio", "", "the frame divided by the subject's frame without relief", ""}}},
+         {"ratio", "", "the frame divided by the subject's frame without relief", ""},
+         {"neutral-ratio", "",
+          "the frame divided by the subject's neutral frame (brows down, no relief) warped "
+          "through the meshes",
+          ""}}},
        run_diag},
       {{"diag wrinkle-scale",
         "the scan's displacement grey levels in mm, from its own normal map",

@@ -55,9 +55,10 @@ struct SalientOptions {
   // cluster each zone's lines apart, and make the regions from the zones: a forehead cluster
   // spans the zone's width (forehead lines run across it; the detector finds pieces of them),
   // a glabella or crow's-feet zone with a line is one region. No region then spans an eye or
-  // a brow. Sizes are fractions of the jaw's width (landmarks 0-16). Off: the paper's
-  // detector alone (lines anywhere on the face but the features).
-  bool wrinkle_zones = false;
+  // a brow. Sizes are fractions of the jaw's width (landmarks 0-16). On by default (issue 40:
+  // the region budgets are met only with them, docs/wrinkles.md). Off: the paper's detector
+  // alone (lines anywhere on the face but the features). Without landmarks there are no zones.
+  bool wrinkle_zones = true;
   double crows_feet_width = 0.15;   // outwards from the outer eye corner
   double crows_feet_height = 0.18;  // centred on the corner
 };

@@ -39,7 +39,7 @@ struct WrinkleSessionOptions {
   };
   std::vector<GivenRegion> regions;
   bool also_detect = false;
-  bool zones = false;  // detect only in the wrinkle zones (SalientOptions::wrinkle_zones)
+  bool zones = true;  // detect only in the wrinkle zones (SalientOptions::wrinkle_zones)
 };
 
 // Fails with what to do when the session has no rig, no fitted neutral, or a capture without a

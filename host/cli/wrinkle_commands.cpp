@@ -97,7 +97,9 @@ int run_wrinkles(const ParsedOptions& options) {
     wo.regions.push_back(*region);
   }
   wo.also_detect = options.flag("also-detect");
-  wo.zones = options.flag("zones");
+  if (options.flag("zones") && options.flag("no-zones"))
+    return report_failure({"--zones (the default) and --no-zones exclude each other"});
+  wo.zones = !options.flag("no-zones");
   if (wo.also_detect && wo.regions.empty())
     return report_failure({"--also-detect goes with --region (detection is the default)"});
   StoreOptions so;
@@ -166,10 +168,11 @@ std::vector<Command> wrinkle_commands() {
               ""},
              {"also-detect", "", "with --region: keep the detected regions too", ""},
              {"zones", "",
-              "detect wrinkles only where expression wrinkles form (forehead, glabella, "
-              "crow's feet; from the landmarks): fewer false regions, some wrinkles missed "
-              "(docs/wrinkles.md)",
+              "the default: detect wrinkles only where expression wrinkles form (forehead, "
+              "glabella, crow's feet; from the landmarks): fewer false regions, lines "
+              "elsewhere (cheeks, under the eyes) not synthesised (docs/wrinkles.md)",
               ""},
+             {"no-zones", "", "the paper's detector alone: lines anywhere on the face", ""},
              {"no-save", "", "build and report only; the store is opened read-only", ""}}},
            run_wrinkles}};
 }

@@ -28,5 +28,6 @@ Command bench_transfer_command();                       // transfer_bench.cpp
 std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench wrinkles
 std::vector<Command> wrinkle_render_commands();         // render wrinkles (wrinkle_render.cpp)
 std::vector<Command> landmark_embed_commands();         // landmarks embed (landmark_embed.cpp)
+std::vector<Command> wrinkle_diag_commands();           // diag wrinkles, diag wrinkle-scale
 
 }  // namespace fb::cli

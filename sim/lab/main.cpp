@@ -36,7 +36,8 @@ int main(int argc, char** argv) {
         std::vector<Command>{bench_rig_command(), bench_model_command()},
         self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
-        wrinkles_eval_commands(), wrinkle_render_commands(), landmark_embed_commands(),
+        wrinkles_eval_commands(), wrinkle_render_commands(), wrinkle_diag_commands(),
+        landmark_embed_commands(),
         std::vector<Command>{render_transfer_image_command(), eval_retarget_command()},
         tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));

@@ -301,7 +301,7 @@ std::vector<Command> wrinkles_eval_commands() {
               "detected regions; detected only in the wrinkle zones (SalientOptions::"
               "wrinkle_zones); or the true windows + 5 px given as the paper's user "
               "rectangles (scores the synthesis alone)",
-              "detected"},
+              "zones"},
              {"png-prefix", "P", "figures", ""},
              exemplars,
              json}},

@@ -90,6 +90,7 @@ TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
     landmarks[static_cast<std::size_t>(i)] = {80.0 + 2.0 * (i - 48), 130.0};
   SalientOptions o;
   o.inside_face_only = false;  // the landmarks here mark the mouth only, no face outline
+  o.wrinkle_zones = false;     // the paper's detector (the zones need a face's landmarks)
   const SalientRegions r = salient_regions(lum, landmarks, o);
   ASSERT_EQ(r.regions.size(), 1u);
   const PixelRectI& f = r.regions.front();

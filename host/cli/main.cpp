@@ -19,7 +19,8 @@ int main(int argc, char** argv) {
   for (auto group :
        {camera_commands(), guide_commands(), tracking_commands(), storage_commands(),
         rig_commands(), self_calibration_commands(), camera_calibrate_commands(),
-        texture_commands(), transfer_commands(), sync_commands(), wrinkle_commands()}) {
+        texture_commands(), transfer_commands(), sync_commands(), wrinkle_commands(),
+        photo_commands()}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth",

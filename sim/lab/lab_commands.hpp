@@ -27,5 +27,6 @@ std::vector<Command> transfer_eval_commands();          // eval transfer
 Command bench_transfer_command();                       // transfer_bench.cpp
 std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench wrinkles
 std::vector<Command> wrinkle_render_commands();         // render wrinkles (wrinkle_render.cpp)
+std::vector<Command> photo_eval_commands();             // eval photo (photo_eval.cpp)
 
 }  // namespace fb::cli

@@ -35,7 +35,8 @@ int main(int argc, char** argv) {
         std::vector<Command>{bench_rig_command(), bench_model_command()},
         self_calibration_eval_commands(), calibration_eval_commands(), texture_eval_commands(),
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
-        wrinkles_eval_commands(), wrinkle_render_commands(), tracking_commands(&truth_landmarks)}) {
+        wrinkles_eval_commands(), wrinkle_render_commands(), tracking_commands(&truth_landmarks),
+        photo_eval_commands()}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth-lab",

@@ -20,16 +20,35 @@ struct Maps {
   std::size_t at(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
 };
 
+float signed_area(const Eigen::Vector2f& a, const Eigen::Vector2f& b, const Eigen::Vector2f& c) {
+  return (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+}
+
+// The winding of the triangles that face the camera in the photo: the sign most of the
+// projected area has (a face seen from the front shows mostly its front).
+float front_sign(const MeshWarpInput& in) {
+  double sum = 0;
+  for (std::size_t t = 0; t + 2 < in.triangles.size(); t += 3)
+    sum += signed_area(in.source[in.triangles[t]], in.source[in.triangles[t + 1]],
+                       in.source[in.triangles[t + 2]]);
+  return sum >= 0 ? 1.0f : -1.0f;
+}
+
 void rasterize(const MeshWarpInput& in, Maps& m) {
   const float inf = std::numeric_limits<float>::infinity();
   m.depth.assign(static_cast<std::size_t>(m.width) * m.height, inf);
+  const float front = front_sign(in);
   for (std::size_t t = 0; t + 2 < in.triangles.size(); t += 3) {
     const std::uint32_t i[3] = {in.triangles[t], in.triangles[t + 1], in.triangles[t + 2]};
     const Eigen::Vector3f& a = in.target[i[0]];
     const Eigen::Vector3f& b = in.target[i[1]];
     const Eigen::Vector3f& c = in.target[i[2]];
-    const float area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+    const float area = signed_area(a.head<2>(), b.head<2>(), c.head<2>());
     if (std::abs(area) < 1e-6f || !std::isfinite(area)) continue;
+    // A triangle turned away in the result is hidden (the z-buffer alone would let the thin
+    // back of a fold through at its edges). One hidden in the photo keeps what the photo shows
+    // in its place: for the inner lips the lips, which is what a closed mouth gives.
+    if (area * front <= 0) continue;
     const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()}))));
     const int x1 =
         std::min(m.width - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()}))));
@@ -121,6 +140,50 @@ std::vector<int> nearest_covered(const Maps& m) {
   return seed;
 }
 
+// The shift (source - pixel) of every pixel the mesh does not cover: its nearest covered
+// pixel's, faded to zero over `reach` px (smoothstep), then box-blurred (radius `blur`, twice)
+// so neighbouring pixels whose nearest covered pixels differ do not tear apart.
+std::vector<Eigen::Vector2f> fill_shifts(const Maps& m, float reach, int blur) {
+  const std::vector<int> seed = nearest_covered(m);
+  std::vector<Eigen::Vector2f> shift(seed.size(), Eigen::Vector2f::Zero());
+  for (int y = 0; y < m.height; ++y)
+    for (int x = 0; x < m.width; ++x) {
+      const std::size_t k = m.at(x, y);
+      const Eigen::Vector2f p(static_cast<float>(x), static_cast<float>(y));
+      if (m.cover[k] == Cover::kMesh) {
+        shift[k] = m.source[k] - p;
+        continue;
+      }
+      const int s = seed[k];
+      if (s < 0) continue;
+      const Eigen::Vector2f q(static_cast<float>(s % m.width), static_cast<float>(s / m.width));
+      const float d = (p - q).norm() / reach;
+      if (d >= 1.0f) continue;
+      shift[k] = (1.0f - d * d * (3.0f - 2.0f * d)) * (m.source[static_cast<std::size_t>(s)] - q);
+    }
+  std::vector<Eigen::Vector2f> tmp(shift.size());
+  for (int pass = 0; pass < 2; ++pass) {
+    // Horizontal then vertical running sums; covered pixels keep their exact shift.
+    for (int y = 0; y < m.height; ++y)
+      for (int x = 0; x < m.width; ++x) {
+        Eigen::Vector2f sum = Eigen::Vector2f::Zero();
+        const int a = std::max(0, x - blur), b = std::min(m.width - 1, x + blur);
+        for (int u = a; u <= b; ++u) sum += shift[m.at(u, y)];
+        tmp[m.at(x, y)] = sum / static_cast<float>(b - a + 1);
+      }
+    for (int y = 0; y < m.height; ++y)
+      for (int x = 0; x < m.width; ++x) {
+        const std::size_t k = m.at(x, y);
+        if (m.cover[k] == Cover::kMesh) continue;
+        Eigen::Vector2f sum = Eigen::Vector2f::Zero();
+        const int a = std::max(0, y - blur), b = std::min(m.height - 1, y + blur);
+        for (int v = a; v <= b; ++v) sum += tmp[m.at(x, v)];
+        shift[k] = sum / static_cast<float>(b - a + 1);
+      }
+  }
+  return shift;
+}
+
 Rgb8 sample(const ColorImage& img, float x, float y) {
   x = std::clamp(x, 0.0f, static_cast<float>(img.width - 1));
   y = std::clamp(y, 0.0f, static_cast<float>(img.height - 1));
@@ -181,28 +244,18 @@ Result<ColorImage> warp_photo(const ColorImage& photo, const MeshWarpInput& in,
   if (st.covered_pixels == 0) return out;  // the mesh is off the image: nothing moves
   const float reach =
       std::max(1.0f, static_cast<float>(options.falloff * std::max(x1 - x0, y1 - y0)));
-  const std::vector<int> seed = nearest_covered(m);
+  std::vector<Eigen::Vector2f> shift = fill_shifts(m, reach, std::max(1, (x1 - x0) / 40));
   for (int y = 0; y < m.height; ++y)
     for (int x = 0; x < m.width; ++x) {
       const std::size_t k = m.at(x, y);
-      const Eigen::Vector2f p(static_cast<float>(x), static_cast<float>(y));
       if (m.cover[k] == Cover::kMouth) {
         out.at(x, y) = options.mouth_color;
-        continue;
-      }
-      if (m.cover[k] == Cover::kMesh) {
+      } else if (m.cover[k] == Cover::kMesh) {
         out.at(x, y) = sample(photo, m.source[k].x(), m.source[k].y());
-        continue;
+      } else if (shift[k].squaredNorm() > 1e-6f) {
+        out.at(x, y) = sample(photo, static_cast<float>(x) + shift[k].x(),
+                              static_cast<float>(y) + shift[k].y());
       }
-      const int s = seed[k];
-      if (s < 0) continue;
-      const Eigen::Vector2f q(static_cast<float>(s % m.width), static_cast<float>(s / m.width));
-      const float d = (p - q).norm() / reach;
-      if (d >= 1.0f) continue;
-      const float w = 1.0f - d * d * (3.0f - 2.0f * d);  // smoothstep fade
-      const Eigen::Vector2f shift = m.source[static_cast<std::size_t>(s)] - q;
-      const Eigen::Vector2f from = p + w * shift;
-      out.at(x, y) = sample(photo, from.x(), from.y());
     }
   return out;
 }

@@ -80,13 +80,16 @@ Result<LoadedPhoto> load_and_fit(const ParsedOptions& options, const std::string
 
 nlohmann::json fit_json(const LoadedPhoto& p) {
   const auto& pose = p.face.fit.pose;
-  const Eigen::Vector3d ypr = pose.rotation.eulerAngles(1, 0, 2) * 180.0 / M_PI;
+  // The head's turn from frontal: the model frame (+Y up, +Z out of the face) seen from the
+  // front is diag(1, -1, -1) in image axes (y down, z into the picture).
+  const Eigen::Matrix3d head = Eigen::Vector3d(1, -1, -1).asDiagonal() * pose.rotation;
+  const Eigen::Vector3d ypr = head.eulerAngles(1, 0, 2) * 180.0 / M_PI;
   return {{"landmarks", p.landmark_source},
           {"landmark_fit_error_px", p.face.fit.mean_error_px},
           {"scale_px_per_mm", pose.scale},
           {"model_knobs", {p.model.id_knobs, p.model.exp_knobs}},
           {"model_identities", p.model.identity_count},
-          {"rotation_euler_deg", {ypr.x(), ypr.y(), ypr.z()}}};
+          {"head_yaw_pitch_roll_deg", {ypr.x(), ypr.y(), ypr.z()}}};
 }
 
 // Strip frames: the K frames with the most expression, at least take/(K+1) frames apart.
@@ -172,7 +175,7 @@ int run_animate(const ParsedOptions& options) {
   if (ec) return report_failure({"cannot create " + out_dir + ": " + ec.message()});
 
   const auto triangles = face_region_triangles(loaded->model);
-  const bool keep = options.flag("keep-expression");
+  const bool keep = !options.flag("replace-expression");
   std::vector<float> scratch;
   std::vector<int> frames;
   for (int f = 0; f < take->info.frame_count; f += static_cast<int>(*every)) frames.push_back(f);
@@ -330,8 +333,10 @@ std::vector<Command> photo_commands() {
                   {"take", "ID", "the take whose expressions animate the photo", ""},
                   {"out", "DIR", "folder for frame_NNNN.png (and animation.mp4 or .webp)", ""},
                   {"every", "K", "render every K-th frame of the take", "1"},
-                  {"keep-expression", "",
-                   "add the take's expressions to the photo's own instead of replacing it", ""},
+                  {"replace-expression", "",
+                   "the take's expressions replace the photo's fitted one (B_0 + sum beta (B_i - "
+                   "B_0), as the paper) instead of adding to it",
+                   ""},
                   {"strip", "FILE", "also write the photo beside 3 of the frames (PNG)", ""}});
   std::vector<OptionSpec> edit = kPhotoInput;
   edit.insert(edit.end(), {{"attribute", "NAME=CHANGE",

@@ -218,7 +218,7 @@ Result<ColorImage> warp_photo(const ColorImage& photo, const MeshWarpInput& in,
   m.source.assign(n, Eigen::Vector2f::Zero());
   m.cover.assign(n, Cover::kNone);
   rasterize(in, m);
-  mark_mouth(in.mouth, m);
+  if (options.mouth_cavity) mark_mouth(in.mouth, m);
 
   // The face's size: the covered pixels' bounding box.
   int x0 = m.width, x1 = -1, y0 = m.height, y1 = -1;

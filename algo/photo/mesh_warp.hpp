@@ -35,6 +35,8 @@ struct MeshWarpInput {
 struct MeshWarpOptions {
   double falloff = 0.35;  // the displacement outside the face fades out over this x face size
   Rgb8 mouth_color{58, 22, 24};
+  // false: no cavity (an edit of a closed mouth; the gap between the lips is filled around).
+  bool mouth_cavity = true;
 };
 
 struct MeshWarpStats {

@@ -83,7 +83,12 @@ nlohmann::json fit_json(const LoadedPhoto& p) {
   // The head's turn from frontal: the model frame (+Y up, +Z out of the face) seen from the
   // front is diag(1, -1, -1) in image axes (y down, z into the picture).
   const Eigen::Matrix3d head = Eigen::Vector3d(1, -1, -1).asDiagonal() * pose.rotation;
-  const Eigen::Vector3d ypr = head.eulerAngles(1, 0, 2) * 180.0 / M_PI;
+  // Yaw about y, pitch about x, roll about z (Eigen's eulerAngles folds small negative
+  // angles to near 180 deg).
+  const double deg = 180.0 / M_PI;
+  const Eigen::Vector3d ypr(std::atan2(head(0, 2), head(2, 2)) * deg,
+                            std::asin(std::clamp(-head(1, 2), -1.0, 1.0)) * deg,
+                            std::atan2(head(1, 0), head(1, 1)) * deg);
   return {{"landmarks", p.landmark_source},
           {"landmark_fit_error_px", p.face.fit.mean_error_px},
           {"scale_px_per_mm", pose.scale},
@@ -92,17 +97,15 @@ nlohmann::json fit_json(const LoadedPhoto& p) {
           {"head_yaw_pitch_roll_deg", {ypr.x(), ypr.y(), ypr.z()}}};
 }
 
-// Strip frames: the K frames with the most expression, at least take/(K+1) frames apart.
-std::vector<int> strip_frames(const std::vector<std::vector<float>>& beta, int k) {
-  std::vector<double> amount(beta.size());
-  for (std::size_t f = 0; f < beta.size(); ++f)
-    for (float b : beta[f]) amount[f] += std::abs(b);
-  std::vector<int> order(beta.size());
+// Strip frames: the K frames whose face moved most (largest shift of a pixel), at least
+// frames/(K+1) apart.
+std::vector<int> strip_frames(const std::vector<double>& shift, int k) {
+  std::vector<int> order(shift.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-    return amount[static_cast<std::size_t>(a)] > amount[static_cast<std::size_t>(b)];
+    return shift[static_cast<std::size_t>(a)] > shift[static_cast<std::size_t>(b)];
   });
-  const int gap = static_cast<int>(beta.size()) / (k + 1);
+  const int gap = static_cast<int>(shift.size()) / (k + 1);
   std::vector<int> out;
   for (int f : order) {
     if (static_cast<int>(out.size()) == k) break;
@@ -183,13 +186,7 @@ int run_animate(const ParsedOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   double max_shift = 0;
   const std::string strip_path = options.get("strip");
-  std::vector<int> strip_at;
-  if (!strip_path.empty()) {
-    std::vector<std::vector<float>> chosen;
-    for (int f : frames) chosen.push_back(coefficients->beta[static_cast<std::size_t>(f)]);
-    for (int i : strip_frames(chosen, 3)) strip_at.push_back(i);
-  }
-  std::vector<ColorImage> strip_images;
+  std::vector<double> shifts;
   for (std::size_t i = 0; i < frames.size(); ++i) {
     MeshWarpStats stats;
     auto frame = animate_photo_frame(loaded->image, loaded->model, loaded->face, triangles,
@@ -201,8 +198,7 @@ int run_animate(const ParsedOptions& options) {
     std::snprintf(name, sizeof name, "frame_%04d.png", static_cast<int>(i));
     if (auto w = write_photo(*frame, std::filesystem::path(out_dir) / name); !w)
       return report_failure(w.error());
-    if (std::find(strip_at.begin(), strip_at.end(), static_cast<int>(i)) != strip_at.end())
-      strip_images.push_back(std::move(*frame));
+    shifts.push_back(stats.max_shift_px);
     progress.update(static_cast<int>(i) + 1);
   }
   const double seconds =
@@ -227,6 +223,14 @@ int run_animate(const ParsedOptions& options) {
     out["video"] = video->string();
   }
   if (!strip_path.empty()) {
+    std::vector<ColorImage> strip_images;
+    for (int i : strip_frames(shifts, 3)) {
+      char name[32];
+      std::snprintf(name, sizeof name, "frame_%04d.png", i);
+      auto frame = read_photo(std::filesystem::path(out_dir) / name);
+      if (!frame) return report_failure(frame.error());
+      strip_images.push_back(std::move(*frame));
+    }
     if (auto w =
             write_photo(make_strip(loaded->image, strip_images, loaded->landmarks), strip_path);
         !w)
@@ -263,6 +267,9 @@ Result<std::pair<int, double>> parse_attribute(const std::string& text,
   return std::pair<int, double>{index, v};
 }
 
+// An edit keeps the photo's mouth as it is: no cavity where the lips part slightly.
+const MeshWarpOptions kClosedMouth{.mouth_cavity = false};
+
 int run_edit(const ParsedOptions& options) {
   const std::string out_path = options.get("out");
   if (out_path.empty()) return report_failure({"give --out EDITED.png"});
@@ -288,7 +295,7 @@ int run_edit(const ParsedOptions& options) {
   model.evaluate(w_id, loaded->face.fit.w_exp, edited);
   MeshWarpStats stats;
   auto image = warp_face(loaded->image, model, loaded->face.fit.pose, loaded->face.mesh, edited,
-                         face_region_triangles(model), {}, &stats);
+                         face_region_triangles(model), kClosedMouth, &stats);
   if (!image) return report_failure(image.error());
   if (auto w = write_photo(*image, out_path); !w) return report_failure(w.error());
   // The attributes on the neutral of the fitted identity, before and after.
@@ -328,16 +335,17 @@ std::string attribute_list() {
 
 std::vector<Command> photo_commands() {
   std::vector<OptionSpec> animate = kPhotoInput;
-  animate.insert(animate.end(),
-                 {{"store", "DIR", "session store holding the take", ""},
-                  {"take", "ID", "the take whose expressions animate the photo", ""},
-                  {"out", "DIR", "folder for frame_NNNN.png (and animation.mp4 or .webp)", ""},
-                  {"every", "K", "render every K-th frame of the take", "1"},
-                  {"replace-expression", "",
-                   "the take's expressions replace the photo's fitted one (B_0 + sum beta (B_i - "
-                   "B_0), as the paper) instead of adding to it",
-                   ""},
-                  {"strip", "FILE", "also write the photo beside 3 of the frames (PNG)", ""}});
+  animate.insert(
+      animate.end(),
+      {{"store", "DIR", "session store holding the take", ""},
+       {"take", "ID", "the take whose expressions animate the photo", ""},
+       {"out", "DIR", "folder for frame_NNNN.png (and animation.mp4 or .webp)", ""},
+       {"every", "K", "render every K-th frame of the take", "1"},
+       {"replace-expression", "",
+        "the take's expressions replace the photo's fitted one (B_0 + sum beta (B_i - "
+        "B_0), as the paper) instead of adding to it",
+        ""},
+       {"strip", "FILE", "also write the photo beside the 3 frames that move most (PNG)", ""}});
   std::vector<OptionSpec> edit = kPhotoInput;
   edit.insert(edit.end(), {{"attribute", "NAME=CHANGE",
                             "an attribute change in mm, e.g. face_length=+10mm (repeatable)", ""},

@@ -232,7 +232,8 @@ Result<EditScore> score_edit(const BilinearModel& model, LandmarkDetector& detec
   std::vector<float> edited(face.mesh.size()), neutral(face.mesh.size());
   model.evaluate(w_id, face.fit.w_exp, edited);
   auto image =
-      warp_face(photo, model, face.fit.pose, face.mesh, edited, face_region_triangles(model));
+      warp_face(photo, model, face.fit.pose, face.mesh, edited, face_region_triangles(model),
+                MeshWarpOptions{.mouth_cavity = false});  // as photo edit
   if (!image) return image.failure();
   auto length = [&](std::span<const float> id) {
     model.evaluate(id, model.expression_row(0), neutral);

@@ -149,30 +149,84 @@ ColorImage make_strip(const ColorImage& photo, const std::vector<ColorImage>& fr
   return strip;
 }
 
-int run_animate(const ParsedOptions& options) {
-  const std::string out_dir = options.get("out");
+// The driving coefficients: a stored take's, or (--video) a folder of frames' (4.4).
+struct Driver {
+  TakeCoefficients coefficients;
+  double fps = 30;
+  nlohmann::json report;
+};
+
+Result<Driver> take_driver(const ParsedOptions& options, const BilinearModel& model) {
   const std::string store_dir = options.get("store");
   auto take_id = options.get_int("take");
-  if (out_dir.empty()) return report_failure({"give --out DIR for the frames"});
   if (store_dir.empty() || !take_id || *take_id <= 0)
-    return report_failure(
-        {"give --store DIR and --take ID (`facebooth store info --store DIR` "
-         "lists the takes)"});
-  auto every = options.get_int("every");
-  if (!every || *every < 1) return report_failure({"--every must be a whole number >= 1"});
+    return fail(
+        "give --store DIR and --take ID (`facebooth store info --store DIR` lists the "
+        "takes), or --video DIR");
   StoreOptions so;
   so.read_only = true;
   so.create = false;
   auto store = SessionStore::open(store_dir, so);
-  if (!store) return report_failure(store.error());
+  if (!store) return store.failure();
   auto take = store->read_take(*take_id);
-  if (!take) return report_failure(take.error());
+  if (!take) return take.failure();
   if (take->info.frame_count == 0)
-    return report_failure({"take " + std::to_string(*take_id) + " has no frames"});
+    return fail("take " + std::to_string(*take_id) + " has no frames");
+  auto c = take_coefficients(*take, model);
+  if (!c) return c.failure();
+  Driver d{std::move(*c), take->info.fps, {{"take", *take_id}}};
+  d.report["model_shapes_not_in_take"] = d.coefficients.unmapped;
+  return d;
+}
+
+Result<Driver> video_driver(const ParsedOptions& options, const BilinearModel& model) {
+  const std::filesystem::path dir = options.get("video");
+  std::vector<std::filesystem::path> files;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const auto ext = entry.path().extension().string();
+    if (ext == ".png" || ext == ".jpg" || ext == ".jpeg") files.push_back(entry.path());
+  }
+  if (ec) return fail("cannot read the video folder " + dir.string() + ": " + ec.message());
+  if (files.empty()) return fail(dir.string() + " has no .png or .jpg frames");
+  std::sort(files.begin(), files.end());
+  auto detector = load_landmark_detector(options.get("shape-predictor"));
+  if (!detector) return detector.failure();
+  std::vector<ImageLandmarks> points(files.size());
+  std::vector<bool> found(files.size(), false);
+  Progress progress("photo animate: video landmarks", static_cast<long long>(files.size()));
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    auto image = read_photo(files[f]);
+    if (!image) return image.failure();
+    if (auto l = detector->detect(*image); l) {
+      points[f].points = l->points;
+      points[f].valid.fill(true);
+      found[f] = true;
+    }
+    progress.update(static_cast<long long>(f) + 1);
+  }
+  auto c = video_coefficients(model, points, found);
+  if (!c) return c.failure();
+  auto fps = options.get_double("fps");
+  if (!fps || *fps <= 0) return fail("--fps must be a positive number");
+  Driver d{std::move(c->coefficients), *fps, {{"video_frames_dir", dir.string()}}};
+  d.report["video_frames"] = files.size();
+  d.report["video_frames_without_face"] = c->frames_without_face;
+  d.report["video_joint_fit_error_px"] = c->mean_fit_error_px;
+  return d;
+}
+
+int run_animate(const ParsedOptions& options) {
+  const std::string out_dir = options.get("out");
+  if (out_dir.empty()) return report_failure({"give --out DIR for the frames"});
+  auto every = options.get_int("every");
+  if (!every || *every < 1) return report_failure({"--every must be a whole number >= 1"});
   auto loaded = load_and_fit(options, "photo animate");
   if (!loaded) return report_failure(loaded.error());
-  auto coefficients = take_coefficients(*take, loaded->model);
-  if (!coefficients) return report_failure(coefficients.error());
+  auto driver = options.get("video").empty() ? take_driver(options, loaded->model)
+                                             : video_driver(options, loaded->model);
+  if (!driver) return report_failure(driver.error());
+  const TakeCoefficients* coefficients = &driver->coefficients;
   std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
   if (ec) return report_failure({"cannot create " + out_dir + ": " + ec.message()});
@@ -181,7 +235,8 @@ int run_animate(const ParsedOptions& options) {
   const bool keep = !options.flag("replace-expression");
   std::vector<float> scratch;
   std::vector<int> frames;
-  for (int f = 0; f < take->info.frame_count; f += static_cast<int>(*every)) frames.push_back(f);
+  const int frame_count = static_cast<int>(coefficients->beta.size());
+  for (int f = 0; f < frame_count; f += static_cast<int>(*every)) frames.push_back(f);
   Progress progress("photo animate", static_cast<int>(frames.size()));
   const auto start = std::chrono::steady_clock::now();
   double max_shift = 0;
@@ -204,11 +259,10 @@ int run_animate(const ParsedOptions& options) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   nlohmann::json out = fit_json(*loaded);
-  out["take"] = *take_id;
+  out.update(driver->report);
   out["frames"] = frames.size();
-  out["fps"] = take->info.fps / static_cast<double>(*every);
+  out["fps"] = driver->fps / static_cast<double>(*every);
   out["model_shapes_driven"] = coefficients->mapped_shapes;
-  out["model_shapes_not_in_take"] = coefficients->unmapped;
   out["max_shift_px"] = max_shift;
   out["ms_per_frame"] = 1000.0 * seconds / static_cast<double>(frames.size());
   out["out"] = out_dir;
@@ -339,6 +393,8 @@ std::vector<Command> photo_commands() {
       animate.end(),
       {{"store", "DIR", "session store holding the take", ""},
        {"take", "ID", "the take whose expressions animate the photo", ""},
+       {"video", "DIR", "instead of a take: a performer's frames (PNG/JPEG, name order; 4.4)", ""},
+       {"fps", "N", "the --video frame rate", "30"},
        {"out", "DIR", "folder for frame_NNNN.png (and animation.mp4 or .webp)", ""},
        {"every", "K", "render every K-th frame of the take", "1"},
        {"replace-expression", "",
@@ -355,10 +411,14 @@ std::vector<Command> photo_commands() {
         "The bilinear model is fitted to the photo's 68 landmarks (weak perspective, eq. 13-14), "
         "its image blendshapes B_i = C x2 w_id x3 U_exp[i] built (eq. 17) and driven by the "
         "take's per-frame coefficients (its ARKit curves mapped onto the model's shapes: "
-        "browInnerUp and cheekPuff feed both halves). Each frame is the photo re-rendered by a "
+        "browInnerUp and cheekPuff feed both halves), added to the photo's own expression "
+        "(--replace-expression: instead of it). Each frame is the photo re-rendered by a "
         "triangle warp of the projected mesh (colours from the photo, the background kept, the "
         "mouth opening dark). The head stays where the photo has it: the take's head motion is "
-        "not applied. Writes frame_NNNN.png and, when ffmpeg or img2webp is installed, "
+        "not applied. With --video instead of a take (4.4): dlib on every frame, one identity "
+        "fitted jointly over them, each frame's expression weights written in the model's "
+        "expressions (less the first frame's: the video starts neutral), clamped to [0, 1]. "
+        "Writes frame_NNNN.png and, when ffmpeg or img2webp is installed, "
         "animation.mp4 or animation.webp. Prints a JSON summary.",
         animate},
        run_animate},

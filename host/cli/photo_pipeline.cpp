@@ -3,11 +3,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
 
+#include <Eigen/QR>
 #include <opencv2/imgcodecs.hpp>
 
 #include "algo/tracking/arkit.hpp"
@@ -152,6 +154,49 @@ Result<TakeCoefficients> take_coefficients(const TakeData& take, const BilinearM
       if (col >= 0) beta[static_cast<std::size_t>(e)] = v[kTakePoseValues + col];
     }
   }
+  return out;
+}
+
+Result<VideoCoefficients> video_coefficients(const BilinearModel& model,
+                                             const std::vector<ImageLandmarks>& frames,
+                                             const std::vector<bool>& found, int rounds) {
+  std::vector<ImageLandmarks> used;
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    if (found[f]) used.push_back(frames[f]);
+  if (used.empty()) return fail("no face found in any frame of the video");
+  auto joint = fit_landmarks_joint(model, used, {}, rounds);
+  if (!joint) return joint.failure();
+  // Columns: U_exp[0], then U_exp[i] - U_exp[0].
+  const int e = model.expression_count, k = model.exp_knobs;
+  Eigen::MatrixXd basis(k, e);
+  for (int i = 0; i < e; ++i)
+    for (int j = 0; j < k; ++j)
+      basis(j, i) = model.expression_row(i)[j] - (i > 0 ? model.expression_row(0)[j] : 0.0f);
+  const auto solver = basis.colPivHouseholderQr();
+  VideoCoefficients out;
+  out.mean_fit_error_px = joint->mean_error_px;
+  std::vector<float> last(static_cast<std::size_t>(e - 1), 0.0f);
+  std::size_t next = 0;
+  Eigen::VectorXd neutral;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (found[f]) {
+      const auto& w = joint->images[next++].w_exp;
+      Eigen::VectorXd target(k);
+      for (int j = 0; j < k; ++j) target[j] = w[static_cast<std::size_t>(j)];
+      const Eigen::VectorXd x = solver.solve(target);
+      Eigen::VectorXd beta = x.tail(e - 1) / (std::abs(x[0]) > 1e-9 ? x[0] : 1.0);
+      // The first frame with a face is the performer's neutral: what the fit puts there (their
+      // shape outside the identity space, the fit's bias) is not expression.
+      if (neutral.size() == 0) neutral = beta;
+      for (int i = 0; i < e - 1; ++i)
+        last[static_cast<std::size_t>(i)] =
+            std::clamp(static_cast<float>(beta[i] - neutral[i]), 0.0f, 1.0f);
+    } else {
+      ++out.frames_without_face;
+    }
+    out.coefficients.beta.push_back(last);
+  }
+  out.coefficients.mapped_shapes = e - 1;
   return out;
 }
 

@@ -41,6 +41,21 @@ struct TakeCoefficients {
 };
 Result<TakeCoefficients> take_coefficients(const TakeData& take, const BilinearModel& model);
 
+// FaceWarehouse 4.4: a video's per-frame coefficients. One identity fitted jointly over all
+// frames' landmarks (eq. 15 extended to every frame, `rounds` rounds), then each frame's w_exp
+// written in the model's expressions: w_exp = a U_exp[0] + sum_i b_i (U_exp[i] - U_exp[0])
+// solved by least squares, beta_i = b_i / a (a absorbs the scale weak perspective leaves
+// between w_id and w_exp), less the first face frame's (the video starts neutral, as a take's
+// calibration does), clamped to [0, 1] as a rig's weights are. Frames without landmarks get the previous frame's coefficients.
+struct VideoCoefficients {
+  TakeCoefficients coefficients;
+  double mean_fit_error_px = 0;
+  int frames_without_face = 0;
+};
+Result<VideoCoefficients> video_coefficients(const BilinearModel& model,
+                                             const std::vector<ImageLandmarks>& frames,
+                                             const std::vector<bool>& found, int rounds = 3);
+
 // One animated frame: the photo warped from its fitted face to B_0 + sum beta (B_i - B_0)
 // (or, `keep_expression`, the fitted face + sum beta (B_i - B_0)).
 Result<ColorImage> animate_photo_frame(const ColorImage& photo, const BilinearModel& model,

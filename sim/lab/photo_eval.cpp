@@ -172,15 +172,14 @@ std::array<Eigen::Vector2d, 68> projected_landmarks(const BilinearModel& m, cons
 // Scores one subject's animation; fills `produced` with the frames for pictures.
 Result<void> score_animation(const BilinearModel& model, LandmarkDetector& detector,
                              const SubjectRender& r, const PhotoFace& face, bool keep_expression,
-                             const std::array<Eigen::Vector2d, 68>& photo_points, Sums& sums,
+                             const std::array<Eigen::Vector2d, 68>& photo_points,
+                             const std::vector<std::vector<float>>& beta, Sums& sums,
                              std::vector<ColorImage>& produced) {
-  auto coefficients = take_coefficients(r.take, model);
-  if (!coefficients) return coefficients.failure();
   const auto triangles = face_region_triangles(model);
   std::vector<float> mesh;
   for (std::size_t f = 0; f < r.frames.size(); ++f) {
-    auto frame = animate_photo_frame(r.frames.front(), model, face, triangles,
-                                     coefficients->beta[f], keep_expression, mesh);
+    auto frame = animate_photo_frame(r.frames.front(), model, face, triangles, beta[f],
+                                     keep_expression, mesh);
     if (!frame) return frame.failure();
     const auto projected = projected_landmarks(model, face, mesh);
     auto on_truth = detect_photo_landmarks(detector, r.frames[f], "truth frame");
@@ -212,6 +211,28 @@ Result<void> score_animation(const BilinearModel& model, LandmarkDetector& detec
     }
   }
   return success();
+}
+
+// FaceWarehouse 4.4: subject `seed` plays the eval's track; dlib on its frames, the identity
+// fitted jointly over them, the per-frame coefficients (photo_pipeline's video_coefficients).
+Result<std::vector<std::vector<float>>> video_take(const BilinearModel& model,
+                                                   LandmarkDetector& detector,
+                                                   const FaceModel& face_model, std::uint64_t seed,
+                                                   int frames, double distance, double& fit_error) {
+  auto video = render_subject(face_model, seed, frames, distance);
+  if (!video) return video.failure();
+  std::vector<ImageLandmarks> points(video->frames.size());
+  std::vector<bool> found(video->frames.size(), false);
+  for (std::size_t f = 0; f < video->frames.size(); ++f) {
+    auto l = detect_photo_landmarks(detector, video->frames[f], "video frame");
+    if (!l) continue;
+    points[f] = *l;
+    found[f] = true;
+  }
+  auto c = video_coefficients(model, points, found);
+  if (!c) return c.failure();
+  fit_error += c->mean_fit_error_px;
+  return c->coefficients.beta;
 }
 
 struct EditScore {
@@ -327,8 +348,8 @@ int run_eval_photo(const ParsedOptions& options) {
   auto model = eval_model(options, *face_model);
   if (!model) return report_failure(model.error());
   const double model_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  Sums sums;
-  double fit_error = 0, animate_ms = 0;
+  Sums sums, video_sums;
+  double fit_error = 0, animate_ms = 0, video_fit = 0;
   std::vector<EditScore> edits;
   nlohmann::json out;
   Progress progress("eval photo", *subjects);
@@ -342,13 +363,27 @@ int run_eval_photo(const ParsedOptions& options) {
     if (!face) return report_failure(face.error());
     fit_error += face->fit.mean_error_px;
     std::vector<ColorImage> produced;
+    const bool keep = !options.flag("replace-expression");
+    auto coefficients = take_coefficients(r->take, *model);
+    if (!coefficients) return report_failure(coefficients.error());
     const auto ta = Clock::now();
-    if (auto ok = score_animation(*model, *detector, *r, *face, !options.flag("replace-expression"),
-                                  points->points, sums, produced);
+    if (auto ok = score_animation(*model, *detector, *r, *face, keep, points->points,
+                                  coefficients->beta, sums, produced);
         !ok)
       return report_failure(ok.error());
     animate_ms += 1000 * std::chrono::duration<double>(Clock::now() - ta).count() /
                   static_cast<double>(r->frames.size());
+    if (!options.flag("no-video")) {
+      // 4.4: another subject's video of the same track drives the photo.
+      auto video = video_take(*model, *detector, *face_model, seed + 50, static_cast<int>(*frames),
+                              *distance, video_fit);
+      if (!video) return report_failure(video.error());
+      std::vector<ColorImage> unused;
+      if (auto ok = score_animation(*model, *detector, *r, *face, keep, points->points, *video,
+                                    video_sums, unused);
+          !ok)
+        return report_failure(ok.error());
+    }
     ColorImage edited;
     auto edit = score_edit(*model, *detector, r->frames.front(), *points, *face, *edit_mm, edited);
     if (!edit) return report_failure(edit.error());
@@ -409,6 +444,15 @@ int run_eval_photo(const ParsedOptions& options) {
               {"edit_face_length_projected_change_mm", e.projected_change_mm},
               {"budget", {{"photo_landmark_error_px", "<= 3"}}}});
   out["photo_landmark_error_per_frame_first_subject_px"] = sums.per_frame;
+  if (!options.flag("no-video")) {
+    const double vn = std::max(1.0, video_sums.n);
+    out["video"] = {{"photo_landmark_error_px", video_sums.produced_vs_truth_dlib / vn},
+                    {"worst_frame_px", video_sums.worst_frame},
+                    {"unanimated_photo_error_px", video_sums.baseline / vn},
+                    {"joint_fit_error_px", video_fit / *subjects},
+                    {"frames_scored", video_sums.n},
+                    {"dlib_misses", video_sums.dlib_misses}};
+  }
   const double moving = std::max(1.0, sums.moving_n);
   out["moving_frames"] = {{"frames", sums.moving_n},
                           {"photo_landmark_error_px", sums.moving_error / moving},
@@ -441,6 +485,8 @@ std::vector<Command> photo_eval_commands() {
          {"edit-mm", "MM", "face_length change of the edit", "10"},
          {"model", "FILE", "bilinear model (default: the bootstrap, 150 ids, 50 x 54, built)", ""},
          {"replace-expression", "", "as photo animate --replace-expression", ""},
+         {"no-video", "", "skip the video part (4.4: another subject's frames drive the photo)",
+          ""},
          {"out", "DIR", "write the photo, the edited photo and the take's store here", ""},
          {"png", "FILE", "picture: produced frames over the truth renders", ""},
          {"json", "", "JSON output (the only output)", ""}}},

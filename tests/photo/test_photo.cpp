@@ -161,6 +161,38 @@ TEST(PhotoAnimation, FramesFollowTheTruthRenderOfTheSameExpression) {
   }
 }
 
+TEST(PhotoVideo, JointFitRecoversTheJawOfAPerformersFrames) {
+  // FaceWarehouse 4.4: a performer's frames (neutral, jaw open 0.7, neutral) -> coefficients.
+  const BilinearModel& m = test::photo_model();
+  const auto jaw = test::arkit_curves({{"jawOpen", 0.7f}});
+  const auto r = test::render_faces(
+      21, {test::model_weights({}), test::model_weights(jaw), test::model_weights({})});
+  auto detector = cli::load_landmark_detector("");
+  ASSERT_TRUE(detector.ok());
+  std::vector<ImageLandmarks> points(3);
+  for (int f = 0; f < 3; ++f) {
+    auto l = cli::detect_photo_landmarks(*detector, r.frames[f], "frame");
+    ASSERT_TRUE(l.ok());
+    points[f] = *l;
+  }
+  auto c = cli::video_coefficients(m, points, {true, true, true});
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  ASSERT_EQ(c->coefficients.beta.size(), 3u);
+  const auto at = [&](int f, const std::string& name) {
+    const auto it = std::find(m.expression_names.begin(), m.expression_names.end(), name);
+    return c->coefficients.beta[f][static_cast<std::size_t>(it - m.expression_names.begin() - 1)];
+  };
+  double others = 0;
+  for (std::size_t i = 0; i < c->coefficients.beta[1].size(); ++i)
+    others = std::max(others, static_cast<double>(c->coefficients.beta[1][i]));
+  std::printf("joint fit %.2f px; jawOpen %.2f (truth 0.7), neutral after %.2f, largest %.2f\n",
+              c->mean_fit_error_px, at(1, "jawOpen"), at(2, "jawOpen"), others);
+  EXPECT_LT(c->mean_fit_error_px, 3.0);
+  EXPECT_EQ(at(0, "jawOpen"), 0.0f);  // the first frame is the neutral
+  EXPECT_GT(at(1, "jawOpen"), 0.3f);
+  EXPECT_LT(at(2, "jawOpen"), 0.15f);
+}
+
 TEST(PhotoEdit, FaceLengthChangeIsMeasuredOnTheEditedPhoto) {
   const BilinearModel& m = test::photo_model();
   const auto r = test::render_faces(9, {test::model_weights({})});

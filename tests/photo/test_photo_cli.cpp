@@ -99,6 +99,32 @@ TEST(PhotoCli, AnimateWritesTheFramesTheStripAndAVideoWhenAnEncoderIsInstalled) 
   }
 }
 
+TEST(PhotoCli, AVideoFolderDrivesThePhoto) {
+  // The performer's frames: the photo's own frames opening the jaw, from animate itself.
+  Inputs in;
+  const fs::path video = in.dir.path / "video";
+  const auto first = test::run_command(
+      cli() + " photo animate --in " + (in.dir.path / "photo.png").string() + " --model " +
+          (in.dir.path / "model.fbbm").string() + " --store " + (in.dir.path / "store").string() +
+          " --take " + std::to_string(in.take) + " --every 3 --out " + video.string(),
+      test::Stderr::kDropped);
+  ASSERT_EQ(first.exit_code, 0) << first.out;
+  for (const auto& e : fs::directory_iterator(video))
+    if (e.path().extension() != ".png") fs::remove(e.path());
+  const auto run =
+      test::run_command(cli() + " photo animate --in " + (in.dir.path / "photo.png").string() +
+                            " --model " + (in.dir.path / "model.fbbm").string() + " --video " +
+                            video.string() + " --out " + (in.dir.path / "from-video").string(),
+                        test::Stderr::kDropped);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto j = nlohmann::json::parse(run.out);
+  EXPECT_EQ(j["frames"], 4);
+  EXPECT_EQ(j["video_frames_without_face"], 0);
+  EXPECT_LT(j["video_joint_fit_error_px"].get<double>(), 3.0);
+  EXPECT_GT(j["max_shift_px"].get<double>(), 2.0);  // the jaw the video opened
+  EXPECT_TRUE(fs::exists(in.dir.path / "from-video" / "frame_0003.png"));
+}
+
 TEST(PhotoCli, EditChangesTheFaceLengthAndReportsIt) {
   Inputs in;
   const auto run = test::run_command(

@@ -38,6 +38,7 @@ std::vector<Command> transfer_commands();          // transfer_commands.cpp
 std::vector<Command> transfer_image_commands();    // transfer_image_commands.cpp
 std::vector<Command> sync_commands();              // sync_commands.cpp: sync with booths
 std::vector<Command> wrinkle_commands();           // wrinkle_commands.cpp
+std::vector<Command> photo_commands();             // photo_commands.cpp: photo animate, edit
 
 // Prints "<program>: <message>" to stderr and returns kExitFailure (each binary's main.cpp).
 int report_failure(const Error& error);

@@ -17,10 +17,11 @@ int report_failure(const Error& error) {
 int main(int argc, char** argv) {
   using namespace fb::cli;
   std::vector<Command> commands;
-  for (auto group : {camera_commands(), guide_commands(), tracking_commands(), storage_commands(),
-                     rig_commands(), self_calibration_commands(), camera_calibrate_commands(),
-                     texture_commands(), transfer_commands(), transfer_image_commands(),
-                     retarget_commands(), sync_commands(), wrinkle_commands()}) {
+  for (auto group :
+       {camera_commands(), guide_commands(), tracking_commands(), storage_commands(),
+        rig_commands(), self_calibration_commands(), camera_calibrate_commands(),
+        texture_commands(), transfer_commands(), transfer_image_commands(), retarget_commands(),
+        sync_commands(), wrinkle_commands(), photo_commands()}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth",

@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
         wrinkles_eval_commands(), wrinkle_render_commands(), wrinkle_diag_commands(),
         landmark_embed_commands(),
         std::vector<Command>{render_transfer_image_command(), eval_retarget_command()},
-        tracking_commands(&truth_landmarks)}) {
+        photo_eval_commands(), tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }
   return run_cli("facebooth-lab",

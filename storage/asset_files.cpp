@@ -115,4 +115,14 @@ Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model,
   return embedding;
 }
 
+Result<std::optional<LandmarkEmbedding>> landmark_embedding_beside(
+    const FaceModel& model, const std::filesystem::path& model_path) {
+  const std::filesystem::path path = model_path.parent_path() / "dlib_landmark_embedding.csv";
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::optional<LandmarkEmbedding>{};
+  auto embedding = load_landmark_embedding(model, path);
+  if (!embedding) return embedding.failure();
+  return std::optional<LandmarkEmbedding>(*embedding);
+}
+
 }  // namespace fb

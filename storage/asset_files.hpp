@@ -3,11 +3,12 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
-#include "algo/guide/guide_expressions.hpp"
 #include "algo/facemodel/landmark_embedding.hpp"
+#include "algo/guide/guide_expressions.hpp"
 
 namespace fb {
 
@@ -41,5 +42,11 @@ Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model,
 inline Result<LandmarkEmbedding> load_landmark_embedding(const FaceModel& model) {
   return load_landmark_embedding(model, default_landmark_embedding_path());
 }
+
+// The embedding that sits beside a face model file (its directory's
+// dlib_landmark_embedding.csv): nullopt when there is none, an error when it is unreadable or
+// names vertices the model does not have.
+Result<std::optional<LandmarkEmbedding>> landmark_embedding_beside(
+    const FaceModel& model, const std::filesystem::path& model_path);
 
 }  // namespace fb

@@ -20,6 +20,8 @@ namespace fb {
 struct QuickFitter::State {
   FaceModel model;
   std::optional<LandmarkDetector> detector;
+  // dlib's landmark convention on the model (beside the model file); unset = the model's own.
+  std::optional<LandmarkEmbedding> embedding;
   std::vector<std::vector<float>> guide_meshes;  // G_i, model frame
   double load_ms = 0;
 
@@ -48,6 +50,7 @@ namespace {
 // The target of one capture: its fused depth and the 68 colour points lifted into it.
 Result<FitTarget> make_target(const CaptureView& view,
                               const std::array<Eigen::Vector2d, 68>& color_points,
+                              const std::optional<LandmarkEmbedding>& embedding,
                               QuickFitResult& out) {
   const KinectRegistration registration(view.calibration);
   auto lifted = lift_landmarks(color_points, view.depth_mm, registration);
@@ -58,6 +61,7 @@ Result<FitTarget> make_target(const CaptureView& view,
   target.normals = view.normals;
   target.confidence = view.confidence;
   target.landmarks = *lifted;
+  if (embedding) target.landmark_vertices = embedding->vertices;
   out.landmarks_valid = 0;
   out.landmarks_3d = 0;
   for (const auto& l : target.landmarks) {
@@ -98,6 +102,9 @@ Result<std::unique_ptr<QuickFitter>> QuickFitter::create(const QuickFitPaths& pa
     return fail("cannot load the face model '" + paths.face_model.string() +
                 "': " + model.error().message + " (set [session] face_model)");
   state->model = std::move(*model);
+  auto embedding = landmark_embedding_beside(state->model, paths.face_model);
+  if (!embedding) return fail("dlib's landmark embedding: " + embedding.error().message);
+  state->embedding = *embedding;
   if (guide.empty()) return fail("the guide has no expressions");
   for (std::size_t i = 0; i < guide.size(); ++i) {
     GuideExpression g;
@@ -169,7 +176,7 @@ Result<QuickFitResult> QuickFitter::fit_with_points(
   QuickFitResult r;
   r.color_points = color_points;
   r.detection_score = detection_score;
-  auto target = make_target(view, r.color_points, r);
+  auto target = make_target(view, r.color_points, state_->embedding, r);
   if (!target) return target.failure();
   r.target = std::move(*target);
   if (guide_index == 0) {
@@ -214,7 +221,7 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
     next.color_points[static_cast<std::size_t>(c.index)] = Eigen::Vector2d(c.u, c.v);
     next.corrected[static_cast<std::size_t>(c.index)] = true;
   }
-  auto target = make_target(view, next.color_points, next);
+  auto target = make_target(view, next.color_points, state_->embedding, next);
   if (!target) return target.failure();
   next.target = std::move(*target);
   if (guide_index == 0) {

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "algo/tracking/arkit.hpp"
+#include "host/cli/take_columns.hpp"
 #include "storage/export/export_session.hpp"
 #include "storage/export/png_file.hpp"
 
@@ -167,15 +168,7 @@ Result<int> write_take_detail_weights(ExportFolder& folder, const TakeData& take
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return mapping.failure();
   // The take's columns by ARKit name (camelCase or Live Link's), back to the model's shapes.
-  std::array<int, kArkitShapeCount> column;
-  column.fill(-1);
-  const auto& names = take.info.shape_names;
-  for (int k = 0; k < kArkitShapeCount; ++k)
-    for (std::size_t i = 0; i < names.size(); ++i)
-      if (names[i] == kArkitNames[k] || names[i] == kLiveLinkNames[k]) {
-        column[k] = static_cast<int>(i);
-        break;
-      }
+  const std::array<int, kArkitShapeCount> column = arkit_columns(take.info.shape_names);
   std::string text = DetailWeightsCsv::header(blend) + "\n";
   std::array<float, kArkitShapeCount> arkit{};
   std::vector<float> weights(static_cast<std::size_t>(model.fitting_expression_count));

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "algo/tracking/arkit.hpp"
+#include "host/cli/take_columns.hpp"
 
 namespace fb::cli {
 
@@ -109,15 +110,8 @@ Result<ImageLandmarks> detect_photo_landmarks(LandmarkDetector& detector, const 
 
 Result<TakeCoefficients> take_coefficients(const TakeData& take, const BilinearModel& model) {
   // Column of each ARKit curve in the take (camelCase or Live Link's capitalised names).
-  std::array<int, kArkitShapeCount> column;
-  column.fill(-1);
+  const std::array<int, kArkitShapeCount> column = arkit_columns(take.info.shape_names);
   const auto& names = take.info.shape_names;
-  for (int k = 0; k < kArkitShapeCount; ++k)
-    for (std::size_t i = 0; i < names.size(); ++i)
-      if (names[i] == kArkitNames[k] || names[i] == kLiveLinkNames[k]) {
-        column[k] = static_cast<int>(i);
-        break;
-      }
   // Model expression e (1..E-1) reads the take column of its ARKit curve, or of its own name
   // when the take is in the model's names (a take of a rig in model names).
   TakeCoefficients out;

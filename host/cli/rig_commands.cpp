@@ -174,6 +174,9 @@ nlohmann::json residual_json(const RigResult& rig, const std::vector<std::string
 Result<nlohmann::json> run_refit(SessionStore& store, SessionId session, const FaceModel& model,
                                  const GuideSet& guide) {
   RefitOptions ro = full_fit_options();
+  auto embedding = landmark_embedding_beside(model, default_face_model_path());
+  if (!embedding) return embedding.failure();
+  ro.embedding = *embedding;
   std::optional<Progress> bar;
   ro.progress = [&bar](int done, int total) {
     if (!bar) bar.emplace("refit: captures", total);

@@ -26,7 +26,8 @@ namespace {
 // A capture's fit target from what the store keeps: the fused depth (whole mm) and the colour
 // landmarks lifted into it through the unit's registration, as the booth lifted them.
 Result<FitTarget> stored_target(const SessionStore& store, SessionId session, int index,
-                                const KinectCalibration& calibration) {
+                                const KinectCalibration& calibration,
+                                const std::optional<LandmarkEmbedding>& embedding) {
   CaptureReadOptions ro;
   ro.max_frames = 0;
   auto c = store.read_capture(session, index, ro);
@@ -43,6 +44,7 @@ Result<FitTarget> stored_target(const SessionStore& store, SessionId session, in
   auto lifted = lift_landmarks(px, t.depth_mm, KinectRegistration(calibration));
   if (!lifted) return lifted.failure();
   t.landmarks = *lifted;
+  if (embedding) t.landmark_vertices = embedding->vertices;
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;
 }
@@ -87,7 +89,7 @@ Result<RefitReport> refit_session(SessionStore& store, SessionId session, const 
   for (const CaptureInfo* c : done) {
     const std::string label = c->expression + " (capture " + std::to_string(c->index) + ")";
     const int g = guide.find(c->expression);
-    auto target = stored_target(store, session, c->index, *calibration);
+    auto target = stored_target(store, session, c->index, *calibration, options.embedding);
     if (g < 0 || !target) {
       const std::string why =
           g < 0 ? "'" + c->expression + "' is not a guide recipe" : target.error().message;

@@ -7,11 +7,13 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/facemodel/landmark_embedding.hpp"
 #include "algo/fitting/face_fit.hpp"
 #include "algo/guide/guide_expressions.hpp"
 #include "storage/session_store.hpp"
@@ -22,6 +24,8 @@ struct RefitOptions {
   NeutralFitOptions neutral;
   ExpressionFitOptions expression;
   std::function<void(int done, int total)> progress;  // after each capture
+  // The mesh vertices the stored (dlib) landmarks mark; unset = the model's landmark vertices.
+  std::optional<LandmarkEmbedding> embedding;
 };
 
 // The host's settings (docs/sync.md "rig --refit" has the figures that chose them).

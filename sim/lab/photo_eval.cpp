@@ -333,6 +333,42 @@ Result<TakeId> write_inputs(const std::filesystem::path& dir, const SubjectRende
   return store->add_take(take);
 }
 
+// The mean of the subjects' edit figures.
+EditScore mean_edit(const std::vector<EditScore>& edits) {
+  EditScore e;
+  const double n = static_cast<double>(std::max<std::size_t>(1, edits.size()));
+  for (const auto& x : edits) {
+    e.requested_mm += x.requested_mm / n;
+    e.model_change_mm += x.model_change_mm / n;
+    e.refit_change_mm += x.refit_change_mm / n;
+    e.dlib_change_mm += x.dlib_change_mm / n;
+    e.projected_change_mm += x.projected_change_mm / n;
+  }
+  return e;
+}
+
+// --png (the first subject's frames beside the produced ones) and --out (its inputs and edit).
+Result<void> write_first_subject(const ParsedOptions& options, const SubjectRender& r,
+                                 const std::vector<ColorImage>& produced, const ColorImage& edited,
+                                 nlohmann::json& out) {
+  if (const std::string png = options.get("png"); !png.empty()) {
+    const int n = static_cast<int>(r.frames.size());
+    if (auto w = write_photo(
+            comparison_picture(r, produced, {0, n / 7, 2 * n / 7, 3 * n / 7 + 1, 4 * n / 7 + 1}),
+            png);
+        !w)
+      return w.failure();
+  }
+  if (const std::string dir = options.get("out"); !dir.empty()) {
+    auto take = write_inputs(dir, r);
+    if (!take) return take.failure();
+    if (auto w = write_photo(edited, std::filesystem::path(dir) / "edited.png"); !w)
+      return w.failure();
+    out["out"] = {{"photo", dir + "/photo.png"}, {"store", dir + "/store"}, {"take", *take}};
+  }
+  return success();
+}
+
 int run_eval_photo(const ParsedOptions& options) {
   auto subjects = options.get_int("subjects");
   auto frames = options.get_int("frames");
@@ -388,35 +424,13 @@ int run_eval_photo(const ParsedOptions& options) {
     auto edit = score_edit(*model, *detector, r->frames.front(), *points, *face, *edit_mm, edited);
     if (!edit) return report_failure(edit.error());
     edits.push_back(*edit);
-    if (s == 0) {
-      if (const std::string png = options.get("png"); !png.empty()) {
-        const int n = static_cast<int>(r->frames.size());
-        if (auto w =
-                write_photo(comparison_picture(*r, produced,
-                                               {0, n / 7, 2 * n / 7, 3 * n / 7 + 1, 4 * n / 7 + 1}),
-                            png);
-            !w)
-          return report_failure(w.error());
-      }
-      if (const std::string dir = options.get("out"); !dir.empty()) {
-        auto take = write_inputs(dir, *r);
-        if (!take) return report_failure(take.error());
-        if (auto w = write_photo(edited, std::filesystem::path(dir) / "edited.png"); !w)
-          return report_failure(w.error());
-        out["out"] = {{"photo", dir + "/photo.png"}, {"store", dir + "/store"}, {"take", *take}};
-      }
-    }
+    if (s == 0)
+      if (auto ok = write_first_subject(options, *r, produced, edited, out); !ok)
+        return report_failure(ok.error());
     progress.update(s + 1);
   }
   const double n = std::max(1.0, sums.n);
-  EditScore e;
-  for (const auto& x : edits) {
-    e.requested_mm += x.requested_mm / static_cast<double>(edits.size());
-    e.model_change_mm += x.model_change_mm / static_cast<double>(edits.size());
-    e.refit_change_mm += x.refit_change_mm / static_cast<double>(edits.size());
-    e.dlib_change_mm += x.dlib_change_mm / static_cast<double>(edits.size());
-    e.projected_change_mm += x.projected_change_mm / static_cast<double>(edits.size());
-  }
+  const EditScore e = mean_edit(edits);
   out.update({{"subjects", *subjects},
               {"frames_per_subject", *frames},
               {"frames_scored", sums.n},

@@ -531,5 +531,35 @@ TEST(Fusion, MeshLiesOnTheSurfaceAndFacesOutwards) {
   EXPECT_GT(agree, static_cast<int>(mesh.triangles.size() * 0.95));
 }
 
+// The cut below the chin: with a detected face's chin and axis, depth further below the chin
+// than below_chin_mm (the chest under the face) never enters fusion; without them nothing is cut.
+TEST(Fusion, DepthBelowTheChinIsLeftOut) {
+  const PinholeIntrinsics k = kinect_intrinsics();
+  DepthImage wall;
+  wall.width = k.width;
+  wall.height = k.height;
+  wall.pixels.assign(static_cast<std::size_t>(k.width) * k.height, 700);
+  FaceBox box = head_box();
+  const int all = box.width * box.height;
+  FaceFusion fusion;
+  ASSERT_TRUE(fusion.reset(k, box).ok());
+  EXPECT_EQ(fusion.process(wall).valid_pixels, all);
+
+  box.chin_mm = Eigen::Vector3f(0.0f, 0.0f, 700.0f);
+  box.down = Eigen::Vector3f(0.0f, 1.0f, 0.0f);
+  FusionOptions options;
+  options.below_chin_mm = 20.0f;
+  ASSERT_TRUE(fusion.reset(k, box, options).ok());
+  // Kept: camera y <= 20 mm at 700 mm, i.e. rows up to cy + 20 fy / 700.
+  const int last_row = static_cast<int>(std::floor(k.cy + 20.0 * k.fy / 700.0));
+  const int kept = (last_row - box.y + 1) * box.width;
+  EXPECT_NEAR(fusion.process(wall).valid_pixels, kept, box.width);
+  EXPECT_LT(kept, all * 2 / 3);
+
+  options.below_chin_mm = 0.0f;  // 0: no cut
+  ASSERT_TRUE(fusion.reset(k, box, options).ok());
+  EXPECT_EQ(fusion.process(wall).valid_pixels, all);
+}
+
 }  // namespace
 }  // namespace fb

@@ -7,6 +7,7 @@
 
 #include "algo/core/clock.hpp"
 #include "drivers/camera/common/device_json.hpp"
+#include "storage/asset_files.hpp"
 #include "storage/export/png_file.hpp"
 
 namespace fb::cli {
@@ -76,12 +77,16 @@ Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session
     return fail("the fitted mesh does not have the face model's topology, so it has no UV layout");
   auto capture = store.read_capture(session, capture_index);
   if (!capture) return capture.failure();
+  // The stored points are dlib's: they mark the embedding's vertices, as in the fit.
+  auto embedding = landmark_embedding_beside(model, default_face_model_path());
+  if (!embedding) return embedding.failure();
+  const LandmarkEmbedding marks = embedding->value_or(model_landmark_embedding(model));
   std::vector<Eigen::Vector3d> model_points, camera_points;
   for (std::size_t l = 0; l < capture->landmarks.size() && l < model.landmark_vertices.size();
        ++l) {
     const Landmark& p = capture->landmarks[l];
     if (l < 17 || !p.has_3d) continue;  // interior points carry reliable 3D
-    const auto v = model.landmark_vertices[l];
+    const auto v = marks.vertices[l];
     model_points.emplace_back(mesh->positions[3 * v], mesh->positions[3 * v + 1],
                               mesh->positions[3 * v + 2]);
     camera_points.emplace_back(p.x, p.y, p.z);

@@ -306,7 +306,9 @@ LandmarkPairs landmark_pairs(const FaceModel& model, const std::vector<float>& v
   for (int l = 17; l < 68; ++l) {
     const auto& lm = target.landmarks[static_cast<std::size_t>(l)];
     if (!lm.valid || !lm.point) continue;
-    const auto v = model.landmark_vertices[static_cast<std::size_t>(l)];
+    const auto v = target.landmark_vertices
+                       ? (*target.landmark_vertices)[static_cast<std::size_t>(l)]
+                       : model.landmark_vertices[static_cast<std::size_t>(l)];
     pairs.model.emplace_back(vertices[3 * v], vertices[3 * v + 1], vertices[3 * v + 2]);
     pairs.camera.push_back(*lm.point);
   }
@@ -362,6 +364,9 @@ int run_eval_texture(const ParsedOptions& options) {
     if (!d) return report_failure(d.error());
     detector.emplace(std::move(*d));
   }
+  // dlib's points mark the vertices of the shipped embedding, as on the device.
+  auto embedding = landmark_embedding_beside(*model, default_face_model_path());
+  if (!embedding) return report_failure(embedding.error());
   const std::string world = options.get("world");
   const std::vector<bool> face = visible_face_triangles(*model);
   nlohmann::json runs = nlohmann::json::array();
@@ -387,6 +392,8 @@ int run_eval_texture(const ParsedOptions& options) {
     }
     auto target = make_fit_target(*cap, points, false);
     if (!target) return report_failure(target.error());
+    if (detector && *embedding)
+      target->landmark_vertices = (*embedding)->vertices;  // as the device
     auto fit = fit_neutral(*model, *target);
     if (!fit) return report_failure(fit.error());
     const LandmarkPairs pairs = landmark_pairs(*model, fit->vertices, *target);

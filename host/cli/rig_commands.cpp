@@ -172,11 +172,13 @@ nlohmann::json residual_json(const RigResult& rig, const std::vector<std::string
 
 // --refit: the session's captures fitted again with the host's settings, stored, summarised.
 Result<nlohmann::json> run_refit(SessionStore& store, SessionId session, const FaceModel& model,
-                                 const GuideSet& guide) {
+                                 const GuideSet& guide, bool dlib_landmarks) {
   RefitOptions ro = full_fit_options();
-  auto embedding = landmark_embedding_beside(model, default_face_model_path());
-  if (!embedding) return embedding.failure();
-  ro.embedding = *embedding;
+  if (dlib_landmarks) {
+    auto embedding = landmark_embedding_beside(model, default_face_model_path());
+    if (!embedding) return embedding.failure();
+    ro.embedding = *embedding;
+  }
   std::optional<Progress> bar;
   ro.progress = [&bar](int done, int total) {
     if (!bar) bar.emplace("refit: captures", total);
@@ -218,6 +220,9 @@ int run_rig(const ParsedOptions& options) {
   if (save && store_dir.empty()) return report_failure({"--save needs --store"});
   const bool refit = options.flag("refit");
   if (refit && store_dir.empty()) return report_failure({"--refit needs --store and --session"});
+  const std::string convention = options.get("landmarks");
+  if (convention != "dlib" && convention != "model")
+    return report_failure({"--landmarks is dlib or model (got '" + convention + "')"});
 
   SessionExamples ex;
   nlohmann::json refit_json;
@@ -234,7 +239,7 @@ int run_rig(const ParsedOptions& options) {
     if (!opened) return report_failure(opened.error());
     store.emplace(std::move(*opened));
     if (refit) {
-      auto done = run_refit(*store, session, *model, *guide);
+      auto done = run_refit(*store, session, *model, *guide, convention == "dlib");
       if (!done) return report_failure(done.error());
       refit_json = std::move(*done);
     }
@@ -405,6 +410,11 @@ std::vector<Command> rig_commands() {
        "first fit every capture again from its stored fused depth and landmarks with the "
        "host's full settings (the booth's fits are kept but superseded), then rig from those",
        ""},
+      {"landmarks", "dlib|model",
+       "with --refit: the convention of the stored landmarks: dlib (the booth stores dlib's "
+       "points; their vertices from dlib_landmark_embedding.csv beside the face model) or model "
+       "(points that mark the face model's own landmark vertices, e.g. synthetic truth)",
+       "dlib"},
       guide_opt};
   for (const auto& o : rig_option_specs()) rig_opts.push_back(o);
   return {

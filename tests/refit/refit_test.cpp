@@ -173,9 +173,9 @@ TEST(Refit, RigRefitsTheStoredCapturesBetterAndRigsFromTheRefit) {
     for (const auto& m : *meshes) booth_ids.push_back(m.id);
   }
   const std::string fb = FB_CLI_PATH;
-  auto run = test::run_command(
-      fb + " rig --store " + store_dir.string() + " --session 1 --refit --save --rounds 2",
-      test::Stderr::kToLog);
+  auto run = test::run_command(fb + " rig --store " + store_dir.string() +
+                                   " --session 1 --refit --landmarks model --save --rounds 2",
+                               test::Stderr::kToLog);
   ASSERT_EQ(run.exit_code, 0) << run.out;
   const auto j = nlohmann::json::parse(run.out, nullptr, false);
   ASSERT_FALSE(j.is_discarded()) << run.out;

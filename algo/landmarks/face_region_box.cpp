@@ -119,11 +119,10 @@ void set_chin_cut(std::span<const FitLandmark> landmarks, const PinholeIntrinsic
       }
     return n > 0 ? sum / n : static_cast<double>(box.face_depth_mm);
   };
-  auto lift = [&](const Eigen::Vector2d& px, double z) {
-    return Eigen::Vector3d((px.x() - k.cx) / k.fx * z, (px.y() - k.cy) / k.fy * z, z);
-  };
-  const Eigen::Vector3d bridge = lift(landmarks[27].pixel, depth_of(27, 28));
-  const Eigen::Vector3d chin = lift(landmarks[8].pixel, depth_of(48, 59));
+  const Eigen::Vector2d& b = landmarks[27].pixel;
+  const Eigen::Vector2d& c = landmarks[8].pixel;
+  const Eigen::Vector3d bridge = k.unproject(b.x(), b.y(), depth_of(27, 28));
+  const Eigen::Vector3d chin = k.unproject(c.x(), c.y(), depth_of(48, 59));
   const Eigen::Vector3d axis = chin - bridge;
   // Nasion to chin is 100-140 mm on adults; anything far outside is not a face.
   if (!(axis.norm() > 60.0 && axis.norm() < 220.0)) return;

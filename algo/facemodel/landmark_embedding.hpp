@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <span>
 #include <string>
 #include <string_view>
@@ -21,14 +22,22 @@
 namespace fb {
 
 struct LandmarkEmbedding {
-  std::array<std::uint32_t, 68> vertices{};
+  using Vertices = std::array<std::uint32_t, 68>;
+  Vertices vertices{};  // any expression without its own entry
+  // Per guide expression (by name): dlib moves some points with the expression (the inner lips
+  // sit on the lips' inner rim when the mouth opens, on the lips' contact line when it closes).
+  std::map<std::string, Vertices, std::less<>> by_expression;
+
+  // The vertices for a capture of `expression` (the guide's name; "" = unknown).
+  const Vertices& for_expression(std::string_view expression) const;
 };
 
 // The model's own convention (what a fit uses without an embedding).
 LandmarkEmbedding model_landmark_embedding(const FaceModel& model);
 
-// Text form: a header line "landmark,vertex" and 68 rows "i,v" in order; '#' lines are
-// comments. Refused when a vertex is outside the model or a row is missing.
+// Text form: a header line "landmark,vertex" (or "landmark,vertex,expression") and 68 rows
+// "i,v" for every expression; rows "i,v,NAME" override landmark i for expression NAME. '#'
+// lines are comments. Refused when a vertex is outside the model or a row is missing.
 Result<LandmarkEmbedding> parse_landmark_embedding(std::string_view text, const FaceModel& model);
 std::string format_landmark_embedding(const LandmarkEmbedding& embedding, std::string_view comment);
 
@@ -37,8 +46,14 @@ std::string format_landmark_embedding(const LandmarkEmbedding& embedding, std::s
 // coordinate-wise median taken (robust to a failed detection) and snapped to the nearest
 // vertex of the face region. Landmarks with fewer than `min_hits` hits, and the contour, keep
 // the model's vertex.
+using LandmarkHits = std::array<std::vector<std::uint32_t>, 68>;
+LandmarkEmbedding learn_landmark_embedding(const FaceModel& model, const LandmarkHits& hits,
+                                           int min_hits = 5);
+
+// The same per guide expression: the pooled hits give the default; each expression's own hits
+// (at least `min_hits`) give its entry, kept only where it differs from the default.
 LandmarkEmbedding learn_landmark_embedding(const FaceModel& model,
-                                           const std::array<std::vector<std::uint32_t>, 68>& hits,
+                                           const std::map<std::string, LandmarkHits>& hits,
                                            int min_hits = 5);
 
 }  // namespace fb

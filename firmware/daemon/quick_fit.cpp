@@ -23,6 +23,7 @@ struct QuickFitter::State {
   // dlib's landmark convention on the model (beside the model file); unset = the model's own.
   std::optional<LandmarkEmbedding> embedding;
   std::vector<std::vector<float>> guide_meshes;  // G_i, model frame
+  std::vector<std::string> guide_names;
   double load_ms = 0;
 
   std::int64_t neutral_session = 0;
@@ -51,7 +52,7 @@ namespace {
 Result<FitTarget> make_target(const CaptureView& view,
                               const std::array<Eigen::Vector2d, 68>& color_points,
                               const std::optional<LandmarkEmbedding>& embedding,
-                              QuickFitResult& out) {
+                              std::string_view expression, QuickFitResult& out) {
   const KinectRegistration registration(view.calibration);
   auto lifted = lift_landmarks(color_points, view.depth_mm, registration);
   if (!lifted) return lifted.failure();
@@ -61,7 +62,7 @@ Result<FitTarget> make_target(const CaptureView& view,
   target.normals = view.normals;
   target.confidence = view.confidence;
   target.landmarks = *lifted;
-  if (embedding) target.landmark_vertices = embedding->vertices;
+  if (embedding) target.landmark_vertices = embedding->for_expression(expression);
   out.landmarks_valid = 0;
   out.landmarks_3d = 0;
   for (const auto& l : target.landmarks) {
@@ -114,6 +115,7 @@ Result<std::unique_ptr<QuickFitter>> QuickFitter::create(const QuickFitPaths& pa
     auto mesh = guide_mesh(g, state->model);
     if (!mesh) return fail("guide expression '" + g.name + "': " + mesh.error().message);
     state->guide_meshes.push_back(std::move(*mesh));
+    state->guide_names.push_back(g.name);
   }
   const auto t0 = std::chrono::steady_clock::now();
   std::ifstream in(paths.shape_predictor, std::ios::binary);
@@ -176,7 +178,8 @@ Result<QuickFitResult> QuickFitter::fit_with_points(
   QuickFitResult r;
   r.color_points = color_points;
   r.detection_score = detection_score;
-  auto target = make_target(view, r.color_points, state_->embedding, r);
+  auto target = make_target(view, r.color_points, state_->embedding,
+                            s.guide_names[static_cast<std::size_t>(guide_index)], r);
   if (!target) return target.failure();
   r.target = std::move(*target);
   if (guide_index == 0) {
@@ -212,6 +215,8 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
                                 std::span<const ColorCorrection> corrections,
                                 QuickFitResult& result) {
   State& s = *state_;
+  if (guide_index < 0 || guide_index >= static_cast<int>(s.guide_meshes.size()))
+    return fail("capture " + std::to_string(guide_index) + " is not in the guide");
   QuickFitResult next = result;
   for (const auto& c : corrections) {
     if (c.index < 0 || c.index >= 68)
@@ -221,7 +226,8 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
     next.color_points[static_cast<std::size_t>(c.index)] = Eigen::Vector2d(c.u, c.v);
     next.corrected[static_cast<std::size_t>(c.index)] = true;
   }
-  auto target = make_target(view, next.color_points, state_->embedding, next);
+  auto target = make_target(view, next.color_points, state_->embedding,
+                            s.guide_names[static_cast<std::size_t>(guide_index)], next);
   if (!target) return target.failure();
   next.target = std::move(*target);
   if (guide_index == 0) {

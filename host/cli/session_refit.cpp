@@ -44,7 +44,7 @@ Result<FitTarget> stored_target(const SessionStore& store, SessionId session, in
   auto lifted = lift_landmarks(px, t.depth_mm, KinectRegistration(calibration));
   if (!lifted) return lifted.failure();
   t.landmarks = *lifted;
-  if (embedding) t.landmark_vertices = embedding->vertices;
+  if (embedding) t.landmark_vertices = embedding->for_expression(c->info.expression);
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;
 }

@@ -86,7 +86,7 @@ Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session
        ++l) {
     const Landmark& p = capture->landmarks[l];
     if (l < 17 || !p.has_3d) continue;  // interior points carry reliable 3D
-    const auto v = marks.vertices[l];
+    const auto v = marks.for_expression(capture->info.expression)[l];
     model_points.emplace_back(mesh->positions[3 * v], mesh->positions[3 * v + 1],
                               mesh->positions[3 * v + 2]);
     camera_points.emplace_back(p.x, p.y, p.z);

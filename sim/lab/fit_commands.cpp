@@ -311,7 +311,7 @@ Result<nlohmann::json> eval_fit_once(const ParsedOptions& options, const FitEval
       }
       auto target = make_fit_target(*cap, fit_points, noiseless_depth);
       if (target && setup.dlib_fit && setup.embedding)
-        target->landmark_vertices = setup.embedding->vertices;
+        target->landmark_vertices = setup.embedding->for_expression(ge.name);
       if (!target) {
         auto stop = failed("landmarks", target.error());
         if (!stop) return stop.failure();

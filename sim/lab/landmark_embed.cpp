@@ -48,7 +48,7 @@ int nearest_visible_vertex(const FrameTruth& truth, std::span<const Eigen::Vecto
 }
 
 struct EmbedRun {
-  std::array<std::vector<std::uint32_t>, 68> hits;
+  std::map<std::string, LandmarkHits> hits;  // by guide expression
   int renders = 0, detected = 0;
 };
 
@@ -69,6 +69,7 @@ Result<void> embed_subject(const FaceModel& model, const GuideSet& guide,
     if (auto ok = (*camera)->start(); !ok) return ok.failure();
     const KinectRegistration registration(so.calibration);
     const PinholeIntrinsics k = (*camera)->info().depth_intrinsics;
+    LandmarkHits& hits = run.hits[guide.expressions[e].name];
     RgbdFrame frame;
     for (int i = 0; i < frames; ++i) {
       auto st = (*camera)->next_frame(frame, std::chrono::milliseconds(1000));
@@ -90,7 +91,7 @@ Result<void> embed_subject(const FaceModel& model, const GuideSet& guide,
                                        truth->noiseless_depth_mm, registration, reference);
         if (!px) continue;
         const int v = nearest_visible_vertex(*truth, mesh, model.face_vertex_count, k, *px);
-        if (v >= 0) run.hits[static_cast<std::size_t>(l)].push_back(static_cast<std::uint32_t>(v));
+        if (v >= 0) hits[static_cast<std::size_t>(l)].push_back(static_cast<std::uint32_t>(v));
       }
     }
   }
@@ -125,8 +126,12 @@ int run_landmarks_embed(const ParsedOptions& options) {
   }
   const LandmarkEmbedding learned = learn_landmark_embedding(*model, run.hits);
   const LandmarkEmbedding own = model_landmark_embedding(*model);
-  int moved = 0;
+  int moved = 0, expression_rows = 0;
   double moved_mm = 0;
+  for (const auto& [name, v] : learned.by_expression)
+    for (int l = 17; l < 68; ++l)
+      expression_rows +=
+          v[static_cast<std::size_t>(l)] != learned.vertices[static_cast<std::size_t>(l)];
   for (int l = 17; l < 68; ++l) {
     const auto a = own.vertices[static_cast<std::size_t>(l)],
                b = learned.vertices[static_cast<std::size_t>(l)];
@@ -144,7 +149,9 @@ int run_landmarks_embed(const ParsedOptions& options) {
       std::to_string(*frames) + " --views " + std::to_string(*views) + " --world " +
       options.get("world") + "\n" + std::to_string(run.detected) + " of " +
       std::to_string(run.renders) + " renders with a face found; " + std::to_string(moved) +
-      " of 51 interior landmarks moved off the model's vertex.";
+      " of 51 interior landmarks moved off the model's vertex;\n" +
+      std::to_string(learned.by_expression.size()) + " expressions with their own vertices (" +
+      std::to_string(expression_rows) + " rows).";
   const std::string text = format_landmark_embedding(learned, comment);
   const std::string out = options.get("out");
   if (auto ok = write_file_durably(
@@ -153,8 +160,9 @@ int run_landmarks_embed(const ParsedOptions& options) {
     return report_failure(ok.error());
   std::cout << "{\"renders\": " << run.renders << ", \"detected\": " << run.detected
             << ", \"moved_landmarks\": " << moved
-            << ", \"moved_mean_mm\": " << (moved > 0 ? moved_mm / moved : 0.0) << ", \"out\": \""
-            << out << "\"}\n";
+            << ", \"moved_mean_mm\": " << (moved > 0 ? moved_mm / moved : 0.0)
+            << ", \"expressions_with_own_vertices\": " << learned.by_expression.size()
+            << ", \"expression_rows\": " << expression_rows << ", \"out\": \"" << out << "\"}\n";
   return kExitOk;
 }
 
@@ -166,7 +174,8 @@ std::vector<Command> landmark_embed_commands() {
             "Renders textured synthetic subjects (seeds --first-seed.., kept apart from the "
             "evaluations' 1..), every guide expression, --views poses of a head turn each, runs "
             "dlib and records which visible mesh vertex each interior point falls on; per "
-            "landmark the median on the mean face, snapped to a vertex. The product reads "
+            "landmark the median on the mean face, snapped to a vertex, over all expressions "
+            "and per expression (kept where it differs). The product reads "
             "DATA_DIR/dlib_landmark_embedding.csv.",
             {{"subjects", "N", "synthetic subjects", "12"},
              {"first-seed", "N", "seed of the first subject", "1000"},

@@ -393,7 +393,7 @@ int run_eval_texture(const ParsedOptions& options) {
     auto target = make_fit_target(*cap, points, false);
     if (!target) return report_failure(target.error());
     if (detector && *embedding)
-      target->landmark_vertices = (*embedding)->vertices;  // as the device
+      target->landmark_vertices = (*embedding)->for_expression("neutral");  // as the device
     auto fit = fit_neutral(*model, *target);
     if (!fit) return report_failure(fit.error());
     const LandmarkPairs pairs = landmark_pairs(*model, fit->vertices, *target);

@@ -58,5 +58,38 @@ TEST(LandmarkEmbedding, CsvRoundTripsAndBadFilesSayWhatIsWrong) {
   EXPECT_NE(bad_vertex.error().message.find("100 vertices"), std::string::npos);
 }
 
+TEST(LandmarkEmbedding, PerExpressionEntriesOverrideTheDefaultAndRoundTrip) {
+  const FaceModel m = line_model();
+  std::map<std::string, LandmarkHits> hits;
+  // Inner lip 62: on 30 when the mouth is closed, on 60 when it opens; brow 20 the same in both.
+  hits["neutral"][62] = {30, 30, 31, 30, 29, 30};
+  hits["mouth_stretch"][62] = {60, 60, 61, 60, 59, 60};
+  hits["neutral"][20] = {25, 25, 25, 25, 25};
+  hits["mouth_stretch"][20] = {25, 25, 25, 25, 25};
+  hits["smile"][62] = {44, 44};  // too few of its own: the pooled vertex, no entry
+  const LandmarkEmbedding e = learn_landmark_embedding(m, hits);
+  EXPECT_EQ(e.vertices[20], 25u);
+  EXPECT_EQ(e.for_expression("neutral")[62], 30u);
+  EXPECT_EQ(e.for_expression("mouth_stretch")[62], 60u);
+  EXPECT_EQ(e.for_expression("mouth_stretch")[20], 25u);
+  EXPECT_EQ(e.by_expression.count("smile"), 0u);
+  EXPECT_EQ(&e.for_expression("smile"), &e.vertices);
+  EXPECT_EQ(&e.for_expression(""), &e.vertices);
+  EXPECT_NE(e.vertices[62], 60u);  // the pooled median lies between the two
+
+  const std::string text = format_landmark_embedding(e, "per expression");
+  EXPECT_NE(text.find("landmark,vertex,expression\n"), std::string::npos);
+  EXPECT_NE(text.find("\n62,60,mouth_stretch\n"), std::string::npos);
+  EXPECT_EQ(text.find(",mouth_stretch\n20,"), std::string::npos);  // same as the default: no row
+  auto back = parse_landmark_embedding(text, m);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->vertices, e.vertices);
+  EXPECT_EQ(back->by_expression, e.by_expression);
+
+  auto empty_name = parse_landmark_embedding(text + "5,5,\n", m);
+  ASSERT_FALSE(empty_name.ok());
+  EXPECT_NE(empty_name.error().message.find("'5,5,'"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace fb

@@ -11,8 +11,8 @@ Result<Points> landmarks_from_render(LandmarkDetector& detector, const Points& p
   auto found = detector.detect(render.image);
   if (!found)
     return fail(
-        "no face found on the mesh's frontal render: the mesh must look along +z with +y up "
-        "(the face model's axes); otherwise give its 68 points as a landmark file (" +
+        "dlib found no face on its frontal render (the mesh must look along +z with +y "
+        "up, the face model's axes: " +
         found.error().message + ")");
   return back_project(render, points, triangles, found->points);
 }

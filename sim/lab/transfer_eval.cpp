@@ -251,6 +251,27 @@ Result<void> add_image_figures(const FaceModel& model, long long subjects, nlohm
   return success();
 }
 
+// The cross-topology figures. The headline pools every remeshed target (decimated,
+// re-triangulated, centroid split).
+void add_topology_json(const Remeshes& remeshes, const std::vector<TopologyErrors>& errors,
+                       const FoundFeatures& found, nlohmann::json& out) {
+  std::vector<double> pooled;
+  for (const TopologyErrors& e : errors)
+    pooled.insert(pooled.end(), e.resample.begin(), e.resample.end());
+  out["cross_topology_vertex_error_mm"] = stats_of(pooled).mean;
+  for (std::size_t k = 0; k < remeshes.meshes.size(); ++k)
+    out["cross_topology"][remeshes.meshes[k].first] = {
+        {"vertices", remeshes.meshes[k].second.vertex_count()},
+        {"moving_mm", summary(errors[k].resample)},
+        {"target_tents_moving_mm", summary(errors[k].target_tents)},
+        {"correspondence_error_mm", summary(errors[k].correspondence)},
+        {"found_landmarks",
+         {{"point_error_mm", summary(errors[k].found_points)},
+          {"found_both_moving_mm", summary(errors[k].found_both)},
+          {"found_target_given_source_moving_mm", summary(errors[k].found_target)}}}};
+  if (!found.detector) out["found_landmarks_skipped"] = found.skipped;
+}
+
 int run_eval_transfer(const ParsedOptions& options) {
   auto subjects = options.get_int("subjects");
   auto min_motion = options.get_double("min-motion");
@@ -320,22 +341,7 @@ int run_eval_transfer(const ParsedOptions& options) {
   }
   out["cross_subject_vertex_error_mm"] = stats_of(vtc_moving).mean;
   out["dt_cross_subject_vertex_error_mm"] = stats_of(dt_moving).mean;
-  // The headline pools every remeshed target (decimated, re-triangulated, centroid split).
-  std::vector<double> pooled;
-  for (const TopologyErrors& e : topology_errors)
-    pooled.insert(pooled.end(), e.resample.begin(), e.resample.end());
-  out["cross_topology_vertex_error_mm"] = stats_of(pooled).mean;
-  for (std::size_t k = 0; k < remeshes.meshes.size(); ++k)
-    out["cross_topology"][remeshes.meshes[k].first] = {
-        {"vertices", remeshes.meshes[k].second.vertex_count()},
-        {"moving_mm", summary(topology_errors[k].resample)},
-        {"target_tents_moving_mm", summary(topology_errors[k].target_tents)},
-        {"correspondence_error_mm", summary(topology_errors[k].correspondence)},
-        {"found_landmarks",
-         {{"point_error_mm", summary(topology_errors[k].found_points)},
-          {"found_both_moving_mm", summary(topology_errors[k].found_both)},
-          {"found_target_given_source_moving_mm", summary(topology_errors[k].found_target)}}}};
-  if (!found.detector) out["found_landmarks_skipped"] = found.skipped;
+  add_topology_json(remeshes, topology_errors, found, out);
   out["correspondence_ms"] = correspondence_ms.mean();
   out["self"] = {{"vtc", region_json(vtc_self)}, {"dt", region_json(dt_self)}};
   out["cross_subject"] = {

@@ -377,6 +377,7 @@ int run_eval_transfer(const ParsedOptions& options) {
       "the three meshes (mean over moving vertices), solved on the target resampled at the "
       "source's vertices (target_tents_moving_mm: solved on the target's own tents); "
       "correspondence_error_mm: each target vertex's source point against its true place; "
+      "correspondence_ms: both ways with the resampling (mean over targets); "
       "found_landmarks: dlib's 68 points on frontal renders of subject 1 and the remeshed "
       "target, back-projected (point_error_mm against the true landmark vertices), the "
       "transfer with them on both faces, or on the target only. Images "

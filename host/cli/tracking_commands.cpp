@@ -618,8 +618,8 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
     return report_failure(ok.error());
   if (const std::string to = options.get("drive"); !to.empty()) {
     if (!where->store) return report_failure({"--drive needs --store (where the rig is)"});
-    auto drive = open_rig_drive(*where->store, to, options.get("drive-out"),
-                                options.get("drive-format"));
+    auto drive =
+        open_rig_drive(*where->store, to, options.get("drive-out"), options.get("drive-format"));
     if (!drive) return report_failure(drive.error());
     t.drive = std::move(*drive);
   }
@@ -645,9 +645,8 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   if (t.csv) result["csv"] = options.get("csv");
   if (t.detail) result["detail_weights"] = detail_weights_json(t, options.get("detail-weights"));
   if (t.drive)
-    result["drive"] = {{"rig", t.drive->rig_id},
-                       {"frames", t.drive->written},
-                       {"out", t.drive->dir.string()}};
+    result["drive"] = {
+        {"rig", t.drive->rig_id}, {"frames", t.drive->written}, {"out", t.drive->dir.string()}};
   std::cout << result.dump(2) << std::endl;
   if (!t.camera_failed && !t.tracker->calibrated()) {
     // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.

@@ -33,14 +33,26 @@ struct CrossTopologyTransfer : ExpressionSetTransfer {
   int unmatched = 0;             // target vertices without a source point
 };
 
-// Source and target of different topology (section V, correspondence.hpp): the source's
-// per-vertex transformations blended at each target vertex's source point, the VTC solve on
-// the target's own tents (in the source's frame, aligned by the feature points), moved back.
+// How the solve between topologies runs (docs/transfer.md, "Between topologies").
+enum class CrossTopologyMethod {
+  // Section V as the paper does it: the target resampled at the source's vertices (each source
+  // vertex's point on the target surface), the VTC solve on the source's own tents there, and
+  // the resampled mesh's displacement carried back to every target vertex through its source
+  // point. The solve never sees the target's tents, so it works the same on any triangulation.
+  kResample,
+  // The source's per-vertex transformations blended at each target vertex's source point and
+  // the VTC solve on the target's own tents (the first version; weak on meshes whose vertices
+  // sit in the plane of their ring, e.g. triangles split at their centroids).
+  kTargetTents,
+};
+
+// Source and target of different topology (section V, correspondence.hpp), in the source's
+// frame (aligned by the feature points), moved back to the target's.
 // `*_features`: corresponding 3D points on each neutral (e.g. the 68 landmarks).
 Result<CrossTopologyTransfer> transfer_expression_set_across(
     const TentTopology& source_topology, const Points& source_neutral,
     std::span<const Points> source_expressions, const Points& source_features,
     const TentTopology& target_topology, const Points& target_neutral,
-    const Points& target_features);
+    const Points& target_features, CrossTopologyMethod method = CrossTopologyMethod::kResample);
 
 }  // namespace fb

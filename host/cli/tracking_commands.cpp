@@ -30,6 +30,7 @@
 #include "host/cli/frame_open.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/stats.hpp"
+#include "host/cli/track_drive.hpp"
 #include "host/cli/tracker_setup.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/export/livelink_csv.hpp"
@@ -212,6 +213,7 @@ struct TrackRun {
   std::optional<SessionDetailBlend> detail;
   std::optional<DetailWeightsCsv> detail_csv;
   std::vector<float> map_weights;
+  std::optional<RigDrive> drive;  // --drive: another subject's rig, a mesh per frame
 
   std::mt19937_64 rng{1};
   std::normal_distribution<float> noise{0.0f, static_cast<float>(kTruthLandmarkNoisePx)};
@@ -371,6 +373,9 @@ Result<void> emit_frame(TrackRun& t, Clock::time_point arrival) {
                                       t.out.face_found, t.map_weights);
         !r)
       return r.failure();
+  }
+  if (t.drive) {
+    if (auto r = drive_frame(*t.drive, t.out); !r) return r.failure();
   }
   if (t.print_sse) {
     format_sse_event(t.out, t.sse);
@@ -611,6 +616,13 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   if (auto ok = open_outputs(options, info, t); !ok) return report_failure(ok.error());
   if (auto ok = open_detail_weights(options, *where, model, t); !ok)
     return report_failure(ok.error());
+  if (const std::string to = options.get("drive"); !to.empty()) {
+    if (!where->store) return report_failure({"--drive needs --store (where the rig is)"});
+    auto drive =
+        open_rig_drive(*where->store, to, options.get("drive-out"), options.get("drive-format"));
+    if (!drive) return report_failure(drive.error());
+    t.drive = std::move(*drive);
+  }
 
   const long long total = *max_frames > 0 ? *max_frames : info.frame_count;
   Progress progress("track", total > 0 ? total : 0);
@@ -632,6 +644,9 @@ int run_track(const ParsedOptions& options, TruthLandmarks truth_landmarks_of) {
   summary_json(t, uri, seconds, result);
   if (t.csv) result["csv"] = options.get("csv");
   if (t.detail) result["detail_weights"] = detail_weights_json(t, options.get("detail-weights"));
+  if (t.drive)
+    result["drive"] = {
+        {"rig", t.drive->rig_id}, {"frames", t.drive->written}, {"out", t.drive->dir.string()}};
   std::cout << result.dump(2) << std::endl;
   if (!t.camera_failed && !t.tracker->calibrated()) {
     // Weights from an uncalibrated mean face are not this subject's: a failure, said plainly.
@@ -691,6 +706,11 @@ std::vector<Command> tracking_commands(TruthLandmarks truth_landmarks) {
           "model is missing), or depth only",
           "dlib"},
          {"shape-predictor", "PATH", "dlib 68-point model", kShapePredictor},
+         {"drive", "subject:ID",
+          "drive another subject's stored rig (subject:ID, session:ID) with the tracked weights",
+          ""},
+         {"drive-out", "DIR", "--drive writes DIR/frame_INDEX.obj (or .ply) per frame", ""},
+         {"drive-format", "F", "obj or ply", "obj"},
          {"sse", "", "also print the kiosk's SSE events to stderr", ""},
          {"detail-weights", "FILE",
           "write each frame's wrinkle map weights (CSV: one column per captured expression "

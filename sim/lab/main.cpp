@@ -38,7 +38,8 @@ int main(int argc, char** argv) {
         transfer_eval_commands(), std::vector<Command>{bench_transfer_command()},
         wrinkles_eval_commands(), wrinkle_render_commands(), wrinkle_diag_commands(),
         landmark_embed_commands(),
-        std::vector<Command>{render_transfer_image_command(), eval_retarget_command()},
+        std::vector<Command>{render_transfer_image_command(), render_transfer_command(),
+                             eval_retarget_command()},
         photo_eval_commands(), tracking_commands(&truth_landmarks)}) {
     for (auto& command : group) commands.push_back(std::move(command));
   }

@@ -9,14 +9,17 @@
 // (the model's generic expression delta) added to their own neutral, as sim/ builds subjects.
 #include <array>
 #include <iostream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/transfer/expression_set.hpp"
 #include "host/cli/guide_files.hpp"
+#include "host/cli/mesh_landmarks.hpp"
 #include "host/cli/rig_support.hpp"
 #include "host/cli/stats.hpp"
+#include "host/cli/tracker_setup.hpp"
 #include "sim/lab/lab_commands.hpp"
 #include "sim/lab/transfer_image_lab.hpp"
 #include "sim/subject/remesh.hpp"
@@ -151,22 +154,90 @@ Remeshes make_remeshes(const FaceModel& model) {
   return r;
 }
 
+// Per remeshed target: the errors over moving vertices of both solves between topologies, and
+// the correspondence's error (a target vertex's source point against its true place on the
+// source, over all target vertices).
+struct TopologyErrors {
+  std::vector<double> resample, target_tents, correspondence;
+  // Feature points found by dlib on frontal renders (host/cli/mesh_landmarks.hpp): the found
+  // points' distances to the true landmark vertices, and the transfer with found points on both
+  // faces or on the target only (the source's given).
+  std::vector<double> found_points, found_both, found_target;
+};
+
+// The found-feature-point variants of add_cross_topology for one remeshed target.
+Result<void> add_found_features(const FaceModel& model, const TentTopology& topology,
+                                const Subject& first, const Points& source_found,
+                                const Subject& subject, const Remesh& mesh,
+                                const TentTopology& mesh_topology, LandmarkDetector& detector,
+                                double min_motion_mm, TopologyErrors& errors) {
+  const Points target_neutral = mesh.apply(subject.neutral);
+  auto found = cli::landmarks_from_render(detector, target_neutral, mesh.triangles);
+  if (!found) return found.failure();
+  const Points truth = landmarks(model, subject.neutral);
+  for (Eigen::Index l = 0; l < truth.rows(); ++l)
+    errors.found_points.push_back((found->row(l) - truth.row(l)).norm());
+  for (const bool both : {true, false}) {
+    auto out = transfer_expression_set_across(topology, first.neutral, first.expressions,
+                                              both ? source_found : landmarks(model, first.neutral),
+                                              mesh_topology, target_neutral, *found);
+    if (!out) return out.failure();
+    std::vector<double> all;
+    for (std::size_t j = 0; j < subject.expressions.size(); ++j)
+      add_cross_errors(target_neutral, mesh.apply(subject.expressions[j]), out->expressions[j],
+                       min_motion_mm, both ? errors.found_both : errors.found_target, all);
+  }
+  return success();
+}
+
+// dlib and subject 1's found feature points, when the shape predictor loads.
+struct FoundFeatures {
+  std::optional<LandmarkDetector> detector;
+  Points source;
+  std::string skipped;  // why there are none
+};
+
+FoundFeatures found_features(const FaceModel& model, const Subject& first) {
+  FoundFeatures f;
+  auto detector = cli::load_landmark_detector("");
+  if (!detector) return {std::nullopt, {}, detector.error().message};
+  auto source = cli::landmarks_from_render(*detector, first.neutral, model.triangles);
+  if (!source) return {std::nullopt, {}, source.error().message};
+  return {std::move(*detector), std::move(*source), {}};
+}
+
 // Subject 1 on the model's mesh -> `subject` remeshed; mean error over moving vertices per mesh.
 Result<void> add_cross_topology(const FaceModel& model, const TentTopology& topology,
                                 const Subject& first, const Subject& subject, const Remeshes& r,
-                                double min_motion_mm, std::vector<std::vector<double>>& errors,
-                                Samples& correspondence_ms) {
+                                double min_motion_mm, std::vector<TopologyErrors>& errors,
+                                Samples& correspondence_ms, FoundFeatures& found) {
   for (std::size_t k = 0; k < r.meshes.size(); ++k) {
     const Remesh& mesh = r.meshes[k].second;
-    auto out = transfer_expression_set_across(
-        topology, first.neutral, first.expressions, landmarks(model, first.neutral),
-        r.topologies[k], mesh.apply(subject.neutral), landmarks(model, subject.neutral));
-    if (!out) return out.failure();
-    correspondence_ms.add(out->correspondence_ms);
-    std::vector<double> all;
-    for (std::size_t j = 0; j < subject.expressions.size(); ++j)
-      add_cross_errors(mesh.apply(subject.neutral), mesh.apply(subject.expressions[j]),
-                       out->expressions[j], min_motion_mm, errors[k], all);
+    if (found.detector)
+      if (auto ok = add_found_features(model, topology, first, found.source, subject, mesh,
+                                       r.topologies[k], *found.detector, min_motion_mm, errors[k]);
+          !ok)
+        return ok.failure();
+    const Points target_neutral = mesh.apply(subject.neutral);
+    for (const auto method : {CrossTopologyMethod::kResample, CrossTopologyMethod::kTargetTents}) {
+      auto out = transfer_expression_set_across(
+          topology, first.neutral, first.expressions, landmarks(model, first.neutral),
+          r.topologies[k], target_neutral, landmarks(model, subject.neutral), method);
+      if (!out) return out.failure();
+      const bool resample = method == CrossTopologyMethod::kResample;
+      if (resample) correspondence_ms.add(out->correspondence_ms);
+      std::vector<double> all;
+      for (std::size_t j = 0; j < subject.expressions.size(); ++j)
+        add_cross_errors(target_neutral, mesh.apply(subject.expressions[j]), out->expressions[j],
+                         min_motion_mm, resample ? errors[k].resample : errors[k].target_tents,
+                         all);
+    }
+    auto corr = find_correspondence(first.neutral, model.triangles, landmarks(model, first.neutral),
+                                    target_neutral, landmarks(model, subject.neutral));
+    if (!corr) return corr.failure();
+    const Points found = map_points(*corr, first.neutral), truth = mesh.apply(first.neutral);
+    for (Eigen::Index v = 0; v < truth.rows(); ++v)
+      errors[k].correspondence.push_back((found.row(v) - truth.row(v)).norm());
   }
   return success();
 }
@@ -178,6 +249,27 @@ Result<void> add_image_figures(const FaceModel& model, long long subjects, nlohm
   if (!image) return image.failure();
   out.update(*image);
   return success();
+}
+
+// The cross-topology figures. The headline pools every remeshed target (decimated,
+// re-triangulated, centroid split).
+void add_topology_json(const Remeshes& remeshes, const std::vector<TopologyErrors>& errors,
+                       const FoundFeatures& found, nlohmann::json& out) {
+  std::vector<double> pooled;
+  for (const TopologyErrors& e : errors)
+    pooled.insert(pooled.end(), e.resample.begin(), e.resample.end());
+  out["cross_topology_vertex_error_mm"] = stats_of(pooled).mean;
+  for (std::size_t k = 0; k < remeshes.meshes.size(); ++k)
+    out["cross_topology"][remeshes.meshes[k].first] = {
+        {"vertices", remeshes.meshes[k].second.vertex_count()},
+        {"moving_mm", summary(errors[k].resample)},
+        {"target_tents_moving_mm", summary(errors[k].target_tents)},
+        {"correspondence_error_mm", summary(errors[k].correspondence)},
+        {"found_landmarks",
+         {{"point_error_mm", summary(errors[k].found_points)},
+          {"found_both_moving_mm", summary(errors[k].found_both)},
+          {"found_target_given_source_moving_mm", summary(errors[k].found_target)}}}};
+  if (!found.detector) out["found_landmarks_skipped"] = found.skipped;
 }
 
 int run_eval_transfer(const ParsedOptions& options) {
@@ -201,7 +293,8 @@ int run_eval_transfer(const ParsedOptions& options) {
   Samples factor_ms, per_expression_ms, correspondence_ms;
   const Subject first = make_subject(*model, 1);
   const Remeshes remeshes = make_remeshes(*model);
-  std::vector<std::vector<double>> topology_errors(remeshes.meshes.size());
+  std::vector<TopologyErrors> topology_errors(remeshes.meshes.size());
+  FoundFeatures found = found_features(*model, first);
   for (long long s = 1; s <= *subjects; ++s) {
     std::cerr << "eval transfer: subject " << s << "/" << *subjects << "\n";
     const Subject subject = s == 1 ? first : make_subject(*model, static_cast<std::uint64_t>(s));
@@ -232,7 +325,7 @@ int run_eval_transfer(const ParsedOptions& options) {
                        dt_moving, dt_all);
     }
     if (auto ok = add_cross_topology(*model, topology, first, subject, remeshes, *min_motion,
-                                     topology_errors, correspondence_ms);
+                                     topology_errors, correspondence_ms, found);
         !ok)
       return report_failure(ok.error());
   }
@@ -248,15 +341,7 @@ int run_eval_transfer(const ParsedOptions& options) {
   }
   out["cross_subject_vertex_error_mm"] = stats_of(vtc_moving).mean;
   out["dt_cross_subject_vertex_error_mm"] = stats_of(dt_moving).mean;
-  // The headline pools the decimated and re-triangulated targets; the centroid split is
-  // reported beside them (docs/transfer.md: its valence-3 vertices hurt VTC itself).
-  std::vector<double> pooled = topology_errors[0];
-  pooled.insert(pooled.end(), topology_errors[1].begin(), topology_errors[1].end());
-  out["cross_topology_vertex_error_mm"] = stats_of(pooled).mean;
-  for (std::size_t k = 0; k < remeshes.meshes.size(); ++k)
-    out["cross_topology"][remeshes.meshes[k].first] = {
-        {"vertices", remeshes.meshes[k].second.vertex_count()},
-        {"moving_mm", summary(topology_errors[k])}};
+  add_topology_json(remeshes, topology_errors, found, out);
   out["correspondence_ms"] = correspondence_ms.mean();
   out["self"] = {{"vtc", region_json(vtc_self)}, {"dt", region_json(dt_self)}};
   out["cross_subject"] = {
@@ -289,7 +374,14 @@ int run_eval_transfer(const ParsedOptions& options) {
       "remesh.hpp: 50% decimated by half-edge collapses, every quad's other diagonal, face "
       "triangles split at centroids to 19000 vertices), correspondence from the 68 landmark "
       "points (section V), truth = the remeshed truth; cross_topology_vertex_error_mm pools "
-      "the decimated and re-triangulated meshes (mean over moving vertices). Images (2D VTC, "
+      "the three meshes (mean over moving vertices), solved on the target resampled at the "
+      "source's vertices (target_tents_moving_mm: solved on the target's own tents); "
+      "correspondence_error_mm: each target vertex's source point against its true place; "
+      "correspondence_ms: both ways with the resampling (mean over targets); "
+      "found_landmarks: dlib's 68 points on frontal renders of subject 1 and the remeshed "
+      "target, back-projected (point_error_mm against the true landmark vertices), the "
+      "transfer with them on both faces, or on the target only. Images "
+      "(2D VTC, "
       "section VI): synthetic photographs 311 x 419 px of --image-subjects textured subjects, "
       "neutral and 4 expression recipes, true landmarks; PSNR (8-bit RGB) over the face "
       "(inside the jaw line, brows raised by 25 % towards the forehead, of the truth's "

@@ -20,6 +20,10 @@ Result<nlohmann::json> image_transfer_eval(const FaceModel& model, int subjects)
 // its true expression) as PNG files with their 68 landmarks as 'x y' text files.
 Command render_transfer_image_command();
 
+// `facebooth-lab render transfer` (transfer_render.cpp): the README's picture of the 3D
+// transfer from the OBJ folders `facebooth export` and `facebooth transfer` write.
+Command render_transfer_command();
+
 // `facebooth-lab eval retarget` (retarget_eval.cpp).
 Command eval_retarget_command();
 

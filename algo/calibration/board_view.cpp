@@ -61,39 +61,18 @@ bool behind_plate_beyond(const Image<float>& depth, int x, int y, int step_x, in
   return false;
 }
 
-}  // namespace
-
-Image<float> table_depth(const DisparityImage& raw, const KinectCalibration& tables) {
-  KinectCalibration plain = tables;
-  plain.correction = RegistrationCorrection{};
-  const KinectRegistration registration(plain);
-  Image<float> out;
-  out.resize(raw.width, raw.height);
-  for (std::size_t i = 0; i < raw.pixels.size(); ++i) {
-    out.pixels[i] = registration.raw_to_mm_exact(raw.pixels[i]);
-  }
-  return out;
-}
-
-Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationModel& model,
-                                     const Image<float>& depth,
-                                     std::vector<Eigen::Vector2d> corners_color) {
-  if (depth.width != kWidth || depth.height != kHeight) {
-    return fail("the depth image is not 640x480; only the Kinect's 640x480 mode is supported");
-  }
-  if (static_cast<int>(corners_color.size()) != board.corner_count()) {
-    return fail("wrong number of board corners");
-  }
-  BoardView view;
-  view.corners_color = std::move(corners_color);
-  // Where the tables put the board's inner corners in depth (any depth: the parallax is a few
-  // pixels; the registration error is what the calibration finds).
-  const std::size_t c = static_cast<std::size_t>(board.cols), n = view.corners_color.size();
+// Where the tables put the board's inner corners in depth (any depth: the parallax is a few
+// pixels; the registration error is what the calibration finds): the outer corners, pulled 30%
+// towards their centre as a margin for the unknown registration.
+Result<std::vector<Eigen::Vector2d>> board_hull_in_depth(
+    const BoardSpec& board, const RegistrationModel& model,
+    const std::vector<Eigen::Vector2d>& corners_color) {
+  const std::size_t c = static_cast<std::size_t>(board.cols), n = corners_color.size();
   std::vector<Eigen::Vector2d> hull;
   for (std::size_t j : {std::size_t{0}, c - 1, n - 1, n - c}) {
     Eigen::Vector2d uv(320.0, 240.0);
     if (!model.depth_pixel_of(
-            RegistrationCorrection{}, view.corners_color[j], [](double, double) { return 1000.0; },
+            RegistrationCorrection{}, corners_color[j], [](double, double) { return 1000.0; },
             uv)) {
       return fail("the board's corners fall outside the depth camera's view");
     }
@@ -102,6 +81,12 @@ Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationM
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   for (const auto& p : hull) centre += p / 4.0;
   for (auto& p : hull) p = centre + 0.7 * (p - centre);  // margin for the unknown registration
+  return hull;
+}
+
+// The (u, v, z) of every pixel with depth inside the hull.
+std::vector<Eigen::Vector3f> depth_inside(const Image<float>& depth,
+                                          const std::vector<Eigen::Vector2d>& hull) {
   double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
   for (const auto& p : hull) {
     x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y()), x1 = std::max(x1, p.x()),
@@ -117,19 +102,12 @@ Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationM
       }
     }
   }
-  if (seeds.size() < 50) {
-    return fail("no depth where the board is seen in colour (too near, too far or too steep)");
-  }
-  std::vector<float> zs;
-  for (const auto& s : seeds) zs.push_back(s.z());
-  std::nth_element(zs.begin(), zs.begin() + static_cast<long>(zs.size() / 2), zs.end());
-  const float median = zs[zs.size() / 2];
-  std::erase_if(seeds,
-                [&](const Eigen::Vector3f& s) { return std::abs(s.z() - median) > 0.1f * median; });
-  Eigen::Vector3d plane = fit_inverse_plane(seeds);
+  return seeds;
+}
 
-  // The plate: connected pixels within a tolerance of the plane, grown from the seeds.
-  const float tolerance = std::max(20.0f, 0.03f * median);
+// The plate: connected pixels within `tolerance` of the plane, grown from the seeds.
+Image<std::uint8_t> grow_plate(const Image<float>& depth, const std::vector<Eigen::Vector3f>& seeds,
+                               const Eigen::Vector3d& plane, float tolerance) {
   auto on_plane = [&](int x, int y) {
     const float z = depth.at(x, y);
     return z > 0.0f && std::abs(z - 1.0 / plane.dot(Eigen::Vector3d(x, y, 1.0))) < tolerance;
@@ -152,7 +130,11 @@ Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationM
       }
     }
   }
-  std::vector<Eigen::Vector3f> plate;
+  return mask;
+}
+
+// The plate's pixel count, depth samples and outline samples into `view`.
+void sample_plate(const Image<float>& depth, const Image<std::uint8_t>& mask, BoardView& view) {
   for (int y = 0; y < kHeight; ++y) {
     for (int x = 0; x < kWidth; ++x) {
       if (!mask.at(x, y)) continue;
@@ -180,6 +162,48 @@ Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationM
       }
     }
   }
+}
+
+}  // namespace
+
+Image<float> table_depth(const DisparityImage& raw, const KinectCalibration& tables) {
+  KinectCalibration plain = tables;
+  plain.correction = RegistrationCorrection{};
+  const KinectRegistration registration(plain);
+  Image<float> out;
+  out.resize(raw.width, raw.height);
+  for (std::size_t i = 0; i < raw.pixels.size(); ++i) {
+    out.pixels[i] = registration.raw_to_mm_exact(raw.pixels[i]);
+  }
+  return out;
+}
+
+Result<BoardView> extract_board_view(const BoardSpec& board, const RegistrationModel& model,
+                                     const Image<float>& depth,
+                                     std::vector<Eigen::Vector2d> corners_color) {
+  if (depth.width != kWidth || depth.height != kHeight) {
+    return fail("the depth image is not 640x480; only the Kinect's 640x480 mode is supported");
+  }
+  if (static_cast<int>(corners_color.size()) != board.corner_count()) {
+    return fail("wrong number of board corners");
+  }
+  BoardView view;
+  view.corners_color = std::move(corners_color);
+  auto hull = board_hull_in_depth(board, model, view.corners_color);
+  if (!hull) return hull.failure();
+  std::vector<Eigen::Vector3f> seeds = depth_inside(depth, *hull);
+  if (seeds.size() < 50) {
+    return fail("no depth where the board is seen in colour (too near, too far or too steep)");
+  }
+  std::vector<float> zs;
+  for (const auto& s : seeds) zs.push_back(s.z());
+  std::nth_element(zs.begin(), zs.begin() + static_cast<long>(zs.size() / 2), zs.end());
+  const float median = zs[zs.size() / 2];
+  std::erase_if(seeds,
+                [&](const Eigen::Vector3f& s) { return std::abs(s.z() - median) > 0.1f * median; });
+  Eigen::Vector3d plane = fit_inverse_plane(seeds);
+  const Image<std::uint8_t> mask = grow_plate(depth, seeds, plane, std::max(20.0f, 0.03f * median));
+  sample_plate(depth, mask, view);
   if (view.depth.size() < 100) {
     return fail("the board's plate is too small or too broken up in the depth image");
   }

@@ -572,6 +572,113 @@ Result<RefineSystem> model_refine_system(const FaceModel& model, const RefineOpt
   return RefineSystem::create(model, to_points(mean), refine_system_options(o));
 }
 
+// fit_neutral()'s step 1, one Gauss-Newton round at x = r v + t: the step (omega, dt, dc).
+static Result<Eigen::VectorXd> neutral_step(
+    const FaceModel& model, const FitTarget& target, const NeutralFitOptions& o,
+    const Eigen::VectorXd& c, const Eigen::Matrix3d& r, const Points& v, const Points& x,
+    const Points& vn, const std::array<int, kFitLandmarkCount>& lm_verts,
+    const std::vector<int>& interior, const std::vector<int>& depth_set,
+    const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& depth_basis,
+    double gate, double cos_min) {
+  const int m = static_cast<int>(c.size()), unknowns = 6 + m;
+  const std::size_t stride = static_cast<std::size_t>(model.vertex_count) * 3;
+  auto basis_row = [&](int v, int d, int k) {
+    return static_cast<double>(model.identity_basis[static_cast<std::size_t>(k) * stride +
+                                                    static_cast<std::size_t>(3 * v + d)]);
+  };
+  // Rows: 3 per interior landmark, 2 per contour landmark, 1 per depth correspondence; each
+  // scaled by sqrt(2 w) so that J^T J + w_coef I is the Gauss-Newton matrix of E1.
+  std::vector<Correspondence> corr;
+  std::vector<int> corr_v, corr_slot;
+  const std::vector<char> vis = visible_vertices(target, x, model.triangles);
+  for (std::size_t slot = 0; slot < depth_set.size(); ++slot) {
+    const int vtx = depth_set[slot];
+    if (!vis[static_cast<std::size_t>(vtx)]) continue;
+    Correspondence cc;
+    if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc)) {
+      corr.push_back(cc);
+      corr_v.push_back(vtx);
+      corr_slot.push_back(static_cast<int>(slot));
+    }
+  }
+  // 2D rows: the contour, and interior points without depth (rims of eyes and mouth).
+  std::vector<int> contour;
+  for (int l = 0; l < kFitLandmarkCount; ++l) {
+    const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+    if (lm.valid && (is_contour_landmark(l) || !lm.point)) contour.push_back(l);
+  }
+  const Eigen::Index rows =
+      static_cast<Eigen::Index>(3 * interior.size() + 2 * contour.size() + corr.size());
+  // Row-major: every row is written whole, and J^T J reads it row by row.
+  RowMatrix j(rows, unknowns);
+  Eigen::VectorXd res(rows);
+  Eigen::Index row = 0;
+  const double sf = std::sqrt(2.0 * o.w_fea), sp = std::sqrt(2.0 * o.w_pos);
+  // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v]; a row of a projection
+  // p (1 x 3) is [(Rv x p)^T, p, (R^T p)^T B_v].
+  auto point_rows = [&](int vtx, const Eigen::MatrixXd& proj, const Eigen::VectorXd& r0, double s,
+                        double huber_mm) {
+    // Huber (IRLS): residuals beyond huber_mm get weight huber_mm / |r|, so one wrong
+    // landmark cannot drag the whole face.
+    if (huber_mm > 0 && r0.norm() > huber_mm) s *= std::sqrt(huber_mm / r0.norm());
+    const Eigen::Vector3d a = r * v.row(vtx).transpose();
+    for (Eigen::Index k = 0; k < proj.rows(); ++k) {
+      const Eigen::Vector3d p = proj.row(k).transpose();
+      const Eigen::Vector3d rp = r.transpose() * p;
+      j.row(row).head<3>() = s * a.cross(p).transpose();
+      j.row(row).segment<3>(3) = s * p.transpose();
+      for (int mode = 0; mode < m; ++mode)
+        j(row, 6 + mode) =
+            s * (rp.x() * basis_row(vtx, 0, mode) + rp.y() * basis_row(vtx, 1, mode) +
+                 rp.z() * basis_row(vtx, 2, mode));
+      res[row] = s * r0[k];
+      ++row;
+    }
+  };
+  for (int l : interior) {
+    const int vtx = lm_verts[static_cast<std::size_t>(l)];
+    point_rows(vtx, Eigen::Matrix3d::Identity(),
+               x.row(vtx).transpose() - *target.landmarks[static_cast<std::size_t>(l)].point, sf,
+               o.landmark_huber_mm);
+  }
+  for (int l : contour) {
+    // Image distance measured in mm at the vertex depth: r = [x - a z, y - b z] with
+    // (a, b) the ray through the landmark; linear in x.
+    const int vtx = lm_verts[static_cast<std::size_t>(l)];
+    const Eigen::Vector3d d =
+        ray(target.intrinsics, target.landmarks[static_cast<std::size_t>(l)].pixel);
+    Eigen::Matrix<double, 2, 3> p;
+    p << 1, 0, -d.x(), 0, 1, -d.y();
+    point_rows(vtx, p, p * x.row(vtx).transpose(), sf, o.landmark_huber_mm);
+  }
+  // Depth rows from the gathered basis (contiguous per vertex).
+  for (std::size_t k = 0; k < corr.size(); ++k) {
+    const int vtx = corr_v[k];
+    const Eigen::Vector3d& n = corr[k].n;
+    const Eigen::Vector3d a = r * v.row(vtx).transpose();
+    const Eigen::Vector3d rn = sp * (r.transpose() * n);
+    j.row(row).head<3>() = sp * a.cross(n).transpose();
+    j.row(row).segment<3>(3) = sp * n.transpose();
+    const Eigen::Index g = 3 * static_cast<Eigen::Index>(corr_slot[k]);
+    j.row(row).tail(m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
+                          rn.z() * depth_basis.row(g + 2))
+                             .cast<double>();
+    res[row] = sp * n.dot(x.row(vtx).transpose() - corr[k].q);
+    ++row;
+  }
+  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
+  h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
+  h = h.selfadjointView<Eigen::Lower>();
+  Eigen::VectorXd g = j.transpose() * res;
+  // Ecoef = 1/2 c^T c (the basis carries sigma): Hessian w I, gradient w c.
+  h.diagonal().tail(m).array() += o.w_coef;
+  g.tail(m) += o.w_coef * c;
+  h.diagonal().head(6).array() += 1e-6;
+  const Eigen::VectorXd d = h.ldlt().solve(-g);
+  if (!d.allFinite()) return fail("fit: the least-squares step diverged");
+  return d;
+}
+
 Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
                               const NeutralFitOptions& o, const FitResult* initial,
                               const RefineSystem* model_system) {
@@ -605,11 +712,6 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
   std::vector<float> coeffs(static_cast<std::size_t>(m));
   const double cos_min = std::cos(o.max_normal_angle_deg * M_PI / 180.0);
   const std::vector<int> interior = interior_3d(target);
-  auto basis_row = [&](int v, int d, int k) {
-    return static_cast<double>(model.identity_basis[static_cast<std::size_t>(k) * stride +
-                                                    static_cast<std::size_t>(3 * v + d)]);
-  };
-  const int unknowns = 6 + m;
   // The identity basis of the depth vertices, gathered per vertex (rows 3s..3s+2 for
   // depth_set[s]): the model stores it mode by mode, which the per-row products would stride.
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> depth_basis(
@@ -636,96 +738,10 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
         o.rounds > 1 ? std::min(1.0, static_cast<double>(round) / (o.rounds - 1)) : 1.0;
     const double gate = o.max_distance_mm + f * (o.final_distance_mm - o.max_distance_mm);
 
-    // Rows: 3 per interior landmark, 2 per contour landmark, 1 per depth correspondence; each
-    // scaled by sqrt(2 w) so that J^T J + w_coef I is the Gauss-Newton matrix of E1.
-    std::vector<Correspondence> corr;
-    std::vector<int> corr_v, corr_slot;
-    const std::vector<char> vis = visible_vertices(target, x, model.triangles);
-    for (std::size_t slot = 0; slot < depth_set.size(); ++slot) {
-      const int vtx = depth_set[slot];
-      if (!vis[static_cast<std::size_t>(vtx)]) continue;
-      Correspondence cc;
-      if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc)) {
-        corr.push_back(cc);
-        corr_v.push_back(vtx);
-        corr_slot.push_back(static_cast<int>(slot));
-      }
-    }
-    // 2D rows: the contour, and interior points without depth (rims of eyes and mouth).
-    std::vector<int> contour;
-    for (int l = 0; l < kFitLandmarkCount; ++l) {
-      const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
-      if (lm.valid && (is_contour_landmark(l) || !lm.point)) contour.push_back(l);
-    }
-    const Eigen::Index rows =
-        static_cast<Eigen::Index>(3 * interior.size() + 2 * contour.size() + corr.size());
-    // Row-major: every row is written whole, and J^T J reads it row by row.
-    RowMatrix j(rows, unknowns);
-    Eigen::VectorXd res(rows);
-    Eigen::Index row = 0;
-    const double sf = std::sqrt(2.0 * o.w_fea), sp = std::sqrt(2.0 * o.w_pos);
-    // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v]; a row of a projection
-    // p (1 x 3) is [(Rv x p)^T, p, (R^T p)^T B_v].
-    auto point_rows = [&](int vtx, const Eigen::MatrixXd& proj, const Eigen::VectorXd& r0, double s,
-                          double huber_mm) {
-      // Huber (IRLS): residuals beyond huber_mm get weight huber_mm / |r|, so one wrong
-      // landmark cannot drag the whole face.
-      if (huber_mm > 0 && r0.norm() > huber_mm) s *= std::sqrt(huber_mm / r0.norm());
-      const Eigen::Vector3d a = r * v.row(vtx).transpose();
-      for (Eigen::Index k = 0; k < proj.rows(); ++k) {
-        const Eigen::Vector3d p = proj.row(k).transpose();
-        const Eigen::Vector3d rp = r.transpose() * p;
-        j.row(row).head<3>() = s * a.cross(p).transpose();
-        j.row(row).segment<3>(3) = s * p.transpose();
-        for (int mode = 0; mode < m; ++mode)
-          j(row, 6 + mode) =
-              s * (rp.x() * basis_row(vtx, 0, mode) + rp.y() * basis_row(vtx, 1, mode) +
-                   rp.z() * basis_row(vtx, 2, mode));
-        res[row] = s * r0[k];
-        ++row;
-      }
-    };
-    for (int l : interior) {
-      const int vtx = lm_verts[static_cast<std::size_t>(l)];
-      point_rows(vtx, Eigen::Matrix3d::Identity(),
-                 x.row(vtx).transpose() - *target.landmarks[static_cast<std::size_t>(l)].point, sf,
-                 o.landmark_huber_mm);
-    }
-    for (int l : contour) {
-      // Image distance measured in mm at the vertex depth: r = [x - a z, y - b z] with
-      // (a, b) the ray through the landmark; linear in x.
-      const int vtx = lm_verts[static_cast<std::size_t>(l)];
-      const Eigen::Vector3d d =
-          ray(target.intrinsics, target.landmarks[static_cast<std::size_t>(l)].pixel);
-      Eigen::Matrix<double, 2, 3> p;
-      p << 1, 0, -d.x(), 0, 1, -d.y();
-      point_rows(vtx, p, p * x.row(vtx).transpose(), sf, o.landmark_huber_mm);
-    }
-    // Depth rows from the gathered basis (contiguous per vertex).
-    for (std::size_t k = 0; k < corr.size(); ++k) {
-      const int vtx = corr_v[k];
-      const Eigen::Vector3d& n = corr[k].n;
-      const Eigen::Vector3d a = r * v.row(vtx).transpose();
-      const Eigen::Vector3d rn = sp * (r.transpose() * n);
-      j.row(row).head<3>() = sp * a.cross(n).transpose();
-      j.row(row).segment<3>(3) = sp * n.transpose();
-      const Eigen::Index g = 3 * static_cast<Eigen::Index>(corr_slot[k]);
-      j.row(row).tail(m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
-                            rn.z() * depth_basis.row(g + 2))
-                               .cast<double>();
-      res[row] = sp * n.dot(x.row(vtx).transpose() - corr[k].q);
-      ++row;
-    }
-    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
-    h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
-    h = h.selfadjointView<Eigen::Lower>();
-    Eigen::VectorXd g = j.transpose() * res;
-    // Ecoef = 1/2 c^T c (the basis carries sigma): Hessian w I, gradient w c.
-    h.diagonal().tail(m).array() += o.w_coef;
-    g.tail(m) += o.w_coef * c;
-    h.diagonal().head(6).array() += 1e-6;
-    const Eigen::VectorXd d = h.ldlt().solve(-g);
-    if (!d.allFinite()) return fail("fit: the least-squares step diverged");
+    auto step = neutral_step(model, target, o, c, r, v, x, vn, lm_verts, interior, depth_set,
+                             depth_basis, gate, cos_min);
+    if (!step) return step.failure();
+    const Eigen::VectorXd& d = *step;
     const Eigen::Vector3d w = d.head<3>();
     const double angle = w.norm();
     if (angle > 0) r = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * r;

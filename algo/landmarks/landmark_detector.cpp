@@ -255,6 +255,9 @@ dlib::frontal_face_detector window_detector_of(const dlib::frontal_face_detector
   return dlib::frontal_face_detector(scanner, full.get_overlap_tester(), filters);
 }
 
+// A face box the detector found, with its HOG margin.
+using FaceCandidate = std::pair<double, dlib::rectangle>;
+
 }  // namespace
 
 struct LandmarkDetector::State {
@@ -278,6 +281,147 @@ struct LandmarkDetector::State {
     last.reset();
     last_points.reset();
     since_detection = 0;
+  }
+
+  // Grey conversion of [x0, x1) x [y0, y1); frames tracked from points convert only a window
+  // around the face (the predictor's pixels lie within the face box).
+  void to_gray(const ColorImage& image, long x0, long y0, long x1, long y1) {
+    for (long y = y0; y < y1; ++y)
+      for (long x = x0; x < x1; ++x) {
+        const Rgb8 p = image.at(static_cast<int>(x), static_cast<int>(y));
+        // Rec. 601 luma in integer arithmetic.
+        gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
+      }
+  }
+
+  DetectedLandmarks result(const dlib::rectangle& r, const dlib::full_object_detection& shape,
+                           bool tracked, bool from_landmarks) const {
+    DetectedLandmarks out;
+    out.face = {static_cast<int>(r.left()), static_cast<int>(r.top()), static_cast<int>(r.width()),
+                static_cast<int>(r.height())};
+    out.tracked = tracked;
+    out.from_landmarks = from_landmarks;
+    out.detection_score = last_score;
+    out.frames_since_detection = since_detection;
+    for (unsigned i = 0; i < 68; ++i)
+      out.points[i] = Eigen::Vector2d(shape.part(i).x(), shape.part(i).y());
+    return out;
+  }
+
+  // Tracking from points: the previous frame's points, mapped to a detector-style box. Empty
+  // when the result is implausible (the detector then runs on this frame).
+  std::optional<DetectedLandmarks> track_from_points(const ColorImage& image) {
+    const LandmarkDetectorOptions& o = options;
+    const int w = image.width, h = image.height;
+    const Box& p = *last_points;
+    const dlib::rectangle r =
+        rect_of({p.cx + map_dx * p.w, p.cy + map_dy * p.h, map_sw * p.w, map_sh * p.h});
+    const Box g = box_of(r);
+    const double hw = g.w * o.track_window_scale / 2, hh = g.h * o.track_window_scale / 2;
+    const long gx0 = std::clamp<long>(std::lround(g.cx - hw), 0, w),
+               gy0 = std::clamp<long>(std::lround(g.cy - hh), 0, h),
+               gx1 = std::clamp<long>(std::lround(g.cx + hw), 0, w),
+               gy1 = std::clamp<long>(std::lround(g.cy + hh), 0, h);
+    to_gray(image, gx0, gy0, gx1, gy1);
+    const dlib::full_object_detection shape = (*predictor)(gray, r, scratch);
+    const Box b = points_box(shape);
+    const bool in_region = b.cx - b.w / 2 >= gx0 && b.cy - b.h / 2 >= gy0 && b.cx + b.w / 2 < gx1 &&
+                           b.cy + b.h / 2 < gy1;
+    const Patch patch = patch_of(gray, b);
+    const bool plausible =
+        in_region && correlation(patch, last_patch) >= o.min_appearance_correlation &&
+        inside_image(shape, w, h) && std::abs(b.w / p.w - 1) <= o.max_box_size_change &&
+        std::abs(b.h / p.h - 1) <= o.max_box_size_change &&
+        std::hypot(b.cx - p.cx, b.cy - p.cy) <= o.max_box_shift * std::max(p.w, p.h);
+    if (!plausible) return std::nullopt;
+    ++since_detection;
+    last = r;
+    last_points = b;
+    last_patch = patch;
+    return result(r, shape, true, true);
+  }
+
+  // Face-region tracking: detect in a window around the last face only. The face cannot
+  // change size much since the last frame, so the window is resampled to put the last face
+  // at the HOG template's second pyramid level (80 px * 6/5 = 96 px) and only levels 0-3
+  // are scanned (faces 5/6 to 1.44x the last size). At full resolution the detector would
+  // scan every level from the window's size down to 64 px, several times the pixels.
+  std::vector<FaceCandidate> detect_in_window(const ColorImage& image) {
+    std::vector<FaceCandidate> found;
+    const int w = image.width, h = image.height;
+    const dlib::rectangle& r = *last;
+    const double scale = options.track_window_scale;
+    const long cw = static_cast<long>(r.width() * scale),
+               ch = static_cast<long>(r.height() * scale);
+    const long x0 = std::clamp<long>(dlib::center(r).x() - cw / 2, 0, w - 1);
+    const long y0 = std::clamp<long>(dlib::center(r).y() - ch / 2, 0, h - 1);
+    const long x1 = std::min<long>(x0 + cw, w), y1 = std::min<long>(y0 + ch, h);
+    const double shrink = std::min(1.0, kWindowFacePx / double(std::max(r.width(), r.height())));
+    const long sw = std::lround((x1 - x0) * shrink), sh = std::lround((y1 - y0) * shrink);
+    if (sw < 80 || sh < 80) return found;
+    to_gray(image, x0, y0, x1, y1);
+    const auto region = dlib::sub_image(gray, dlib::rectangle(x0, y0, x1 - 1, y1 - 1));
+    window.set_size(sh, sw);
+    if (shrink < 1.0)
+      dlib::resize_image(region, window, dlib::interpolate_bilinear());
+    else
+      dlib::assign_image(window, region);
+    std::vector<dlib::rect_detection> dets;
+    window_detector(window, dets, 0.0);
+    const double grow = double(x1 - x0) / sw, grow_y = double(y1 - y0) / sh;
+    for (const auto& d : dets) {
+      const dlib::drectangle full(x0 + d.rect.left() * grow, y0 + d.rect.top() * grow_y,
+                                  x0 + (d.rect.right() + 1) * grow - 1,
+                                  y0 + (d.rect.bottom() + 1) * grow_y - 1);
+      found.emplace_back(d.detection_confidence,
+                         dlib::rectangle(std::lround(full.left()), std::lround(full.top()),
+                                         std::lround(full.right()), std::lround(full.bottom())));
+    }
+    return found;
+  }
+
+  // The frontal detector over the whole (grey) image, upsampled first when asked.
+  std::vector<FaceCandidate> detect_in_image() {
+    std::vector<FaceCandidate> found;
+    std::vector<dlib::rect_detection> dets;
+    dlib::array2d<unsigned char> up;
+    if (options.upsample > 0) {
+      dlib::assign_image(up, gray);
+      dlib::pyramid_up(up);
+      detector(up, dets, 0.0);
+      for (auto& d : dets)
+        d.rect = dlib::rectangle(d.rect.left() / 2, d.rect.top() / 2, d.rect.right() / 2,
+                                 d.rect.bottom() / 2);
+    } else {
+      detector(gray, dets, 0.0);
+    }
+    for (const auto& d : dets) found.emplace_back(d.detection_confidence, d.rect);
+    return found;
+  }
+
+  // The points on the largest face found (the subject: people behind are smaller), and what
+  // the next frames track from.
+  DetectedLandmarks predict_on_largest(const std::vector<FaceCandidate>& found, bool tracked) {
+    const auto best = std::max_element(
+        found.begin(), found.end(),
+        [](const auto& a, const auto& b) { return a.second.area() < b.second.area(); });
+    const dlib::full_object_detection shape = (*predictor)(gray, best->second, scratch);
+    // Learn the points' box -> detector box mapping for the frames tracked from points.
+    const Box d = box_of(best->second), p = points_box(shape);
+    if (p.w >= 1 && p.h >= 1) {
+      map_dx = (d.cx - p.cx) / p.w;
+      map_dy = (d.cy - p.cy) / p.h;
+      map_sw = d.w / p.w;
+      map_sh = d.h / p.h;
+      last_points = p;
+      last_patch = patch_of(gray, p);
+    } else {
+      last_points.reset();  // degenerate shape: the next frame runs the detector again
+    }
+    last = best->second;
+    last_score = best->first;
+    since_detection = 0;
+    return result(best->second, shape, tracked, false);
   }
 };
 
@@ -325,146 +469,23 @@ Result<DetectedLandmarks> LandmarkDetector::detect(const ColorImage& image) {
       s.forget();  // a new image size: nothing carried over
       s.gray.set_size(h, w);
     }
-    // Grey conversion of [x0, x1) x [y0, y1); frames tracked from points convert only a window
-    // around the face (the predictor's pixels lie within the face box).
-    auto to_gray = [&](long x0, long y0, long x1, long y1) {
-      for (long y = y0; y < y1; ++y)
-        for (long x = x0; x < x1; ++x) {
-          const Rgb8 p = image.at(static_cast<int>(x), static_cast<int>(y));
-          // Rec. 601 luma in integer arithmetic.
-          s.gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
-        }
-    };
-    auto result = [&](const dlib::rectangle& r, const dlib::full_object_detection& shape,
-                      bool tracked, bool from_landmarks) {
-      DetectedLandmarks out;
-      out.face = {static_cast<int>(r.left()), static_cast<int>(r.top()),
-                  static_cast<int>(r.width()), static_cast<int>(r.height())};
-      out.tracked = tracked;
-      out.from_landmarks = from_landmarks;
-      out.detection_score = s.last_score;
-      out.frames_since_detection = s.since_detection;
-      for (unsigned i = 0; i < 68; ++i)
-        out.points[i] = Eigen::Vector2d(shape.part(i).x(), shape.part(i).y());
-      return out;
-    };
     const LandmarkDetectorOptions& o = s.options;
     if (o.track && o.track_landmarks && s.last && s.last_points &&
-        (o.redetect_every <= 0 || s.since_detection < o.redetect_every)) {
-      // Tracking from points: the previous frame's points, mapped to a detector-style box.
-      const Box& p = *s.last_points;
-      const dlib::rectangle r =
-          rect_of({p.cx + s.map_dx * p.w, p.cy + s.map_dy * p.h, s.map_sw * p.w, s.map_sh * p.h});
-      const Box g = box_of(r);
-      const double hw = g.w * o.track_window_scale / 2, hh = g.h * o.track_window_scale / 2;
-      const long gx0 = std::clamp<long>(std::lround(g.cx - hw), 0, w),
-                 gy0 = std::clamp<long>(std::lround(g.cy - hh), 0, h),
-                 gx1 = std::clamp<long>(std::lround(g.cx + hw), 0, w),
-                 gy1 = std::clamp<long>(std::lround(g.cy + hh), 0, h);
-      to_gray(gx0, gy0, gx1, gy1);
-      const dlib::full_object_detection shape = (*s.predictor)(s.gray, r, s.scratch);
-      const Box b = points_box(shape);
-      const bool in_region = b.cx - b.w / 2 >= gx0 && b.cy - b.h / 2 >= gy0 &&
-                             b.cx + b.w / 2 < gx1 && b.cy + b.h / 2 < gy1;
-      const Patch patch = patch_of(s.gray, b);
-      const bool plausible =
-          in_region && correlation(patch, s.last_patch) >= o.min_appearance_correlation &&
-          inside_image(shape, w, h) && std::abs(b.w / p.w - 1) <= o.max_box_size_change &&
-          std::abs(b.h / p.h - 1) <= o.max_box_size_change &&
-          std::hypot(b.cx - p.cx, b.cy - p.cy) <= o.max_box_shift * std::max(p.w, p.h);
-      if (plausible) {
-        ++s.since_detection;
-        s.last = r;
-        s.last_points = b;
-        s.last_patch = patch;
-        return result(r, shape, true, true);
-      }
-      // Implausible: the detector runs on this frame (window around the last box first).
-    }
-    std::vector<std::pair<double, dlib::rectangle>> found;
-    bool tracked = false;
-    if (o.track && s.last) {
-      // Face-region tracking: detect in a window around the last face only. The face cannot
-      // change size much since the last frame, so the window is resampled to put the last face
-      // at the HOG template's second pyramid level (80 px * 6/5 = 96 px) and only levels 0-3
-      // are scanned (faces 5/6 to 1.44x the last size). At full resolution the detector would
-      // scan every level from the window's size down to 64 px, several times the pixels.
-      const dlib::rectangle& r = *s.last;
-      const double scale = s.options.track_window_scale;
-      const long cw = static_cast<long>(r.width() * scale),
-                 ch = static_cast<long>(r.height() * scale);
-      const long x0 = std::clamp<long>(dlib::center(r).x() - cw / 2, 0, w - 1);
-      const long y0 = std::clamp<long>(dlib::center(r).y() - ch / 2, 0, h - 1);
-      const long x1 = std::min<long>(x0 + cw, w), y1 = std::min<long>(y0 + ch, h);
-      const double shrink = std::min(1.0, kWindowFacePx / double(std::max(r.width(), r.height())));
-      const long sw = std::lround((x1 - x0) * shrink), sh = std::lround((y1 - y0) * shrink);
-      if (sw >= 80 && sh >= 80) {
-        to_gray(x0, y0, x1, y1);
-        const auto region = dlib::sub_image(s.gray, dlib::rectangle(x0, y0, x1 - 1, y1 - 1));
-        s.window.set_size(sh, sw);
-        if (shrink < 1.0)
-          dlib::resize_image(region, s.window, dlib::interpolate_bilinear());
-        else
-          dlib::assign_image(s.window, region);
-        std::vector<dlib::rect_detection> dets;
-        s.window_detector(s.window, dets, 0.0);
-        const double grow = double(x1 - x0) / sw, grow_y = double(y1 - y0) / sh;
-        for (const auto& d : dets) {
-          const dlib::drectangle full(x0 + d.rect.left() * grow, y0 + d.rect.top() * grow_y,
-                                      x0 + (d.rect.right() + 1) * grow - 1,
-                                      y0 + (d.rect.bottom() + 1) * grow_y - 1);
-          found.emplace_back(
-              d.detection_confidence,
-              dlib::rectangle(std::lround(full.left()), std::lround(full.top()),
-                              std::lround(full.right()), std::lround(full.bottom())));
-        }
-        tracked = !found.empty();
-      }
-    }
+        (o.redetect_every <= 0 || s.since_detection < o.redetect_every))
+      if (auto from_points = s.track_from_points(image)) return *from_points;
+    std::vector<FaceCandidate> found;
+    if (o.track && s.last) found = s.detect_in_window(image);
+    const bool tracked = !found.empty();
     // The predictor reads pixels around the box it runs on: a face found in the window has
     // them converted already (the window is track_window_scale times the face); otherwise the
     // whole image is needed.
-    if (!tracked) to_gray(0, 0, w, h);
-    if (found.empty()) {
-      std::vector<dlib::rect_detection> dets;
-      dlib::array2d<unsigned char> up;
-      if (s.options.upsample > 0) {
-        dlib::assign_image(up, s.gray);
-        dlib::pyramid_up(up);
-        s.detector(up, dets, 0.0);
-        for (auto& d : dets)
-          d.rect = dlib::rectangle(d.rect.left() / 2, d.rect.top() / 2, d.rect.right() / 2,
-                                   d.rect.bottom() / 2);
-      } else {
-        s.detector(s.gray, dets, 0.0);
-      }
-      for (const auto& d : dets) found.emplace_back(d.detection_confidence, d.rect);
-    }
+    if (!tracked) s.to_gray(image, 0, 0, w, h);
+    if (found.empty()) found = s.detect_in_image();
     if (found.empty()) {
       s.forget();
       return fail("landmarks: no face found in the colour image");
     }
-    // The largest face is the subject (people behind are smaller).
-    const auto best = std::max_element(
-        found.begin(), found.end(),
-        [](const auto& a, const auto& b) { return a.second.area() < b.second.area(); });
-    const dlib::full_object_detection shape = (*s.predictor)(s.gray, best->second, s.scratch);
-    // Learn the points' box -> detector box mapping for the frames tracked from points.
-    const Box d = box_of(best->second), p = points_box(shape);
-    if (p.w >= 1 && p.h >= 1) {
-      s.map_dx = (d.cx - p.cx) / p.w;
-      s.map_dy = (d.cy - p.cy) / p.h;
-      s.map_sw = d.w / p.w;
-      s.map_sh = d.h / p.h;
-      s.last_points = p;
-      s.last_patch = patch_of(s.gray, p);
-    } else {
-      s.last_points.reset();  // degenerate shape: the next frame runs the detector again
-    }
-    s.last = best->second;
-    s.last_score = best->first;
-    s.since_detection = 0;
-    return result(best->second, shape, tracked, false);
+    return s.predict_on_largest(found, tracked);
   } catch (const std::exception& e) {
     s.forget();
     return fail(std::string("landmarks: dlib failed: ") + e.what());

@@ -54,6 +54,8 @@ KinectSensorModel::KinectSensorModel(const KinectRegistration& registration,
     : registration_(registration), options_(options) {
   intrinsics_ = registration_.depth_intrinsics();
   baseline_mm_ = registration_.calibration().zero_plane_info.dcmos_emitter_distance * 10.0;
+  cos_grazing_start_ = std::cos(options_.grazing_start_deg * std::numbers::pi / 180.0);
+  cos_grazing_end_ = std::cos(options_.grazing_end_deg * std::numbers::pi / 180.0);
   // The projector looks along +z from (b, 0, 0); a point at depth z seen at column u lands in
   // projector column u - f b / z, so pad the projector image on the left for the nearest depth.
   projector_pad_ =
@@ -124,11 +126,9 @@ double KinectSensorModel::fractional_raw(double depth_mm) const {
   return r0 + (r1 - r0) * (depth_mm - static_cast<double>(lo));
 }
 
-Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertices,
-                                        std::span<const std::uint32_t> triangles,
-                                        std::uint64_t noise_seed, SensorFrame& out) {
-  const int w = intrinsics_.width, h = intrinsics_.height;
-  camera_.reset(w, h);
+Result<void> KinectSensorModel::render_views(std::span<const Eigen::Vector3f> vertices,
+                                             std::span<const std::uint32_t> triangles) {
+  camera_.reset(intrinsics_.width, intrinsics_.height);
   RasterOptions raster;
   if (auto drawn = rasterize(intrinsics_, vertices, triangles, raster, camera_); !drawn) {
     return drawn.failure();
@@ -155,6 +155,113 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
     const float length = n.norm();
     triangle_normals_[t] = length > 0.0f ? Eigen::Vector3f(n / length) : Eigen::Vector3f::Zero();
   }
+  return success();
+}
+
+inline bool KinectSensorModel::projector_shadowed(int x, int y, float depth) const {
+  // Same rows and same z in the projector frame (pure x offset); the true sample lies
+  // between two projector columns, so compare with the farther of the two.
+  const double up = x - intrinsics_.fx * baseline_mm_ / depth + projector_pad_;
+  const int u0 = static_cast<int>(std::floor(up));
+  float visible_z = 0.0f;
+  for (int u = u0; u <= u0 + 1; ++u) {
+    if (u >= 0 && u < projector_.width) {
+      visible_z = std::max(visible_z, projector_.depth[projector_.index(u, y)]);
+    }
+  }
+  return depth > visible_z + 1.0f + 0.002f * depth;
+}
+
+inline std::uint8_t KinectSensorModel::dropout_bits(int x, int y, float depth,
+                                                    const Image<float>& z,
+                                                    std::uint64_t noise_seed) const {
+  const int w = intrinsics_.width, h = intrinsics_.height;
+  const std::size_t i = camera_.index(x, y);
+  std::uint8_t invalid = 0;
+  // Depth discontinuity: any 8-neighbour on another surface (or none).
+  const float threshold = std::max(static_cast<float>(options_.discontinuity_mm),
+                                   static_cast<float>(options_.discontinuity_fraction) * depth);
+  bool edge = false;
+  for (int dy = -1; dy <= 1 && !edge; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int nx = x + dx, ny = y + dy;
+      if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+      const float n = z.pixels[camera_.index(nx, ny)];
+      if (n <= 0.0f || std::abs(n - depth) > threshold) {
+        edge = true;
+        break;
+      }
+    }
+  }
+  if (edge &&
+      unit_uniform(pixel_random(noise_seed, i, kStreamEdge)) < options_.edge_drop_probability) {
+    invalid |= kSensorDepthEdge;
+  }
+
+  // Grazing angle between the visible triangle's normal and the view ray.
+  const double cos_start = cos_grazing_start_, cos_end = cos_grazing_end_;
+  const Eigen::Vector3f& normal = triangle_normals_[static_cast<std::size_t>(camera_.triangle[i])];
+  const Eigen::Vector3f ray((x - intrinsics_.cx) / intrinsics_.fx,
+                            (y - intrinsics_.cy) / intrinsics_.fy, 1.0f);
+  const double cos_angle = std::abs(normal.dot(ray)) / static_cast<double>(ray.norm());
+  if (cos_angle < cos_start) {
+    // p(drop) rises linearly from 0 at grazing_start to 1 at grazing_end (in angle).
+    const double angle = std::acos(std::clamp(cos_angle, 0.0, 1.0)) * 180.0 / std::numbers::pi;
+    const double p = (angle - options_.grazing_start_deg) /
+                     (options_.grazing_end_deg - options_.grazing_start_deg);
+    if (cos_angle <= cos_end || unit_uniform(pixel_random(noise_seed, i, kStreamGrazing)) < p) {
+      invalid |= kSensorGrazing;
+    }
+  }
+  return invalid;
+}
+
+inline std::uint8_t KinectSensorModel::invalid_bits(int x, int y, float depth,
+                                                    const Image<float>& z,
+                                                    std::uint64_t noise_seed) const {
+  std::uint8_t invalid = 0;
+  if (depth <= 0.0f) {
+    invalid = kSensorNoSurface;
+  } else if (depth < options_.min_depth_mm || depth > options_.max_depth_mm) {
+    invalid = kSensorOutOfRange;
+  }
+  if (invalid == 0 && options_.projector_shadow && projector_shadowed(x, y, depth))
+    invalid |= kSensorProjectorShadow;
+  if (invalid == 0 && options_.dropouts) invalid |= dropout_bits(x, y, depth, z, noise_seed);
+  if (invalid == 0 && options_.speckle_dropout_rate > 0.0) {
+    const std::size_t cell =
+        static_cast<std::size_t>(y / 2) * static_cast<std::size_t>(intrinsics_.width) +
+        static_cast<std::size_t>(x / 2);
+    if (unit_uniform(pixel_random(noise_seed, cell, kStreamSpeckle)) <
+        options_.speckle_dropout_rate)
+      invalid |= kSensorSpeckle;
+  }
+  return invalid;
+}
+
+inline std::uint16_t KinectSensorModel::raw_disparity(int x, int y, float depth,
+                                                      std::uint64_t noise_seed) const {
+  if (!options_.depth_noise)
+    return registration_.mm_to_raw(static_cast<std::uint16_t>(static_cast<double>(depth) + 0.5));
+  // Noise in disparity units, then the device's integer quantisation.
+  const double r = fractional_raw(depth);
+  if (r < 0.0) return kInvalidDisparity;
+  const std::size_t table_mask = gaussian_table_.size() - 1;
+  const auto bits = pixel_random(noise_seed, camera_.index(x, y), kStreamNoise);
+  const double noisy = r +
+                       options_.disparity_noise_sigma * gaussian_table_[(bits >> 20) & table_mask] +
+                       correlated_noise(x, y, noise_seed);
+  // floor(x + 0.5): round half up, far cheaper than lround and the same for x >= 0.
+  const long rounded = static_cast<long>(std::floor(noisy + 0.5));
+  if (rounded >= 0 && rounded < kInvalidDisparity) return static_cast<std::uint16_t>(rounded);
+  return kInvalidDisparity;
+}
+
+Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertices,
+                                        std::span<const std::uint32_t> triangles,
+                                        std::uint64_t noise_seed, SensorFrame& out) {
+  const int w = intrinsics_.width, h = intrinsics_.height;
+  if (auto drawn = render_views(vertices, triangles); !drawn) return drawn.failure();
 
   out.raw.resize(w, h);
   out.depth_mm.resize(w, h);
@@ -164,105 +271,13 @@ Result<void> KinectSensorModel::capture(std::span<const Eigen::Vector3f> vertice
     out.noiseless_depth_mm.pixels[i] = camera_.triangle[i] == kNoTriangle ? 0.0f : camera_.depth[i];
   }
 
-  const double cos_start = std::cos(options_.grazing_start_deg * std::numbers::pi / 180.0);
-  const double cos_end = std::cos(options_.grazing_end_deg * std::numbers::pi / 180.0);
   const auto& z = out.noiseless_depth_mm;
-  const std::size_t table_mask = gaussian_table_.size() - 1;
-
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const std::size_t i = camera_.index(x, y);
       const float depth = z.pixels[i];
-      std::uint8_t invalid = 0;
-      if (depth <= 0.0f) {
-        invalid = kSensorNoSurface;
-      } else if (depth < options_.min_depth_mm || depth > options_.max_depth_mm) {
-        invalid = kSensorOutOfRange;
-      }
-
-      if (invalid == 0 && options_.projector_shadow) {
-        // Same rows and same z in the projector frame (pure x offset); the true sample lies
-        // between two projector columns, so compare with the farther of the two.
-        const double up = x - intrinsics_.fx * baseline_mm_ / depth + projector_pad_;
-        const int u0 = static_cast<int>(std::floor(up));
-        float visible_z = 0.0f;
-        for (int u = u0; u <= u0 + 1; ++u) {
-          if (u >= 0 && u < projector_.width) {
-            visible_z = std::max(visible_z, projector_.depth[projector_.index(u, y)]);
-          }
-        }
-        if (depth > visible_z + 1.0f + 0.002f * depth) invalid |= kSensorProjectorShadow;
-      }
-
-      if (invalid == 0 && options_.dropouts) {
-        // Depth discontinuity: any 8-neighbour on another surface (or none).
-        const float threshold =
-            std::max(static_cast<float>(options_.discontinuity_mm),
-                     static_cast<float>(options_.discontinuity_fraction) * depth);
-        bool edge = false;
-        for (int dy = -1; dy <= 1 && !edge; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int nx = x + dx, ny = y + dy;
-            if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
-            const float n = z.pixels[camera_.index(nx, ny)];
-            if (n <= 0.0f || std::abs(n - depth) > threshold) {
-              edge = true;
-              break;
-            }
-          }
-        }
-        if (edge && unit_uniform(pixel_random(noise_seed, i, kStreamEdge)) <
-                        options_.edge_drop_probability) {
-          invalid |= kSensorDepthEdge;
-        }
-
-        // Grazing angle between the visible triangle's normal and the view ray.
-        const Eigen::Vector3f& normal =
-            triangle_normals_[static_cast<std::size_t>(camera_.triangle[i])];
-        const Eigen::Vector3f ray((x - intrinsics_.cx) / intrinsics_.fx,
-                                  (y - intrinsics_.cy) / intrinsics_.fy, 1.0f);
-        const double cos_angle = std::abs(normal.dot(ray)) / static_cast<double>(ray.norm());
-        if (cos_angle < cos_start) {
-          // p(drop) rises linearly from 0 at grazing_start to 1 at grazing_end (in angle).
-          const double angle =
-              std::acos(std::clamp(cos_angle, 0.0, 1.0)) * 180.0 / std::numbers::pi;
-          const double p = (angle - options_.grazing_start_deg) /
-                           (options_.grazing_end_deg - options_.grazing_start_deg);
-          if (cos_angle <= cos_end ||
-              unit_uniform(pixel_random(noise_seed, i, kStreamGrazing)) < p) {
-            invalid |= kSensorGrazing;
-          }
-        }
-      }
-
-      if (invalid == 0 && options_.speckle_dropout_rate > 0.0) {
-        const std::size_t cell = static_cast<std::size_t>(y / 2) * static_cast<std::size_t>(w) +
-                                 static_cast<std::size_t>(x / 2);
-        if (unit_uniform(pixel_random(noise_seed, cell, kStreamSpeckle)) <
-            options_.speckle_dropout_rate)
-          invalid |= kSensorSpeckle;
-      }
-
-      std::uint16_t raw = kInvalidDisparity;
-      if (invalid == 0) {
-        if (options_.depth_noise) {
-          // Noise in disparity units, then the device's integer quantisation.
-          const double r = fractional_raw(depth);
-          if (r >= 0.0) {
-            const auto bits = pixel_random(noise_seed, i, kStreamNoise);
-            const double noisy =
-                r + options_.disparity_noise_sigma * gaussian_table_[(bits >> 20) & table_mask] +
-                correlated_noise(x, y, noise_seed);
-            // floor(x + 0.5): round half up, far cheaper than lround and the same for x >= 0.
-            const long rounded = static_cast<long>(std::floor(noisy + 0.5));
-            if (rounded >= 0 && rounded < kInvalidDisparity)
-              raw = static_cast<std::uint16_t>(rounded);
-          }
-        } else {
-          raw =
-              registration_.mm_to_raw(static_cast<std::uint16_t>(static_cast<double>(depth) + 0.5));
-        }
-      }
+      std::uint8_t invalid = invalid_bits(x, y, depth, z, noise_seed);
+      std::uint16_t raw = invalid == 0 ? raw_disparity(x, y, depth, noise_seed) : kInvalidDisparity;
       std::uint16_t mm = raw == kInvalidDisparity ? 0 : registration_.raw_to_mm(raw);
       if (mm == 0) {
         raw = kInvalidDisparity;

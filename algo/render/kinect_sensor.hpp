@@ -111,12 +111,24 @@ class KinectSensorModel {
  private:
   // The block-correlated part of the disparity noise at pixel (x, y), raw units.
   double correlated_noise(int x, int y, std::uint64_t noise_seed) const;
+  // capture()'s stages: the depth camera's and the projector's rasters and the triangle
+  // normals; why pixel (x, y) at `depth` (z: the noiseless depth) reads nothing (SensorInvalid
+  // bits: range, projector shadow, depth edge, grazing angle, speckle); its disparity.
+  Result<void> render_views(std::span<const Eigen::Vector3f> vertices,
+                            std::span<const std::uint32_t> triangles);
+  std::uint8_t invalid_bits(int x, int y, float depth, const Image<float>& z,
+                            std::uint64_t noise_seed) const;
+  bool projector_shadowed(int x, int y, float depth) const;
+  std::uint8_t dropout_bits(int x, int y, float depth, const Image<float>& z,
+                            std::uint64_t noise_seed) const;
+  std::uint16_t raw_disparity(int x, int y, float depth, std::uint64_t noise_seed) const;
 
   KinectRegistration registration_;
   KinectSensorOptions options_;
   PinholeIntrinsics intrinsics_;
   PinholeIntrinsics projector_intrinsics_;
   double baseline_mm_ = 75.0;
+  double cos_grazing_start_ = 1.0, cos_grazing_end_ = 0.0;  // of options_.grazing_*_deg
   int projector_pad_ = 0;
   std::vector<float> raw_of_mm_;       // fractional raw per integer mm
   std::vector<float> gaussian_table_;  // inverse normal CDF at (i + 0.5) / size

@@ -93,7 +93,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (auto ok = impl->setup_registration(); !ok) return ok.failure();
   if (auto ok = impl->preview_camera->start(); !ok)
     return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
-  impl->warm_up_take();
+  impl->capture.warm_up(impl->preview_camera->info());
 
   impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
   if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
@@ -580,9 +580,7 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       if (auto ok = show_next_guide(); !ok) return failed(ok.error());
       return in.input;
     case KioskAction::kRecord: {
-      pending_qa = {};
-      pending_commit = {};
-      auto took = record_take(pending_qa, pending_commit);
+      auto took = record_take();
       if (!took) return failed(took.error());
       *followup = true;
       return *took ? KioskInput::kTakeDone : KioskInput::kCancel;  // false = cancelled/stopping
@@ -597,12 +595,11 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
         session = status.session;
         index = status.capture_index;
       }
-      auto commit = std::make_shared<CaptureCommit>(std::move(pending_commit));
-      auto view = std::make_shared<CaptureView>(std::move(pending_view));
-      pending_commit = {};
-      pending_view = {};
+      RecordedTake take = capture.take_result();
+      auto commit = std::make_shared<CaptureCommit>(std::move(take.commit));
+      auto view = std::make_shared<CaptureView>(std::move(take.view));
       update_status([](StatusData& s) { s.message = "Checking the capture (landmarks, fit)..."; });
-      fit_worker.post([this, session, index, qa = pending_qa, commit, view](bool run) {
+      fit_worker.post([this, session, index, qa = std::move(take.qa), commit, view](bool run) {
         process_capture(session, index, qa, std::move(*commit), std::move(*view), run);
       });
       return in.input;

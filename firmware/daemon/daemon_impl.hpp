@@ -1,7 +1,8 @@
 // Private: the daemon's state shared by daemon.cpp (worker, signals), the pipeline and the HTTP
-// handlers (http_routes.hpp). Its rooms have their own headers and locks: the fit worker
-// (fit_worker.hpp) and tracking mode (tracking_mode.hpp); the status is a snapshot the worker
-// and the fit worker publish (update_status) and everyone else copies (status_json).
+// handlers (http_routes.hpp). Its rooms have their own headers (and locks where other threads
+// reach them): the capture take (capture_take.hpp), the fit worker (fit_worker.hpp) and
+// tracking mode (tracking_mode.hpp); the status is a snapshot the worker and the fit worker
+// publish (update_status) and everyone else copies (status_json).
 #pragma once
 
 #include <sys/eventfd.h>
@@ -19,17 +20,14 @@
 #include <optional>
 #include <thread>
 
-#include "algo/fusion/face_fusion.hpp"
-#include "algo/fusion/view_consistency.hpp"
-#include "algo/landmarks/face_region_box.hpp"
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
+#include "firmware/daemon/capture_take.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/fit_worker.hpp"
 #include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
-#include "firmware/daemon/take_fusion.hpp"
 #include "firmware/daemon/tracking_mode.hpp"
 #include "firmware/daemon/wall_clock_watch.hpp"
 
@@ -63,24 +61,6 @@ struct QueuedInput {
   KioskInput input;
   std::string subject;
   std::int64_t session = 0;
-};
-
-struct QaReport {
-  double coverage = 0;        // fused face-box pixels / face-box pixels
-  double residual_mm = 0;     // mean ICP RMS over fused frames
-  double fused_fraction = 0;  // fused frames / recorded frames
-  // Landmarks and the quick fit ("off" when disabled, "failed" with a reason, else "ok").
-  std::string landmarks = "off";
-  std::string fit = "off";
-  double landmark_score = 0;     // dlib detection margin
-  int landmarks_3d = 0;          // interior points lifted with the fused depth
-  double landmark_error_mm = 0;  // mean landmark residual of the fit
-  double fit_rms_mm = 0;         // RMS of the fitted mesh to the fused depth
-  double fit_rms_initial_mm = 0;
-  double fit_ms = 0;
-  int corrections = 0;  // operator-corrected landmarks
-  bool passed = false;
-  std::string reason;  // why it failed
 };
 
 // The capture whose landmarks the QA screen shows (the last one processed), as the page needs it.
@@ -169,16 +149,9 @@ struct Daemon::Impl {
 
   std::unique_ptr<DepthCamera> preview_camera;  // worker only
   long long frames_since_loop = 0;              // preview_camera's frames since it (re)started
-  FaceFusion fusion;                            // worker only
-  ViewConsistency consistency;                  // worker only: the take's depth confidence
-  // A take's face box: dlib (the fitter's shape predictor, shared) on the take's first frames,
-  // grown by the face model's proportions. Made with the fitter (dlib's HOG detector takes
-  // 0.5-1 s to build); then used by one take's detection thread at a time.
-  std::optional<LandmarkDetector> take_detector;
-  std::optional<FaceProportions> take_proportions;
-  QaReport pending_qa;  // the last take, between record and process
-  CaptureCommit pending_commit;
-  CaptureView pending_view;  // frontal colour + fused surface of the last take
+  // --- the capture take (capture_take.hpp): worker only; its result waits there between
+  // record and process.
+  CaptureTake capture;
 
   // --- landmarks + quick fit (daemon_pipeline.cpp), run by the fit worker (fit_worker below)
   // so the fit never blocks the frame loop or the HTTP threads.
@@ -247,17 +220,15 @@ struct Daemon::Impl {
   KioskInput do_action(KioskAction action, const QueuedInput& in, bool* has_followup);
   Result<void> enroll(const std::string& subject);
   Result<void> show_next_guide();
-  // capture_take.cpp
-  Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
-  Result<std::unique_ptr<DepthCamera>> open_take_camera(int index, int frames);
-  void warm_up_take();
-  void assess_take(const TakeTally& tally, const CameraInfo& info, QaReport& qa,
-                   CaptureCommit& commit);
   void preview_tick();
   void tracking_tick();
   // At the end of a recording or synthetic take: starts it over (see daemon.cpp).
   void loop_preview_camera();
   // daemon_pipeline.cpp
+  // The worker's side of a take: the capture's bookkeeping, its camera and the status; the
+  // take itself records in `capture`. False when cancelled or stopping.
+  Result<bool> record_take();
+  Result<std::unique_ptr<DepthCamera>> open_take_camera(int index, int frames);
   Result<void> start_fitter();
   void process_capture(std::int64_t session, int index, QaReport qa, CaptureCommit commit,
                        CaptureView view, bool run);

@@ -1,6 +1,7 @@
-// The daemon's processing after a take (landmarks, quick fit, QA, commit) on the fit worker
-// (fit_worker.hpp), the operator's landmark corrections, and the worker's side of tracking mode
-// (tracking_mode.hpp: the frame loop feeds it and keeps the status).
+// The worker's side of the capture take (capture_take.hpp), the daemon's processing after a take
+// (landmarks, quick fit, QA, commit) on the fit worker (fit_worker.hpp), the operator's landmark
+// corrections, and the worker's side of tracking mode (tracking_mode.hpp: the frame loop feeds it
+// and keeps the status).
 //
 // Threads: the worker (frame loop + state machine) hands a recorded take to the fit thread and
 // keeps running; the fit thread posts the outcome (qa_passed / last_done / qa_failed, tagged with
@@ -35,6 +36,92 @@ void Daemon::Impl::post_input(KioskInput input, std::int64_t session) {
   queue_cv.notify_all();
 }
 
+// ---------------------------------------------------------------------------------------------
+// The capture take (the room: capture_take.hpp); the worker keeps the capture's records, opens
+// the take's camera and shows the take in the status and the preview.
+
+// The camera for a take: a synthetic subject making the guide expression (a camera that takes
+// an expression control, a module from sim/), opened for the take with the guide's
+// expression, a head turn and the take's length; null when the preview camera records.
+Result<std::unique_ptr<DepthCamera>> Daemon::Impl::open_take_camera(int index, int frames) {
+  if (!config.camera.synthetic_imitates_guide ||
+      !camera_has_control(config.camera.uri, kControlExpression))
+    return std::unique_ptr<DepthCamera>();
+  CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
+                             {std::string(kControlMotion), "headturn"},
+                             {std::string(kControlFrames), std::to_string(frames)}};
+  // A real sensor delivers on its own clock and overwrites what the loop is too late for;
+  // the rendering camera does the same when asked (it renders ahead on its own thread).
+  if (config.camera.realtime && camera_has_control(config.camera.uri, kControlRealtime))
+    controls.push_back({std::string(kControlRealtime), "1"});
+  // Rendered with the face model the fitter already holds (FaceModel is immutable after
+  // loading) instead of the module loading another 21 MB copy for every take.
+  CameraResources lent;
+  if (fitter) lent.face_model = &fitter->model();
+  auto opened = open_camera(config.camera.uri, controls, lent);
+  if (!opened) return opened.failure();
+  // The take renders the same unit as the preview: under the same calibration.
+  auto calibrated = with_active_calibration(std::move(*opened));
+  if (!calibrated) return calibrated.failure();
+  if (auto ok = (*calibrated)->start(); !ok) return ok.failure();
+  return std::move(*calibrated);
+}
+
+Result<bool> Daemon::Impl::record_take() {
+  std::int64_t session;
+  int index;
+  {
+    std::lock_guard lock(status_mutex);
+    session = status.session;
+    index = status.capture_index;
+  }
+  if (index < 0 || index >= static_cast<int>(guide.size()))
+    return fail("no capture selected for recording");
+  const int n = config.camera.capture_frames;
+  TakeSettings settings{n,
+                        config.camera.stored_frame_stride,
+                        config.storage.data_dir / "spool",
+                        "no landmark detector (" + fitter_error + ")",
+                        config.session.min_coverage,
+                        config.session.min_fused_fraction,
+                        config.session.max_residual_mm};
+  {
+    std::lock_guard lock(records_mutex);
+    if (auto ok = records->begin_capture(session, index); !ok) return ok.failure();
+  }
+  if (auto ok = capture.start(settings); !ok) return ok.failure();
+  update_status([&](StatusData& s) {
+    ++s.attempts;
+    s.take_frames = 0;
+    s.message = "Recording: turn your head slowly left and right...";
+  });
+  auto take_camera = open_take_camera(index, n);
+  if (!take_camera) return take_camera.failure();
+  DepthCamera& camera = *take_camera ? **take_camera : *preview_camera;
+  TakeHooks hooks;
+  hooks.cancelled = [this] {
+    watchdog_ping();
+    return stopping || cancel_pending();
+  };
+  hooks.show = [this](const RgbdFrame& frame, const FaceBox& box) {
+    std::lock_guard lock(preview_mutex);
+    make_preview(frame, box, preview);
+  };
+  hooks.recorded = [this](int recorded) {
+    update_status([&](StatusData& s) {
+      s.take_frames = recorded;
+      ++s.frames_total;
+    });
+  };
+  hooks.ended = [this](long long missed) {
+    update_status([&](StatusData& s) { s.frames_dropped += missed; });
+  };
+  return capture.record(camera, hooks);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Landmarks and the quick fit
+
 Result<void> Daemon::Impl::start_fitter() {
   if (!config.session.quick_fit) {
     fitter_error = "off ([session] quick_fit = false)";
@@ -51,8 +138,7 @@ Result<void> Daemon::Impl::start_fitter() {
                fitter->landmark_model_load_ms(), paths.shape_predictor.c_str());
   // The take's face detector is built now, not at the first take, where building dlib's HOG
   // detector (0.5-1 s) made the sensor overwrite the take's first 20 frames.
-  take_detector.emplace(fitter->share_landmark_detector());
-  take_proportions = face_proportions(fitter->model());
+  capture.set_detector(fitter->share_landmark_detector(), face_proportions(fitter->model()));
   // Tracking after a restart uses the newest session's stored neutral.
   fit_worker.post([this](bool run) {
     if (!run) return;

@@ -127,11 +127,7 @@ Result<void> Daemon::Impl::apply_calibration(const KinectCalibration& calibratio
 }
 
 Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
-  KioskState state;
-  {
-    std::lock_guard lock(status_mutex);
-    state = status.state;
-  }
+  const KioskState state = machine.state;  // on the worker (a worker job)
   // Between takes (and outside sessions) the camera is free; during a take, its processing or
   // tracking mode it is not.
   if (state == KioskState::kRecording || state == KioskState::kProcessing ||

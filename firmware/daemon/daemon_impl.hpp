@@ -72,7 +72,8 @@ struct QaCapture {
   std::vector<bool> corrected;
 };
 
-// Everything the status JSON shows; guarded by Daemon::Impl::status_mutex.
+// Everything the status JSON shows; guarded by Daemon::Impl::status_mutex. state, session and
+// capture_index are a snapshot of the worker's machine (Daemon::Impl::Machine).
 struct StatusData {
   KioskState state = KioskState::kIdle;
   std::string last_input;
@@ -177,6 +178,16 @@ struct Daemon::Impl {
   // --- tracking mode (tracking_mode.hpp): started, fed and stopped by the worker; the HTTP
   // threads read its live weights (tracking.live(), under its own lock).
   TrackingMode tracking;
+
+  // The kiosk machine's state: the worker's alone, read and written without a lock. Each change
+  // is published into `status` in the same update; other threads read that snapshot and reach
+  // the machine only through the input queue.
+  struct Machine {
+    KioskState state = KioskState::kIdle;
+    std::int64_t session = 0;
+    int capture_index = -1;
+  };
+  Machine machine;  // worker only
 
   // Inputs for the worker.
   std::mutex queue_mutex;

@@ -68,13 +68,8 @@ Result<std::unique_ptr<DepthCamera>> Daemon::Impl::open_take_camera(int index, i
 }
 
 Result<bool> Daemon::Impl::record_take() {
-  std::int64_t session;
-  int index;
-  {
-    std::lock_guard lock(status_mutex);
-    session = status.session;
-    index = status.capture_index;
-  }
+  const std::int64_t session = machine.session;
+  const int index = machine.capture_index;
   if (index < 0 || index >= static_cast<int>(guide.size()))
     return fail("no capture selected for recording");
   const int n = config.camera.capture_frames;
@@ -457,11 +452,7 @@ Result<void> Daemon::Impl::start_tracking() {
   // A session before leaves its freed buffers (fusion volumes, the fit thread's arena) in the
   // heap; hand them back before the tracker allocates, or the peak adds both.
   ::malloc_trim(0);
-  std::int64_t take_session;
-  {
-    std::lock_guard lock(status_mutex);
-    take_session = status.session;
-  }
+  std::int64_t take_session = machine.session;
   TrackingIdentity identity;
   {
     std::lock_guard lock(records_mutex);

@@ -452,10 +452,7 @@ void Daemon::Impl::preview_tick() {
   if (*got != FrameStatus::kFrame) return;
   ++frames_since_loop;
   health->offer(frame);
-  {
-    std::lock_guard lock(preview_mutex);
-    make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
-  }
+  preview.show(frame, default_face_box(frame.color.width, frame.color.height));
   update_status([](StatusData& s) { ++s.frames_total; });
 }
 

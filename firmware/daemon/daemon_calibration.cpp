@@ -168,12 +168,7 @@ Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
     calibrator.add_frame(frame.depth_mm, frame.color);
     ++got;
     if (got % 5 == 0 || got == frames) {
-      {
-        std::lock_guard lock(preview_mutex);
-        preview.resize(frame.color.width / 2, frame.color.height / 2);
-        for (int y = 0; y < preview.height; ++y)
-          for (int x = 0; x < preview.width; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
-      }
+      preview.show(frame);
       update_status([&](StatusData& s) {
         s.frames_total += got - counted;
         s.message = "Calibrating the camera: " + std::to_string(got) + " of " +

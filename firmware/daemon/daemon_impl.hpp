@@ -26,6 +26,7 @@
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/fit_worker.hpp"
 #include "firmware/daemon/guide_steps.hpp"
+#include "firmware/daemon/live_preview.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
 #include "firmware/daemon/tracking_mode.hpp"
@@ -122,10 +123,6 @@ struct StatusData {
 // The status JSON's "registration" object (daemon_calibration.cpp).
 nlohmann::json registration_json(const StatusData& s);
 
-// 2x downsample of the colour image with the face box outlined (the kiosk preview;
-// daemon_util.cpp).
-void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out);
-
 // Lowers the calling thread's scheduling priority (nice) by `nice_increment`. The take's frame
 // loop is the one thread with a deadline (the sensor overwrites a frame it reads late); the fit,
 // HTTP, registration-check and face-detection threads yield to it (daemon_util.cpp).
@@ -169,7 +166,6 @@ struct Daemon::Impl {
     CaptureCommit commit;  // kept while rejected: a correction may still accept it
   };
   std::optional<LastCapture> last_capture;
-  std::string last_capture_bmp;  // guarded by preview_mutex
   // The subject identity tracking uses (from the fit thread), guarded by identity_mutex.
   std::mutex identity_mutex;
   std::vector<float> subject_identity;
@@ -200,11 +196,10 @@ struct Daemon::Impl {
   StatusData status;
   std::uint64_t status_version = 0;
 
-  // Preview picture (downsampled colour with the face box), written by the worker.
-  mutable std::mutex preview_mutex;
-  ColorImage preview;
-  // The guide pictures, rendered on first request (tens of ms: not under preview_mutex, which
-  // the take's frame loop takes).
+  // The live preview and the last capture's picture (live_preview.hpp: its own lock).
+  LivePreview preview;
+  // The guide pictures, rendered on first request (tens of ms: under a lock of their own, not
+  // the preview's, which the take's frame loop takes).
   std::mutex guide_bmp_mutex;
   std::map<int, std::string> guide_bmp_cache;  // guarded by guide_bmp_mutex
 

@@ -98,10 +98,7 @@ Result<bool> Daemon::Impl::record_take() {
     watchdog_ping();
     return stopping || cancel_pending();
   };
-  hooks.show = [this](const RgbdFrame& frame, const FaceBox& box) {
-    std::lock_guard lock(preview_mutex);
-    make_preview(frame, box, preview);
-  };
+  hooks.show = [this](const RgbdFrame& frame, const FaceBox& box) { preview.show(frame, box); };
   hooks.recorded = [this](int recorded) {
     update_status([&](StatusData& s) {
       s.take_frames = recorded;
@@ -227,10 +224,7 @@ void Daemon::Impl::publish_qa_capture(const LastCapture& c) {
       q.corrected.push_back(c.fit->corrected[static_cast<std::size_t>(i)]);
     }
   }
-  {
-    std::lock_guard lock(preview_mutex);
-    last_capture_bmp = c.view.color.empty() ? std::string() : encode_bmp(c.view.color);
-  }
+  preview.set_capture_bmp(c.view.color.empty() ? std::string() : encode_bmp(c.view.color));
   update_status([&](StatusData& s) {
     q.revision = s.qa_capture.revision + 1;
     s.qa_capture = std::move(q);
@@ -533,13 +527,7 @@ void Daemon::Impl::tracking_tick() {
   const auto arrival = Clock::now();
   ++frames_since_loop;
   health->offer(frame);
-  {
-    std::lock_guard lock(preview_mutex);
-    const int w = frame.color.width / 2, h = frame.color.height / 2;
-    preview.resize(w, h);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
-  }
+  preview.show(frame);
   bool state_changed = false;
   if (tracking.active()) {
     const TrackingMode::Tick tick = tracking.track(frame, arrival);

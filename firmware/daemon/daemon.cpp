@@ -93,7 +93,7 @@ Result<std::unique_ptr<Daemon>> Daemon::create(const DaemonConfig& config,
   if (auto ok = impl->setup_registration(); !ok) return ok.failure();
   if (auto ok = impl->preview_camera->start(); !ok)
     return fail("cannot start camera '" + config.camera.uri + "': " + ok.error().message);
-  impl->warm_up_take();
+  impl->capture.warm_up(impl->preview_camera->info());
 
   impl->wake_fd.reset(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK));
   if (impl->wake_fd.get() < 0) return fail(std::string("eventfd failed: ") + std::strerror(errno));
@@ -331,6 +331,7 @@ void Daemon::Impl::set_state(KioskState s, const std::string& input_name,
                              const std::string& message) {
   std::lock_guard lock(led_mutex);
   gpio->set_pattern(led_pattern(s));
+  machine.state = s;
   update_status([&](StatusData& st) {
     st.state = s;
     st.last_input = input_name;
@@ -399,11 +400,7 @@ void Daemon::Impl::worker_loop() {
     check_wall_clock();
     std::optional<QueuedInput> input;
     std::function<void(bool)> job;
-    KioskState state;
-    {
-      std::lock_guard lock(status_mutex);
-      state = status.state;
-    }
+    const KioskState state = machine.state;
     const bool in_tracking = state == KioskState::kTracking;
     auto wait = std::chrono::milliseconds(100);
     if (in_tracking) wait = std::chrono::milliseconds(1);
@@ -455,10 +452,7 @@ void Daemon::Impl::preview_tick() {
   if (*got != FrameStatus::kFrame) return;
   ++frames_since_loop;
   health->offer(frame);
-  {
-    std::lock_guard lock(preview_mutex);
-    make_preview(frame, default_face_box(frame.color.width, frame.color.height), preview);
-  }
+  preview.show(frame, default_face_box(frame.color.width, frame.color.height));
   update_status([](StatusData& s) { ++s.frames_total; });
 }
 
@@ -496,15 +490,10 @@ void Daemon::Impl::handle(const QueuedInput& first) {
                           in.input == KioskInput::kQaFailed || in.input == KioskInput::kFailed)) {
     // An outcome from the fit thread: it only counts for the session it was computed for (a
     // cancel or a new session in between makes it stale).
-    std::lock_guard lock(status_mutex);
-    if (status.session != in.session) return;
+    if (machine.session != in.session) return;
   }
   while (!stopping) {
-    KioskState state;
-    {
-      std::lock_guard lock(status_mutex);
-      state = status.state;
-    }
+    const KioskState state = machine.state;
     if (refuse_session_start(in, state)) return;
     auto t = kiosk_transition(state, in.input);
     if (!t) {
@@ -565,6 +554,7 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
         auto s = records->session(id);
         if (!s) return failed(s.error());
         if (s->complete) return failed(Error{"session " + std::to_string(id) + " is complete"});
+        machine.session = id;
         update_status([&](StatusData& st) {
           st.session = id;
           st.subject = s->subject_name;
@@ -580,9 +570,7 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       if (auto ok = show_next_guide(); !ok) return failed(ok.error());
       return in.input;
     case KioskAction::kRecord: {
-      pending_qa = {};
-      pending_commit = {};
-      auto took = record_take(pending_qa, pending_commit);
+      auto took = record_take();
       if (!took) return failed(took.error());
       *followup = true;
       return *took ? KioskInput::kTakeDone : KioskInput::kCancel;  // false = cancelled/stopping
@@ -590,19 +578,13 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
     case KioskAction::kProcess: {
       // Landmarks, quick fit, QA and the commit run on the fit thread; the frame loop goes on
       // (preview, watchdog) and the outcome comes back as a queued input for this session.
-      std::int64_t session;
-      int index;
-      {
-        std::lock_guard lock(status_mutex);
-        session = status.session;
-        index = status.capture_index;
-      }
-      auto commit = std::make_shared<CaptureCommit>(std::move(pending_commit));
-      auto view = std::make_shared<CaptureView>(std::move(pending_view));
-      pending_commit = {};
-      pending_view = {};
+      const std::int64_t session = machine.session;
+      const int index = machine.capture_index;
+      RecordedTake take = capture.take_result();
+      auto commit = std::make_shared<CaptureCommit>(std::move(take.commit));
+      auto view = std::make_shared<CaptureView>(std::move(take.view));
       update_status([](StatusData& s) { s.message = "Checking the capture (landmarks, fit)..."; });
-      fit_worker.post([this, session, index, qa = pending_qa, commit, view](bool run) {
+      fit_worker.post([this, session, index, qa = std::move(take.qa), commit, view](bool run) {
         process_capture(session, index, qa, std::move(*commit), std::move(*view), run);
       });
       return in.input;
@@ -615,15 +597,12 @@ KioskInput Daemon::Impl::do_action(KioskAction action, const QueuedInput& in, bo
       });
       return in.input;
     case KioskAction::kFinish: {
-      std::int64_t session;
-      {
-        std::lock_guard lock(status_mutex);
-        session = status.session;
-      }
+      const std::int64_t session = machine.session;
       std::lock_guard lock(records_mutex);
       auto out = records->export_session(session, config.storage.data_dir / "exports",
                                          [this] { return stopping.load(); });
       if (!out) return failed(out.error());
+      machine.capture_index = -1;
       update_status([&](StatusData& s) {
         s.last_export = *out;
         s.capture_index = -1;
@@ -666,6 +645,7 @@ Result<void> Daemon::Impl::enroll(const std::string& subject_in) {
   if (!sid) return sid.failure();
   auto session = records->create_session(*sid, names);
   if (!session) return session.failure();
+  machine.session = *session;
   update_status([&](StatusData& s) {
     s.session = *session;
     s.subject = subject;
@@ -680,11 +660,7 @@ Result<void> Daemon::Impl::enroll(const std::string& subject_in) {
 }
 
 Result<void> Daemon::Impl::show_next_guide() {
-  std::int64_t session;
-  {
-    std::lock_guard lock(status_mutex);
-    session = status.session;
-  }
+  const std::int64_t session = machine.session;
   std::lock_guard lock(records_mutex);
   auto caps = records->captures(session);
   if (!caps) return caps.failure();
@@ -692,6 +668,7 @@ Result<void> Daemon::Impl::show_next_guide() {
     if (c.state == RecordState::kDone) continue;
     const std::string label =
         c.index < static_cast<int>(guide.size()) ? guide[c.index].label : c.expression;
+    machine.capture_index = c.index;
     update_status([&](StatusData& s) {
       s.capture_index = c.index;
       s.attempts = c.attempts;

@@ -127,11 +127,7 @@ Result<void> Daemon::Impl::apply_calibration(const KinectCalibration& calibratio
 }
 
 Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
-  KioskState state;
-  {
-    std::lock_guard lock(status_mutex);
-    state = status.state;
-  }
+  const KioskState state = machine.state;  // on the worker (a worker job)
   // Between takes (and outside sessions) the camera is free; during a take, its processing or
   // tracking mode it is not.
   if (state == KioskState::kRecording || state == KioskState::kProcessing ||
@@ -172,12 +168,7 @@ Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
     calibrator.add_frame(frame.depth_mm, frame.color);
     ++got;
     if (got % 5 == 0 || got == frames) {
-      {
-        std::lock_guard lock(preview_mutex);
-        preview.resize(frame.color.width / 2, frame.color.height / 2);
-        for (int y = 0; y < preview.height; ++y)
-          for (int x = 0; x < preview.width; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
-      }
+      preview.show(frame);
       update_status([&](StatusData& s) {
         s.frames_total += got - counted;
         s.message = "Calibrating the camera: " + std::to_string(got) + " of " +

@@ -1,7 +1,8 @@
 // Private: the daemon's state shared by daemon.cpp (worker, signals), the pipeline and the HTTP
-// handlers (http_routes.hpp). Its rooms have their own headers and locks: the fit worker
-// (fit_worker.hpp) and tracking mode (tracking_mode.hpp); the status is a snapshot the worker
-// and the fit worker publish (update_status) and everyone else copies (status_json).
+// handlers (http_routes.hpp). Its rooms have their own headers (and locks where other threads
+// reach them): the capture take (capture_take.hpp), the fit worker (fit_worker.hpp) and
+// tracking mode (tracking_mode.hpp); the status is a snapshot the worker and the fit worker
+// publish (update_status) and everyone else copies (status_json).
 #pragma once
 
 #include <sys/eventfd.h>
@@ -19,17 +20,15 @@
 #include <optional>
 #include <thread>
 
-#include "algo/fusion/face_fusion.hpp"
-#include "algo/fusion/view_consistency.hpp"
-#include "algo/landmarks/face_region_box.hpp"
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/depth_camera.hpp"
+#include "firmware/daemon/capture_take.hpp"
 #include "firmware/daemon/daemon.hpp"
 #include "firmware/daemon/fit_worker.hpp"
 #include "firmware/daemon/guide_steps.hpp"
+#include "firmware/daemon/live_preview.hpp"
 #include "firmware/daemon/quick_fit.hpp"
 #include "firmware/daemon/registration_health.hpp"
-#include "firmware/daemon/take_fusion.hpp"
 #include "firmware/daemon/tracking_mode.hpp"
 #include "firmware/daemon/wall_clock_watch.hpp"
 
@@ -65,24 +64,6 @@ struct QueuedInput {
   std::int64_t session = 0;
 };
 
-struct QaReport {
-  double coverage = 0;        // fused face-box pixels / face-box pixels
-  double residual_mm = 0;     // mean ICP RMS over fused frames
-  double fused_fraction = 0;  // fused frames / recorded frames
-  // Landmarks and the quick fit ("off" when disabled, "failed" with a reason, else "ok").
-  std::string landmarks = "off";
-  std::string fit = "off";
-  double landmark_score = 0;     // dlib detection margin
-  int landmarks_3d = 0;          // interior points lifted with the fused depth
-  double landmark_error_mm = 0;  // mean landmark residual of the fit
-  double fit_rms_mm = 0;         // RMS of the fitted mesh to the fused depth
-  double fit_rms_initial_mm = 0;
-  double fit_ms = 0;
-  int corrections = 0;  // operator-corrected landmarks
-  bool passed = false;
-  std::string reason;  // why it failed
-};
-
 // The capture whose landmarks the QA screen shows (the last one processed), as the page needs it.
 struct QaCapture {
   std::int64_t session = 0;
@@ -92,7 +73,8 @@ struct QaCapture {
   std::vector<bool> corrected;
 };
 
-// Everything the status JSON shows; guarded by Daemon::Impl::status_mutex.
+// Everything the status JSON shows; guarded by Daemon::Impl::status_mutex. state, session and
+// capture_index are a snapshot of the worker's machine (Daemon::Impl::Machine).
 struct StatusData {
   KioskState state = KioskState::kIdle;
   std::string last_input;
@@ -141,10 +123,6 @@ struct StatusData {
 // The status JSON's "registration" object (daemon_calibration.cpp).
 nlohmann::json registration_json(const StatusData& s);
 
-// 2x downsample of the colour image with the face box outlined (the kiosk preview;
-// daemon_util.cpp).
-void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out);
-
 // Lowers the calling thread's scheduling priority (nice) by `nice_increment`. The take's frame
 // loop is the one thread with a deadline (the sensor overwrites a frame it reads late); the fit,
 // HTTP, registration-check and face-detection threads yield to it (daemon_util.cpp).
@@ -169,16 +147,9 @@ struct Daemon::Impl {
 
   std::unique_ptr<DepthCamera> preview_camera;  // worker only
   long long frames_since_loop = 0;              // preview_camera's frames since it (re)started
-  FaceFusion fusion;                            // worker only
-  ViewConsistency consistency;                  // worker only: the take's depth confidence
-  // A take's face box: dlib (the fitter's shape predictor, shared) on the take's first frames,
-  // grown by the face model's proportions. Made with the fitter (dlib's HOG detector takes
-  // 0.5-1 s to build); then used by one take's detection thread at a time.
-  std::optional<LandmarkDetector> take_detector;
-  std::optional<FaceProportions> take_proportions;
-  QaReport pending_qa;  // the last take, between record and process
-  CaptureCommit pending_commit;
-  CaptureView pending_view;  // frontal colour + fused surface of the last take
+  // --- the capture take (capture_take.hpp): worker only; its result waits there between
+  // record and process.
+  CaptureTake capture;
 
   // --- landmarks + quick fit (daemon_pipeline.cpp), run by the fit worker (fit_worker below)
   // so the fit never blocks the frame loop or the HTTP threads.
@@ -195,7 +166,6 @@ struct Daemon::Impl {
     CaptureCommit commit;  // kept while rejected: a correction may still accept it
   };
   std::optional<LastCapture> last_capture;
-  std::string last_capture_bmp;  // guarded by preview_mutex
   // The subject identity tracking uses (from the fit thread), guarded by identity_mutex.
   std::mutex identity_mutex;
   std::vector<float> subject_identity;
@@ -204,6 +174,16 @@ struct Daemon::Impl {
   // --- tracking mode (tracking_mode.hpp): started, fed and stopped by the worker; the HTTP
   // threads read its live weights (tracking.live(), under its own lock).
   TrackingMode tracking;
+
+  // The kiosk machine's state: the worker's alone, read and written without a lock. Each change
+  // is published into `status` in the same update; other threads read that snapshot and reach
+  // the machine only through the input queue.
+  struct Machine {
+    KioskState state = KioskState::kIdle;
+    std::int64_t session = 0;
+    int capture_index = -1;
+  };
+  Machine machine;  // worker only
 
   // Inputs for the worker.
   std::mutex queue_mutex;
@@ -216,11 +196,10 @@ struct Daemon::Impl {
   StatusData status;
   std::uint64_t status_version = 0;
 
-  // Preview picture (downsampled colour with the face box), written by the worker.
-  mutable std::mutex preview_mutex;
-  ColorImage preview;
-  // The guide pictures, rendered on first request (tens of ms: not under preview_mutex, which
-  // the take's frame loop takes).
+  // The live preview and the last capture's picture (live_preview.hpp: its own lock).
+  LivePreview preview;
+  // The guide pictures, rendered on first request (tens of ms: under a lock of their own, not
+  // the preview's, which the take's frame loop takes).
   std::mutex guide_bmp_mutex;
   std::map<int, std::string> guide_bmp_cache;  // guarded by guide_bmp_mutex
 
@@ -247,17 +226,15 @@ struct Daemon::Impl {
   KioskInput do_action(KioskAction action, const QueuedInput& in, bool* has_followup);
   Result<void> enroll(const std::string& subject);
   Result<void> show_next_guide();
-  // capture_take.cpp
-  Result<bool> record_take(QaReport& qa, CaptureCommit& commit);
-  Result<std::unique_ptr<DepthCamera>> open_take_camera(int index, int frames);
-  void warm_up_take();
-  void assess_take(const TakeTally& tally, const CameraInfo& info, QaReport& qa,
-                   CaptureCommit& commit);
   void preview_tick();
   void tracking_tick();
   // At the end of a recording or synthetic take: starts it over (see daemon.cpp).
   void loop_preview_camera();
   // daemon_pipeline.cpp
+  // The worker's side of a take: the capture's bookkeeping, its camera and the status; the
+  // take itself records in `capture`. False when cancelled or stopping.
+  Result<bool> record_take();
+  Result<std::unique_ptr<DepthCamera>> open_take_camera(int index, int frames);
   Result<void> start_fitter();
   void process_capture(std::int64_t session, int index, QaReport qa, CaptureCommit commit,
                        CaptureView view, bool run);

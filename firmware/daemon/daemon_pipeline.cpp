@@ -1,6 +1,7 @@
-// The daemon's processing after a take (landmarks, quick fit, QA, commit) on the fit worker
-// (fit_worker.hpp), the operator's landmark corrections, and the worker's side of tracking mode
-// (tracking_mode.hpp: the frame loop feeds it and keeps the status).
+// The worker's side of the capture take (capture_take.hpp), the daemon's processing after a take
+// (landmarks, quick fit, QA, commit) on the fit worker (fit_worker.hpp), the operator's landmark
+// corrections, and the worker's side of tracking mode (tracking_mode.hpp: the frame loop feeds it
+// and keeps the status).
 //
 // Threads: the worker (frame loop + state machine) hands a recorded take to the fit thread and
 // keeps running; the fit thread posts the outcome (qa_passed / last_done / qa_failed, tagged with
@@ -35,6 +36,84 @@ void Daemon::Impl::post_input(KioskInput input, std::int64_t session) {
   queue_cv.notify_all();
 }
 
+// ---------------------------------------------------------------------------------------------
+// The capture take (the room: capture_take.hpp); the worker keeps the capture's records, opens
+// the take's camera and shows the take in the status and the preview.
+
+// The camera for a take: a synthetic subject making the guide expression (a camera that takes
+// an expression control, a module from sim/), opened for the take with the guide's
+// expression, a head turn and the take's length; null when the preview camera records.
+Result<std::unique_ptr<DepthCamera>> Daemon::Impl::open_take_camera(int index, int frames) {
+  if (!config.camera.synthetic_imitates_guide ||
+      !camera_has_control(config.camera.uri, kControlExpression))
+    return std::unique_ptr<DepthCamera>();
+  CameraControls controls = {{std::string(kControlExpression), guide[index].synthetic_expr},
+                             {std::string(kControlMotion), "headturn"},
+                             {std::string(kControlFrames), std::to_string(frames)}};
+  // A real sensor delivers on its own clock and overwrites what the loop is too late for;
+  // the rendering camera does the same when asked (it renders ahead on its own thread).
+  if (config.camera.realtime && camera_has_control(config.camera.uri, kControlRealtime))
+    controls.push_back({std::string(kControlRealtime), "1"});
+  // Rendered with the face model the fitter already holds (FaceModel is immutable after
+  // loading) instead of the module loading another 21 MB copy for every take.
+  CameraResources lent;
+  if (fitter) lent.face_model = &fitter->model();
+  auto opened = open_camera(config.camera.uri, controls, lent);
+  if (!opened) return opened.failure();
+  // The take renders the same unit as the preview: under the same calibration.
+  auto calibrated = with_active_calibration(std::move(*opened));
+  if (!calibrated) return calibrated.failure();
+  if (auto ok = (*calibrated)->start(); !ok) return ok.failure();
+  return std::move(*calibrated);
+}
+
+Result<bool> Daemon::Impl::record_take() {
+  const std::int64_t session = machine.session;
+  const int index = machine.capture_index;
+  if (index < 0 || index >= static_cast<int>(guide.size()))
+    return fail("no capture selected for recording");
+  const int n = config.camera.capture_frames;
+  TakeSettings settings{n,
+                        config.camera.stored_frame_stride,
+                        config.storage.data_dir / "spool",
+                        "no landmark detector (" + fitter_error + ")",
+                        config.session.min_coverage,
+                        config.session.min_fused_fraction,
+                        config.session.max_residual_mm};
+  {
+    std::lock_guard lock(records_mutex);
+    if (auto ok = records->begin_capture(session, index); !ok) return ok.failure();
+  }
+  if (auto ok = capture.start(settings); !ok) return ok.failure();
+  update_status([&](StatusData& s) {
+    ++s.attempts;
+    s.take_frames = 0;
+    s.message = "Recording: turn your head slowly left and right...";
+  });
+  auto take_camera = open_take_camera(index, n);
+  if (!take_camera) return take_camera.failure();
+  DepthCamera& camera = *take_camera ? **take_camera : *preview_camera;
+  TakeHooks hooks;
+  hooks.cancelled = [this] {
+    watchdog_ping();
+    return stopping || cancel_pending();
+  };
+  hooks.show = [this](const RgbdFrame& frame, const FaceBox& box) { preview.show(frame, box); };
+  hooks.recorded = [this](int recorded) {
+    update_status([&](StatusData& s) {
+      s.take_frames = recorded;
+      ++s.frames_total;
+    });
+  };
+  hooks.ended = [this](long long missed) {
+    update_status([&](StatusData& s) { s.frames_dropped += missed; });
+  };
+  return capture.record(camera, hooks);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Landmarks and the quick fit
+
 Result<void> Daemon::Impl::start_fitter() {
   if (!config.session.quick_fit) {
     fitter_error = "off ([session] quick_fit = false)";
@@ -51,8 +130,7 @@ Result<void> Daemon::Impl::start_fitter() {
                fitter->landmark_model_load_ms(), paths.shape_predictor.c_str());
   // The take's face detector is built now, not at the first take, where building dlib's HOG
   // detector (0.5-1 s) made the sensor overwrite the take's first 20 frames.
-  take_detector.emplace(fitter->share_landmark_detector());
-  take_proportions = face_proportions(fitter->model());
+  capture.set_detector(fitter->share_landmark_detector(), face_proportions(fitter->model()));
   // Tracking after a restart uses the newest session's stored neutral.
   fit_worker.post([this](bool run) {
     if (!run) return;
@@ -146,10 +224,7 @@ void Daemon::Impl::publish_qa_capture(const LastCapture& c) {
       q.corrected.push_back(c.fit->corrected[static_cast<std::size_t>(i)]);
     }
   }
-  {
-    std::lock_guard lock(preview_mutex);
-    last_capture_bmp = c.view.color.empty() ? std::string() : encode_bmp(c.view.color);
-  }
+  preview.set_capture_bmp(c.view.color.empty() ? std::string() : encode_bmp(c.view.color));
   update_status([&](StatusData& s) {
     q.revision = s.qa_capture.revision + 1;
     s.qa_capture = std::move(q);
@@ -371,11 +446,7 @@ Result<void> Daemon::Impl::start_tracking() {
   // A session before leaves its freed buffers (fusion volumes, the fit thread's arena) in the
   // heap; hand them back before the tracker allocates, or the peak adds both.
   ::malloc_trim(0);
-  std::int64_t take_session;
-  {
-    std::lock_guard lock(status_mutex);
-    take_session = status.session;
-  }
+  std::int64_t take_session = machine.session;
   TrackingIdentity identity;
   {
     std::lock_guard lock(records_mutex);
@@ -456,13 +527,7 @@ void Daemon::Impl::tracking_tick() {
   const auto arrival = Clock::now();
   ++frames_since_loop;
   health->offer(frame);
-  {
-    std::lock_guard lock(preview_mutex);
-    const int w = frame.color.width / 2, h = frame.color.height / 2;
-    preview.resize(w, h);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) preview.at(x, y) = frame.color.at(2 * x, 2 * y);
-  }
+  preview.show(frame);
   bool state_changed = false;
   if (tracking.active()) {
     const TrackingMode::Tick tick = tracking.track(frame, arrival);

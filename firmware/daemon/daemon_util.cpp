@@ -139,24 +139,6 @@ Result<std::string> tar_folder(const std::filesystem::path& folder, const std::s
   return t->read(0, t->size());
 }
 
-// 2x downsample of the colour image with the face box outlined (the kiosk preview).
-void make_preview(const RgbdFrame& frame, const FaceBox& box, ColorImage& out) {
-  const int w = frame.color.width / 2, h = frame.color.height / 2;
-  if (w <= 0 || h <= 0) return;
-  out.resize(w, h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) out.at(x, y) = frame.color.at(2 * x, 2 * y);
-  const Rgb8 green{40, 220, 90};
-  const int x0 = box.x / 2, y0 = box.y / 2, x1 = (box.x + box.width) / 2 - 1,
-            y1 = (box.y + box.height) / 2 - 1;
-  for (int x = x0; x <= x1; ++x)
-    for (int y : {y0, y1})
-      if (out.contains(x, y)) out.at(x, y) = green;
-  for (int y = y0; y <= y1; ++y)
-    for (int x : {x0, x1})
-      if (out.contains(x, y)) out.at(x, y) = green;
-}
-
 void run_in_background(int nice_increment) {
   // Linux keeps a nice value per thread (setpriority on the thread id); threads started from
   // this one inherit it. Raising it needs no privilege; failure only costs the preference.

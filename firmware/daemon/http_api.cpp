@@ -67,11 +67,7 @@ void get_guide_picture(Daemon::Impl& d, const Request& req, Response& res) {
 }
 
 void get_preview(Daemon::Impl& d, const Request&, Response& res) {
-  ColorImage picture;  // copied under the lock, encoded outside it (see status_json)
-  {
-    std::lock_guard lock(d.preview_mutex);
-    picture = d.preview;
-  }
+  const ColorImage picture = d.preview.picture();  // a copy: encoded outside the lock
   if (picture.empty()) return send_error(res, 503, "no preview frame yet");
   const std::string bmp = encode_bmp(picture);
   res.set_header("Cache-Control", "no-store");

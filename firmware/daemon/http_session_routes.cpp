@@ -66,11 +66,7 @@ void post_mode(Daemon::Impl& d, const Request& req, Response& res) {
 }
 
 void get_qa_capture_picture(Daemon::Impl& d, const Request&, Response& res) {
-  std::string bmp;
-  {
-    std::lock_guard lock(d.preview_mutex);
-    bmp = d.last_capture_bmp;
-  }
+  const std::string bmp = d.preview.capture_bmp();
   if (bmp.empty()) return send_error(res, 404, "no processed capture yet");
   res.set_header("Cache-Control", "no-store");
   res.set_content(bmp, "image/bmp");

@@ -41,6 +41,10 @@ struct ExpressionTransfer::State {
 };
 
 ExpressionTransfer::ExpressionTransfer(std::unique_ptr<State> state) : state_(std::move(state)) {}
+
+std::span<const float> ExpressionTransfer::guide_neutral() const {
+  return state_->guide_neutral;
+}
 ExpressionTransfer::ExpressionTransfer(ExpressionTransfer&&) noexcept = default;
 ExpressionTransfer& ExpressionTransfer::operator=(ExpressionTransfer&&) noexcept = default;
 ExpressionTransfer::~ExpressionTransfer() = default;

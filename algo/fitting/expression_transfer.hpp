@@ -36,6 +36,7 @@ class ExpressionTransfer {
   Result<std::vector<float>> transfer(std::span<const float> guide_expression) const;
 
   const RefineSystem& refine_system() const;
+  std::span<const float> guide_neutral() const;  // G0
   // Both factorizations of create(): the transfer's and the refinement's.
   double factorization_ms() const;
 

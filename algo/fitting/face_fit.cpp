@@ -235,16 +235,17 @@ Result<void> check_ready(const FaceModel& model, const FitTarget& target) {
   return success();
 }
 
-// The rigid subset without its neck (the vertices below the chin point of `v`, 285 of the
-// model's 910): the neck lies outside the face region the neutral fit shapes, so its identity
-// is not fitted to the subject, and an open jaw drags and covers it. Where the target's depth
-// reaches under the chin (a face box grown below the face) it tilted the expression's pose.
-std::vector<std::uint32_t> rigid_above_chin(const FaceModel& model, const Points& v) {
+// `vertices` without those below the chin point of `v` (the neck): the neck lies outside the
+// face region the neutral fit shapes, so its identity is not fitted to the subject, and an
+// open jaw drags and covers it; where the target's depth reaches under the chin it tilted the
+// expression's pose.
+std::vector<std::uint32_t> above_chin(const FaceModel& model, const Points& v,
+                                      std::span<const std::uint32_t> vertices) {
   const double chin = v(model.landmark_vertices[8], 1);
   const double up = v(model.landmark_vertices[19], 1) > chin ? 1.0 : -1.0;
   std::vector<std::uint32_t> out;
-  out.reserve(model.rigid_vertices.size());
-  for (std::uint32_t i : model.rigid_vertices)
+  out.reserve(vertices.size());
+  for (std::uint32_t i : vertices)
     if (up * (v(i, 1) - chin) >= 0.0) out.push_back(i);
   return out;
 }
@@ -258,131 +259,18 @@ Eigen::Vector3d FitResult::camera_vertex(int i) const {
   return camera_from_model.apply(v);
 }
 
-std::optional<Eigen::Vector3d> lift_depth(const Image<float>& depth, const PinholeIntrinsics& k,
-                                          const Eigen::Vector2d& px, int radius_px, bool strict) {
-  // Bilinear depth where the 2x2 neighbourhood is one surface (no rim or silhouette).
-  const int x0 = static_cast<int>(std::floor(px.x())), y0 = static_cast<int>(std::floor(px.y()));
-  if (depth.contains(x0, y0) && depth.contains(x0 + 1, y0 + 1)) {
-    const float d00 = depth.at(x0, y0), d10 = depth.at(x0 + 1, y0), d01 = depth.at(x0, y0 + 1),
-                d11 = depth.at(x0 + 1, y0 + 1);
-    const float lo = std::min({d00, d10, d01, d11}), hi = std::max({d00, d10, d01, d11});
-    if (lo > 0.0f && hi - lo < 3.0f) {
-      const double fx = px.x() - x0, fy = px.y() - y0;
-      const double z = (1 - fy) * ((1 - fx) * d00 + fx * d10) + fy * ((1 - fx) * d01 + fx * d11);
-      return k.unproject(px.x(), px.y(), z);
-    }
-  }
-  if (strict) return std::nullopt;
-  const int cx = static_cast<int>(std::lround(px.x())), cy = static_cast<int>(std::lround(px.y()));
-  std::vector<float> d;
-  for (int y = cy - radius_px; y <= cy + radius_px; ++y)
-    for (int x = cx - radius_px; x <= cx + radius_px; ++x)
-      if (depth.contains(x, y) && depth.at(x, y) > 0.0f) d.push_back(depth.at(x, y));
-  if (d.empty()) return std::nullopt;
-  // At a rim: the lower quartile, not the median. Lid and lip points sit at the rim of the eye
-  // and mouth openings, and the surface behind an opening must not win.
-  std::nth_element(d.begin(), d.begin() + d.size() / 4, d.end());
-  return k.unproject(px.x(), px.y(), d[d.size() / 4]);
-}
+namespace {
 
-std::optional<Eigen::Vector3d> lift_with_depth(const FitTarget& target, const Eigen::Vector2d& px,
-                                               int radius_px, bool strict) {
-  return lift_depth(target.depth_mm, target.intrinsics, px, radius_px, strict);
-}
-
-Result<void> prepare_fit_target(FitTarget& target) {
-  const int w = target.depth_mm.width, h = target.depth_mm.height;
-  if (target.depth_mm.empty() || w < 3 || h < 3) return fail("fit: the depth map is empty");
-  if (target.intrinsics.fx <= 0 || target.intrinsics.fy <= 0)
-    return fail("fit: the depth intrinsics are not set");
-  // A pixel has a normal only inside one surface: its four neighbours have depth and no depth
-  // jump (silhouette) crosses it. Given normals (e.g. a ray-cast view's) are kept only there:
-  // the ray caster also gives one-sided normals on the rims of the view and of its holes, where
-  // fused depth is least reliable (grazing rays, the edges of what the head turn observed), and
-  // letting those rims into Epos moved the neutral fit on a side of the face (the worst of 5
-  // synthetic subjects 1.42 -> 0.92 mm vertex error, mean 0.72 -> 0.62 mm).
-  const auto& k = target.intrinsics;
-  auto point = [&](int x, int y, Eigen::Vector3d& p) {
-    const float d = target.depth_mm.at(x, y);
-    if (!(d > 0.0f)) return false;
-    p = k.unproject(x, y, d);
-    return true;
-  };
-  const bool given = target.normals.width == w && target.normals.height == h;
-  if (!given) target.normals.resize(w, h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      Eigen::Vector3f& n = target.normals.at(x, y);
-      Eigen::Vector3d c, l, r, u, d;
-      if (x == 0 || y == 0 || x == w - 1 || y == h - 1 || !point(x, y, c) || !point(x - 1, y, l) ||
-          !point(x + 1, y, r) || !point(x, y - 1, u) || !point(x, y + 1, d) ||
-          std::abs(l.z() - r.z()) > 20.0 || std::abs(u.z() - d.z()) > 20.0) {
-        n.setZero();
-        continue;
-      }
-      if (given) continue;
-      Eigen::Vector3d nn = (r - l).cross(d - u);
-      if (nn.norm() <= 0) {
-        n.setZero();
-        continue;
-      }
-      nn.normalize();
-      if (nn.z() > 0) nn = -nn;  // towards the camera
-      n = nn.cast<float>();
-    }
-  if (!target.confidence.empty() && (target.confidence.width != w || target.confidence.height != h))
-    return fail("fit: the depth confidence map is not the depth map's size");
-  int valid = 0;
-  for (const auto& lm : target.landmarks) valid += lm.valid;
-  if (valid == 0) return fail("fit: no face landmarks (no face found in the image)");
-  const auto interior = interior_3d(target);
-  if (interior.size() < 6)
-    return fail("fit: only " + std::to_string(interior.size()) +
-                " interior landmarks have depth; the face region of the depth map is missing");
-  return success();
-}
-
-Result<void> apply_corrections(FitTarget& target, std::span<const LandmarkCorrection> corrections) {
-  for (const auto& c : corrections) {
-    if (c.index < 0 || c.index >= kFitLandmarkCount)
-      return fail("landmark correction: index " + std::to_string(c.index) + " is not in 0..67");
-    FitLandmark& lm = target.landmarks[static_cast<std::size_t>(c.index)];
-    if (c.remove) {
-      lm = FitLandmark{};
-      continue;
-    }
-    if (!c.pixel.allFinite()) return fail("landmark correction: pixel is not finite");
-    lm.valid = true;
-    lm.pixel = c.pixel;
-    lm.point.reset();
-    if (!is_contour_landmark(c.index)) lm.point = lift_with_depth(target, c.pixel, 2, true);
-  }
-  return success();
-}
-
-Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
-                              std::span<const float> mesh, int iterations,
-                              const std::optional<RigidPose>& initial) {
-  if (auto ok = check_ready(model, target); !ok) return ok.failure();
-  const Points v = to_points(mesh);
-  Eigen::Matrix3d r;
-  Eigen::Vector3d t;
-  const std::vector<int> interior = interior_3d(target);
-  if (initial) {
-    r = initial->rotation.toRotationMatrix();
-    t = initial->translation;
-  } else {
-    std::vector<Eigen::Vector3d> src, dst;
-    for (int l : interior) {
-      src.push_back(v.row(marked_vertex(model, target, l)).transpose());
-      dst.push_back(*target.landmarks[static_cast<std::size_t>(l)].point);
-    }
-    if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
-  }
-  // Point-to-plane ICP on the rigid vertices above the chin, with the interior landmarks
-  // (weight as Efea).
+// Point-to-plane ICP on the rigid vertices above the chin, with the start's landmarks (weight
+// as Efea), from (r, t). Returns the pose's truncated residual over those vertices: each
+// contributes min(res^2, 4^2) mm^2, one without a surface within 4 mm the full 16, so a pose
+// that slid off the face does not score well by matching less of it.
+double icp_rigid(const FaceModel& model, const FitTarget& target, const Points& v,
+                 const std::vector<int>& interior, std::span<const std::uint32_t> still,
+                 int iterations, Eigen::Matrix3d& r, Eigen::Vector3d& t) {
   const Points n_model = vertex_normals(v, model.triangles);
-  const std::vector<std::uint32_t> rigid = rigid_above_chin(model, v);
+  const std::vector<std::uint32_t> rigid =
+      above_chin(model, v, still.empty() ? std::span(model.rigid_vertices) : still);
   const double cos_min = std::cos(70.0 * M_PI / 180.0);
   // `iterations` steps with the gate shrinking from 15 to 4 mm, then steps at 4 mm until the
   // pose settles: from a landmark Procrustes start a few degrees off, 8 steps left half the
@@ -424,7 +312,56 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
     // Settled: below 0.001 deg and 1 um.
     if (it >= iterations && angle < 2e-5 && d.tail<3>().norm() < 1e-3) break;
   }
-  return to_pose(r, t);
+  double score = 0;
+  for (std::uint32_t i : rigid) {
+    const Eigen::Vector3d x = r * v.row(i).transpose() + t;
+    Correspondence c;
+    const bool hit = correspond(target, x, r * n_model.row(i).transpose(), 4.0, cos_min, c);
+    score += hit ? std::min(16.0, std::pow(c.n.dot(x - c.q), 2)) : 16.0;
+  }
+  return score;
+}
+
+}  // namespace
+
+Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
+                              std::span<const float> mesh, int iterations,
+                              const std::optional<RigidPose>& initial,
+                              std::span<const int> second_start,
+                              std::span<const std::uint32_t> still_vertices) {
+  if (auto ok = check_ready(model, target); !ok) return ok.failure();
+  const Points v = to_points(mesh);
+  const std::vector<int> interior = interior_3d(target);
+  std::vector<std::vector<int>> starts{interior};
+  if (!initial && iterations > 0 && !second_start.empty()) {
+    std::vector<int> own;
+    for (int l : second_start)
+      if (std::find(interior.begin(), interior.end(), l) != interior.end()) own.push_back(l);
+    if (own.size() >= 4) starts.push_back(std::move(own));
+  }
+  double best = std::numeric_limits<double>::infinity();
+  RigidPose out;
+  for (const auto& start : starts) {
+    Eigen::Matrix3d r;
+    Eigen::Vector3d t;
+    if (initial) {
+      r = initial->rotation.toRotationMatrix();
+      t = initial->translation;
+    } else {
+      std::vector<Eigen::Vector3d> src, dst;
+      for (int l : start) {
+        src.push_back(v.row(marked_vertex(model, target, l)).transpose());
+        dst.push_back(*target.landmarks[static_cast<std::size_t>(l)].point);
+      }
+      if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
+    }
+    const double score = icp_rigid(model, target, v, start, still_vertices, iterations, r, t);
+    if (score < best) {
+      best = score;
+      out = to_pose(r, t);
+    }
+  }
+  return out;
 }
 
 namespace {

@@ -185,10 +185,23 @@ Result<FitResult> refine_fit(const FaceModel& model, const FitTarget& target,
 
 // Rigid pose of a fixed-shape mesh (model frame) against the target: Procrustes on the
 // interior landmarks, then point-to-plane ICP on the model's rigid vertices above the chin (the
-// neck is neither fitted by the neutral nor still when the jaw opens).
+// neck is neither fitted by the neutral nor still when the jaw opens). `second_start`
+// (optional, without `initial`): the ICP also runs from a Procrustes on these landmarks alone,
+// and the pose that fits the rigid vertices' depth better is kept. `still_vertices`
+// (optional) replace the model's rigid subset in the ICP: that subset is mostly the back of the
+// head and the ears, which a frontal capture's depth hardly shows, so without them the pose is
+// the landmarks' alone.
 Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
                               std::span<const float> mesh, int iterations,
-                              const std::optional<RigidPose>& initial = std::nullopt);
+                              const std::optional<RigidPose>& initial = std::nullopt,
+                              std::span<const int> second_start = {},
+                              std::span<const std::uint32_t> still_vertices = {});
+
+// The landmarks an expression moves least: the nose (27-35) and the eyes (36-47). An
+// expression's start from all of them fell into the wrong ICP basin on open mouths, whose
+// lip and jaw points (and dlib's convention there) move with the expression.
+inline constexpr std::array<int, 21> kRigidFaceLandmarks = {
+    27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47};
 
 // An operator's correction: landmark `index` moved to `pixel` (depth image). Interior points
 // are re-lifted with the target's depth.

@@ -7,6 +7,16 @@
 #include <vector>
 
 namespace fb::cli {
+
+Result<void> write_image_file(const std::filesystem::path& path, const cv::Mat& image) {
+  try {
+    if (!cv::imwrite(path.string(), image))
+      return fail("could not write " + path.string() + " (check the folder and the extension)");
+  } catch (const cv::Exception& e) {
+    return fail("could not write " + path.string() + ": " + e.what());
+  }
+  return success();
+}
 namespace {
 
 // False colour over the 2nd..98th percentile of valid depth so that a face at 0.7 m in front of

@@ -11,20 +11,12 @@
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/frame_png.hpp"
 #include "host/cli/guide_files.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
 namespace {
-
-Result<void> write_png(const std::filesystem::path& path, const cv::Mat& image) {
-  try {
-    if (!cv::imwrite(path.string(), image)) return fail("could not write " + path.string());
-  } catch (const cv::Exception& e) {
-    return fail("could not write " + path.string() + ": " + e.what());
-  }
-  return success();
-}
 
 int run_guide_thumbnails(const ParsedOptions& options) {
   const std::filesystem::path dir = options.get("out");
@@ -82,7 +74,7 @@ int run_guide_thumbnails(const ParsedOptions& options) {
       }
     char name[96];
     std::snprintf(name, sizeof name, "G%02d_%s.png", ge.id, ge.name.c_str());
-    if (auto ok = write_png(dir / name, img); !ok) return report_failure(ok.error());
+    if (auto ok = write_image_file(dir / name, img); !ok) return report_failure(ok.error());
     files.push_back(
         {{"id", ge.id}, {"name", ge.name}, {"label", ge.label}, {"file", (dir / name).string()}});
   }

@@ -11,6 +11,7 @@
 
 #include "algo/core/figure_text.hpp"
 #include "algo/render/rasterizer.hpp"
+#include "host/cli/frame_png.hpp"
 #include "sim/lab/fit_eval_parts.hpp"
 
 namespace fb::cli::fit_eval {
@@ -61,15 +62,6 @@ cv::Mat error_panel(const FaceModel& model, std::span<const float> mesh, const R
   return framed;
 }
 
-Result<void> write_png(const std::filesystem::path& path, const cv::Mat& image) {
-  try {
-    if (!cv::imwrite(path.string(), image)) return fail("could not write " + path.string());
-  } catch (const cv::Exception& e) {
-    return fail("could not write " + path.string() + ": " + e.what());
-  }
-  return success();
-}
-
 }  // namespace
 
 Result<void> write_fit_pngs(const ParsedOptions& options, const FaceModel& model,
@@ -85,7 +77,7 @@ Result<void> write_fit_pngs(const ParsedOptions& options, const FaceModel& model
             std::lround(255.0f * std::clamp(cap.confidence.at(x, y), 0.0f, 1.0f)));
     std::filesystem::path cpng = png;
     cpng.replace_extension(".confidence.png");
-    if (auto ok = write_png(cpng, conf); !ok) return ok.failure();
+    if (auto ok = write_image_file(cpng, conf); !ok) return ok.failure();
   }
   if (!png.empty()) {
     cv::Mat a = error_panel(model, neutral.initial_vertices, neutral.camera_from_model, cap,
@@ -95,7 +87,7 @@ Result<void> write_fit_pngs(const ParsedOptions& options, const FaceModel& model
     cv::Mat row;
     cv::hconcat(std::vector<cv::Mat>{a, cv::Mat(a.rows, 10, CV_8UC3, cv::Scalar(255, 255, 255)), b},
                 row);
-    if (auto ok = write_png(png, row); !ok) return ok.failure();
+    if (auto ok = write_image_file(png, row); !ok) return ok.failure();
   }
   return success();
 }

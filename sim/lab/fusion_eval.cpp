@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "host/cli/frame_png.hpp"
 #include "host/cli/scratch_directory.hpp"
 #include "host/cli/stats.hpp"
 #include "sim/camera/world_presets.hpp"
@@ -142,11 +143,7 @@ Result<void> write_error_map(const std::filesystem::path& path, const DepthError
   cv::Mat row;
   cv::Mat gap(raw.rows, pad, CV_8UC3, cv::Scalar(255, 255, 255));
   cv::hconcat(std::vector<cv::Mat>{raw, gap, fused, gap, bar}, row);
-  try {
-    if (!cv::imwrite(path.string(), row)) return fail("could not write " + path.string());
-  } catch (const cv::Exception& ex) {
-    return fail("could not write " + path.string() + ": " + ex.what());
-  }
+  if (auto ok = cli::write_image_file(path, row); !ok) return ok.failure();
   return success();
 }
 

@@ -21,6 +21,7 @@
 #include "algo/core/clock.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/rigging/example_rigging.hpp"
+#include "host/cli/frame_png.hpp"
 #include "host/cli/guide_files.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/rig_session.hpp"
@@ -166,11 +167,7 @@ Result<void> write_knob_plot(const std::filesystem::path& path, const std::vecto
       cv::putText(img, "default 50 x 25", px(50, cell.error_mm) + cv::Point(12, -10),
                   cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1, cv::LINE_AA);
     }
-  try {
-    if (!cv::imwrite(path.string(), img)) return fail("could not write " + path.string());
-  } catch (const cv::Exception& e) {
-    return fail("could not write " + path.string() + ": " + e.what());
-  }
+  if (auto ok = write_image_file(path, img); !ok) return ok.failure();
   return success();
 }
 

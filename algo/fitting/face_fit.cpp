@@ -266,11 +266,9 @@ namespace {
 // contributes min(res^2, 4^2) mm^2, one without a surface within 4 mm the full 16, so a pose
 // that slid off the face does not score well by matching less of it.
 double icp_rigid(const FaceModel& model, const FitTarget& target, const Points& v,
-                 const std::vector<int>& interior, std::span<const std::uint32_t> still,
-                 int iterations, Eigen::Matrix3d& r, Eigen::Vector3d& t) {
-  const Points n_model = vertex_normals(v, model.triangles);
-  const std::vector<std::uint32_t> rigid =
-      above_chin(model, v, still.empty() ? std::span(model.rigid_vertices) : still);
+                 const Points& n_model, const std::vector<std::uint32_t>& rigid,
+                 const std::vector<int>& interior, int iterations, Eigen::Matrix3d& r,
+                 Eigen::Vector3d& t) {
   const double cos_min = std::cos(70.0 * M_PI / 180.0);
   // `iterations` steps with the gate shrinking from 15 to 4 mm, then steps at 4 mm until the
   // pose settles: from a landmark Procrustes start a few degrees off, 8 steps left half the
@@ -339,6 +337,9 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
       if (std::find(interior.begin(), interior.end(), l) != interior.end()) own.push_back(l);
     if (own.size() >= 4) starts.push_back(std::move(own));
   }
+  const Points n_model = vertex_normals(v, model.triangles);
+  const std::vector<std::uint32_t> rigid = above_chin(
+      model, v, still_vertices.empty() ? std::span(model.rigid_vertices) : still_vertices);
   double best = std::numeric_limits<double>::infinity();
   RigidPose out;
   for (const auto& start : starts) {
@@ -355,7 +356,7 @@ Result<RigidPose> align_rigid(const FaceModel& model, const FitTarget& target,
       }
       if (!procrustes(src, dst, r, t)) return fail("fit: rigid alignment of the landmarks failed");
     }
-    const double score = icp_rigid(model, target, v, start, still_vertices, iterations, r, t);
+    const double score = icp_rigid(model, target, v, n_model, rigid, start, iterations, r, t);
     if (score < best) {
       best = score;
       out = to_pose(r, t);

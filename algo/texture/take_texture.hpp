@@ -4,7 +4,6 @@
 #pragma once
 
 #include <cstdint>
-#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -12,7 +11,6 @@
 #include <Eigen/Core>
 
 #include "algo/core/frame.hpp"
-#include "algo/texture/feature_warp.hpp"
 #include "algo/texture/mesh_alignment.hpp"
 #include "algo/texture/texture_atlas.hpp"
 
@@ -28,18 +26,11 @@ struct TakeTextureInput {
   std::span<const Eigen::Vector3d> landmarks_model;
   std::span<const Eigen::Vector3d> landmarks_camera;
   std::optional<RigidPose> start;  // camera_from_model of frame 0, when known
-  // Optional: a landmark detector's 68 points on frame i (nullopt: no face found), and the mesh
-  // vertex each point marks (the detector's embedding): with both, the atlas's correspondence
-  // is corrected by the points on the views (feature_warp.hpp).
-  std::function<std::optional<FeaturePoints>(std::size_t frame)> features;
-  std::span<const std::uint32_t> feature_vertices;
 };
 
 struct TakeTextureOptions {
   int max_views = 15;
-  int feature_views = 15;  // views the detector runs on (spread over the chosen views)
   AlignOptions align;
-  FeatureWarpOptions warp;
   TextureOptions texture;
 };
 
@@ -49,7 +40,6 @@ struct TakeTexture {
   std::vector<AlignStats> alignment;
   std::vector<int> views;  // frames the colour came from
   int frames_aligned = 0;
-  std::optional<FeatureWarp> warp;  // when features were given
 };
 
 Result<TakeTexture> texture_from_take(const TexelMap& map, const TakeTextureInput& input,

@@ -199,8 +199,6 @@ Result<TextureAtlas> build_texture_atlas(const TexelMap& map, const TextureMesh&
   if (views.empty()) return fail("no colour frames to build a texture from");
   if (mesh.normals.size() != mesh.vertices.size())
     return fail("the mesh's normals do not match its vertices");
-  if (!mesh.sample_offsets.empty() && mesh.sample_offsets.size() != mesh.vertices.size())
-    return fail("the sample offsets do not match the mesh's vertices");
   for (const auto& v : views)
     if (v.color == nullptr || v.color->empty())
       return fail("a frame without a colour image; the texture needs the take's colour frames");
@@ -215,8 +213,6 @@ Result<TextureAtlas> build_texture_atlas(const TexelMap& map, const TextureMesh&
     Texel x;
     x.index = static_cast<std::uint32_t>(i);
     x.p = texel_point(map, i, mesh.triangles, mesh.vertices);
-    if (!mesh.sample_offsets.empty())
-      x.p += texel_point(map, i, mesh.triangles, mesh.sample_offsets);
     x.n = texel_point(map, i, mesh.triangles, mesh.normals).normalized();
     texels.push_back(x);
   }

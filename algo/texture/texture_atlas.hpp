@@ -32,9 +32,6 @@ struct TextureMesh {
   std::span<const float> vertices;  // 3 per vertex, mm
   std::span<const float> normals;   // 3 per vertex, unit
   std::span<const std::uint32_t> triangles;
-  // Optional, 3 per vertex (mm): where each surface point's colour is read, relative to the
-  // point along the surface (feature_warp.hpp); lighting keeps the texel's own normal.
-  std::span<const float> sample_offsets;
 };
 
 // One frame of the take: its colour and depth images and where the mesh is in it.

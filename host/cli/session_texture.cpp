@@ -61,21 +61,10 @@ Result<SessionAtlasInputs> session_atlas_inputs(const SessionStore& store, const
   return in;
 }
 
-std::function<std::optional<FeaturePoints>(std::size_t)> take_features(
-    LandmarkDetector& detector, std::span<const RgbdFrame> frames) {
-  return [&detector, frames](std::size_t f) -> std::optional<FeaturePoints> {
-    if (f >= frames.size()) return std::nullopt;
-    detector.reset_tracking();
-    auto found = detector.detect(frames[f].color);
-    if (!found) return std::nullopt;
-    return found->points;
-  };
-}
-
 Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session, int capture_index,
                                     const FaceModel& model, const TexelMap& map,
                                     const KinectRegistration& registration,
-                                    LandmarkDetector* detector, const TakeTextureOptions& options) {
+                                    const TakeTextureOptions& options) {
   auto meshes = fitted_meshes(store, session);
   if (!meshes) return meshes.failure();
   const auto found = meshes->find(capture_index);
@@ -92,13 +81,12 @@ Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session
   auto embedding = landmark_embedding_beside(model, default_face_model_path());
   if (!embedding) return embedding.failure();
   const LandmarkEmbedding marks = embedding->value_or(model_landmark_embedding(model));
-  const LandmarkEmbedding::Vertices& vertices = marks.for_expression(capture->info.expression);
   std::vector<Eigen::Vector3d> model_points, camera_points;
   for (std::size_t l = 0; l < capture->landmarks.size() && l < model.landmark_vertices.size();
        ++l) {
     const Landmark& p = capture->landmarks[l];
     if (l < 17 || !p.has_3d) continue;  // interior points carry reliable 3D
-    const auto v = vertices[l];
+    const auto v = marks.for_expression(capture->info.expression)[l];
     model_points.emplace_back(mesh->positions[3 * v], mesh->positions[3 * v + 1],
                               mesh->positions[3 * v + 2]);
     camera_points.emplace_back(p.x, p.y, p.z);
@@ -110,16 +98,12 @@ Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session
   in.frames = capture->frames;
   in.landmarks_model = model_points;
   in.landmarks_camera = camera_points;
-  if (detector != nullptr) {
-    in.features = take_features(*detector, capture->frames);
-    in.feature_vertices = vertices;
-  }
   return texture_from_take(map, in, registration, options);
 }
 
 Result<std::vector<CaptureTextureReport>> texture_session(
     SessionStore& store, SessionId session, const FaceModel& model, int size, bool expressions,
-    bool save, LandmarkDetector* detector, const std::function<void(int, int)>& progress) {
+    bool save, const std::function<void(int, int)>& progress) {
   if (model.uvs.empty())
     return fail(
         "the face model asset has no UV layout; reconvert it with facebooth-convert-facemodel");
@@ -138,7 +122,7 @@ Result<std::vector<CaptureTextureReport>> texture_session(
   std::vector<CaptureTextureReport> out;
   for (const int index : todo) {
     const auto t0 = Clock::now();
-    auto t = texture_capture(store, session, index, model, *map, registration, detector);
+    auto t = texture_capture(store, session, index, model, *map, registration);
     if (!t) return fail("capture " + std::to_string(index) + ": " + t.error().message);
     CaptureTextureReport r;
     r.capture_index = index;
@@ -149,18 +133,13 @@ Result<std::vector<CaptureTextureReport>> texture_session(
     r.views = static_cast<int>(t->views.size());
     r.observed_fraction = static_cast<double>(t->atlas.report.observed_texels) /
                           std::max(1, t->atlas.report.covered_texels);
-    if (t->warp) {
-      r.warp = std::move(t->warp);
-      r.warp->offsets.clear();  // the report keeps the figures only
-    }
     if (save) {
       auto png = encode_png(t->atlas.image);
       if (!png) return png.failure();
       nlohmann::json params = {{"views", t->views},
                                {"frames_aligned", t->frames_aligned},
                                {"observed_fraction", r.observed_fraction},
-                               {"calibration", note.empty() ? "recorded" : "defaults"},
-                               {"feature_landmarks", r.warp ? r.warp->landmarks : 0}};
+                               {"calibration", note.empty() ? "recorded" : "defaults"}};
       auto id = store.add_texture(session, index == 0 ? std::nullopt : std::optional<int>(index),
                                   map->width, map->height, *png, params.dump());
       if (!id) return id.failure();

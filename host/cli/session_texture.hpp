@@ -11,7 +11,6 @@
 
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
-#include "algo/landmarks/landmark_detector.hpp"
 #include "algo/texture/take_texture.hpp"
 #include "algo/texture/texel_map.hpp"
 #include "storage/session_store.hpp"
@@ -27,7 +26,6 @@ struct CaptureTextureReport {
   int views = 0;
   double observed_fraction = 0.0;  // of the atlas's covered texels
   double seconds = 0.0;
-  std::optional<FeatureWarp> warp;  // the feature correction, when a detector was given
 };
 
 // The newest fitted mesh of each capture of `session` (a neutral mesh counts for its capture,
@@ -52,24 +50,17 @@ Result<SessionAtlasInputs> session_atlas_inputs(const SessionStore& store, const
 // The unit calibration a session recorded, or the defaults (with `note` saying so).
 Result<KinectCalibration> session_calibration(const SessionInfo& session, std::string& note);
 
-// The detector's 68 points on a take's frames, for the atlas's feature correction: a full
-// detection on each frame asked for (the embedding was learned from full detections).
-std::function<std::optional<FeaturePoints>(std::size_t)> take_features(
-    LandmarkDetector& detector, std::span<const RgbdFrame> frames);
-
-// Builds the texture of capture `capture_index` of a session from its newest fitted mesh;
-// `detector` (may be null: no feature correction) finds the features on the take's views.
+// Builds the texture of capture `capture_index` of a session from its newest fitted mesh.
 Result<TakeTexture> texture_capture(const SessionStore& store, SessionId session, int capture_index,
                                     const FaceModel& model, const TexelMap& map,
                                     const KinectRegistration& registration,
-                                    LandmarkDetector* detector,
                                     const TakeTextureOptions& options = {});
 
 // The captures with a fitted mesh, neutral first: the subject texture (from the neutral's take)
 // and, with `expressions`, one per other capture. `save`: stored in the session (PNG).
-// `progress(done, total)` after each capture. `detector`: as texture_capture.
+// `progress(done, total)` after each capture.
 Result<std::vector<CaptureTextureReport>> texture_session(
     SessionStore& store, SessionId session, const FaceModel& model, int size, bool expressions,
-    bool save, LandmarkDetector* detector, const std::function<void(int, int)>& progress = {});
+    bool save, const std::function<void(int, int)>& progress = {});
 
 }  // namespace fb::cli

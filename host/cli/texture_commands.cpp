@@ -7,7 +7,6 @@
 #include "host/cli/commands.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/session_texture.hpp"
-#include "host/cli/tracker_setup.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb::cli {
@@ -34,18 +33,12 @@ int run_texture(const ParsedOptions& options) {
   std::string note;
   if (auto c = session_calibration(*info, note); !c) return report_failure(c.error());
   if (!note.empty()) std::cerr << "facebooth: note: " << note << "\n";
-  // dlib's points on the take's views correct the atlas's correspondence (feature_warp.hpp).
-  auto detector = load_landmark_detector(options.get("shape-predictor"));
-  if (!detector)
-    std::cerr << "facebooth: note: no feature correction of the texture: "
-              << detector.error().message << "\n";
   std::optional<Progress> progress;
-  auto reports =
-      texture_session(*store, *sid, *model, static_cast<int>(*size), options.flag("expressions"),
-                      save, detector ? &*detector : nullptr, [&](int done, int total) {
-                        if (!progress) progress.emplace("texture", total);
-                        progress->update(done);
-                      });
+  auto reports = texture_session(*store, *sid, *model, static_cast<int>(*size),
+                                 options.flag("expressions"), save, [&](int done, int total) {
+                                   if (!progress) progress.emplace("texture", total);
+                                   progress->update(done);
+                                 });
   if (!reports) return report_failure(reports.error());
   nlohmann::json out = {{"session", *sid}, {"size", *size}, {"saved", save}};
   out["calibration"] = note.empty() ? "recorded" : "defaults";
@@ -55,12 +48,6 @@ int run_texture(const ParsedOptions& options) {
                         {"views", r.views},           {"observed_fraction", r.observed_fraction},
                         {"seconds", r.seconds}};
     if (r.stored) j["texture_id"] = *r.stored;
-    if (r.warp)
-      j["feature_correction"] = {{"landmarks", r.warp->landmarks},
-                                 {"views", r.warp->views},
-                                 {"mean_offset_mm", r.warp->mean_offset_mm},
-                                 {"residual_px_before", r.warp->residual_px_before},
-                                 {"residual_px_after", r.warp->residual_px_after}};
     out["textures"].push_back(j);
   }
   const std::string png = options.get("png");
@@ -88,9 +75,7 @@ std::vector<Command> texture_commands() {
             "the subject's colour texture (face model UV layout) from a session's colour frames",
             "The fitted neutral is placed on its take's frames (3D landmarks, then ICP on every "
             "frame's depth), up to 15 frames spread over the head turn are projected through the "
-            "unit calibration the session recorded (where dlib's points on them say the mesh's "
-            "features are off, the atlas is warped so they land on their vertices), their lighting "
-            "is divided out and they are "
+            "unit calibration the session recorded, their lighting is divided out and they are "
             "blended by view angle; what no frame saw is filled smoothly. Stored with the session "
             "(exports use the newest: glTF baseColorTexture, OBJ map_Kd). --expressions adds one "
             "texture per fitted expression (FaceWarehouse TrainingPose). JSON report on stdout.",
@@ -102,8 +87,6 @@ std::vector<Command> texture_commands() {
               "1024"},
              {"expressions", "", "also one texture per fitted expression capture", ""},
              {"no-save", "", "build and report only; the store is opened read-only", ""},
-             {"shape-predictor", "FILE",
-              "dlib's 68-point model (its points on the views correct the texture)", ""},
              {"png", "FILE", "also write the subject texture to FILE", ""}}},
            run_texture}};
 }

@@ -14,7 +14,6 @@
 #include "algo/render/rasterizer.hpp"
 #include "algo/texture/take_texture.hpp"
 #include "host/cli/progress.hpp"
-#include "host/cli/session_texture.hpp"
 #include "host/cli/tracker_setup.hpp"
 #include "sim/lab/lab_commands.hpp"
 #include "sim/lab/raster_pixels.hpp"
@@ -281,26 +280,20 @@ constexpr const char* kTextureScoring =
 nlohmann::json run_json(std::uint64_t seed, const AtlasScore& score, double on_surface,
                         double observed, const TakeTexture& tex, double fit_rms_mm,
                         double seconds) {
-  return nlohmann::json(
-      {{"seed", seed},
-       {"texture_psnr_db", score.psnr_db},
-       {"texture_seam_error", score.seam_error},
-       {"texture_psnr_db_on_fitted_surface", on_surface},
-       {"seam_samples", score.seam_samples},
-       {"seam_edges", score.seam_edges},
-       {"seam_samples_observed", score.seam_samples_observed},
-       {"face_texels_scored", score.texels},
-       {"gain", {score.gain.x(), score.gain.y(), score.gain.z()}},
-       {"observed_fraction", observed},
-       {"frames_aligned", tex.frames_aligned},
-       {"views", tex.views.size()},
-       {"feature_landmarks", tex.warp ? tex.warp->landmarks : 0},
-       {"feature_views", tex.warp ? tex.warp->views : 0},
-       {"feature_offset_mm", tex.warp ? tex.warp->mean_offset_mm : 0.0},
-       {"feature_residual_px_before", tex.warp ? tex.warp->residual_px_before : 0.0},
-       {"feature_residual_px_after", tex.warp ? tex.warp->residual_px_after : 0.0},
-       {"fit_rms_to_depth_mm", fit_rms_mm},
-       {"texture_s", seconds}});
+  return nlohmann::json({{"seed", seed},
+                         {"texture_psnr_db", score.psnr_db},
+                         {"texture_seam_error", score.seam_error},
+                         {"texture_psnr_db_on_fitted_surface", on_surface},
+                         {"seam_samples", score.seam_samples},
+                         {"seam_edges", score.seam_edges},
+                         {"seam_samples_observed", score.seam_samples_observed},
+                         {"face_texels_scored", score.texels},
+                         {"gain", {score.gain.x(), score.gain.y(), score.gain.z()}},
+                         {"observed_fraction", observed},
+                         {"frames_aligned", tex.frames_aligned},
+                         {"views", tex.views.size()},
+                         {"fit_rms_to_depth_mm", fit_rms_mm},
+                         {"texture_s", seconds}});
 }
 
 // The fit's inner landmarks (17-67) on the mesh and their lifted camera points: the pairs that
@@ -354,7 +347,7 @@ struct TextureEvalSetup {
   std::vector<float> atlas_uvs;
   const TexelMap* map = nullptr;
   std::vector<bool> face;
-  LandmarkDetector* detector = nullptr;  // null: true landmarks, no feature correction
+  LandmarkDetector* detector = nullptr;  // null: true landmarks
   const LandmarkEmbedding* embedding = nullptr;
   TakeTextureOptions texture;
   std::string world;
@@ -370,7 +363,7 @@ struct SubjectTexture {
 };
 
 // One synthetic subject: capture, fit from frame 0's landmarks, texture as the product does
-// (texture_capture's inputs, the same take_features), score.
+// (texture_capture's inputs), score.
 Result<SubjectTexture> texture_subject(const TextureEvalSetup& setup, std::uint64_t seed,
                                        bool picture) {
   const FaceModel& model = *setup.model;
@@ -388,22 +381,15 @@ Result<SubjectTexture> texture_subject(const TextureEvalSetup& setup, std::uint6
   }
   auto target = make_fit_target(*cap, points, false);
   if (!target) return target.failure();
-  const LandmarkEmbedding::Vertices* marks = nullptr;
-  if (setup.detector && setup.embedding) {
-    marks = &setup.embedding->for_expression("neutral");  // as the device
-    target->landmark_vertices = *marks;
-  }
+  if (setup.detector && setup.embedding)
+    target->landmark_vertices = setup.embedding->for_expression("neutral");  // as the device
   auto fit = fit_neutral(model, *target);
   if (!fit) return fit.failure();
   const std::vector<float>& mesh = setup.truth_mesh ? cap->truth_mesh : fit->vertices;
   const LandmarkPairs pairs = landmark_pairs(model, mesh, *target);
-  TakeTextureInput in{mesh,        model.triangles, model.face_vertex_count,
-                      cap->frames, pairs.model,     pairs.camera,
-                      std::nullopt};
-  if (setup.detector && marks && setup.texture.feature_views > 0) {
-    in.features = take_features(*setup.detector, cap->frames);
-    in.feature_vertices = *marks;
-  }
+  const TakeTextureInput in{mesh,        model.triangles, model.face_vertex_count,
+                            cap->frames, pairs.model,     pairs.camera,
+                            std::nullopt};
   const KinectRegistration registration(cap->calibration);
   const auto t0 = Clock::now();
   auto tex = texture_from_take(*setup.map, in, registration, setup.texture);
@@ -429,20 +415,11 @@ Result<SubjectTexture> texture_subject(const TextureEvalSetup& setup, std::uint6
 Result<void> texture_eval_options(const ParsedOptions& options, TextureEvalSetup& setup) {
   auto frames = options.get_int("frames");
   auto views = options.get_int("views");
-  auto feature_views = options.get_int("feature-views");
-  auto kernel = options.get_double("warp-kernel-mm");
-  auto prior = options.get_double("warp-prior-mm");
   if (!frames) return frames.failure();
   if (!views) return views.failure();
-  if (!feature_views) return feature_views.failure();
-  if (!kernel) return kernel.failure();
-  if (!prior) return prior.failure();
   if (*frames < 2) return fail("--frames >= 2");
   setup.frames = static_cast<int>(*frames);
   setup.texture.max_views = static_cast<int>(*views);
-  setup.texture.feature_views = static_cast<int>(*feature_views);
-  setup.texture.warp.kernel_mm = *kernel;
-  setup.texture.warp.prior_mm = *prior;
   setup.texture.texture.delight = !options.flag("no-delight");
   setup.world = options.get("world");
   setup.png = options.get("png");
@@ -508,7 +485,6 @@ int run_eval_texture(const ParsedOptions& options) {
       {"world", setup.world},
       {"landmarks", dlib ? "dlib on frame 0 (as the device)" : "truth"},
       {"mesh", setup.truth_mesh ? "truth (upper bound)" : "fitted"},
-      {"feature_views", dlib ? setup.texture.feature_views : 0},
       {"atlas_size", *size},
       {"texture_psnr_db", psnr_sum / n},
       {"texture_psnr_db_min", psnr_min},
@@ -540,10 +516,6 @@ std::vector<Command> texture_eval_commands() {
          {"frames", "N", "frames per head turn", "90"},
          {"size", "PX", "atlas height (its width: one square per UV tile)", "1024"},
          {"views", "N", "frames blended (spread over the take)", "15"},
-         {"feature-views", "N",
-          "views dlib runs on to correct the atlas (feature_warp.hpp; 0: no correction)", "15"},
-         {"warp-kernel-mm", "MM", "the correction's smoothing kernel on the mesh", "6"},
-         {"warp-prior-mm", "MM", "the correction's prior on a landmark's offset", "1.5"},
          {"mesh", "fitted|truth", "texture the fitted or (an upper bound) the true mesh", "fitted"},
          {"no-delight", "", "keep the frames' shading in the atlas (for comparison)", ""},
          {"world", "PRESET", "synthetic world preset (world_presets.hpp)", "texture"},

@@ -18,7 +18,6 @@ struct Take {
   std::vector<RgbdFrame> frames;
   std::vector<RigidPose> truth;
   std::vector<Eigen::Vector3d> landmarks_camera;  // frame 0
-  std::vector<FeaturePoints> landmarks_color;     // every frame: the true 68 points, colour px
   std::vector<float> mesh;                        // the rendered skin, model frame
 };
 
@@ -42,9 +41,6 @@ Take record(int frames, const std::string& world_key) {
     EXPECT_TRUE(st && *st == FrameStatus::kFrame);
     t.truth.push_back(t.camera->truth()->camera_from_model);
     if (i == 0) t.landmarks_camera = t.camera->truth()->landmarks_3d;
-    FeaturePoints points;
-    for (std::size_t l = 0; l < 68; ++l) points[l] = t.camera->truth()->landmarks_color_px[l];
-    t.landmarks_color.push_back(points);
     t.frames.push_back(std::move(f));
   }
   const auto v = t.camera->model_vertices();
@@ -177,90 +173,6 @@ TEST(TextureAtlas, BadInputIsAClearError) {
   auto r = build_texture_atlas(map, mesh, {}, registration);
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("colour frames"), std::string::npos);
-}
-
-// A mesh whose features slid along the surface (as a fit's brows, eyes and lips do): smooth
-// tangential bumps of up to `amplitude` mm around the brows, the eyes and the mouth.
-std::vector<float> slid_mesh(const Take& t, float amplitude) {
-  const std::vector<float> normals = vertex_normals(t.mesh, t.model.triangles);
-  auto at = [&](const std::vector<float>& a, std::size_t v) {
-    return Eigen::Vector3f(a[3 * v], a[3 * v + 1], a[3 * v + 2]);
-  };
-  struct Bump {
-    int landmark;
-    Eigen::Vector3f direction;
-  };
-  const Bump bumps[] = {{19, {0.0f, -1.0f, 0.0f}}, {24, {0.3f, -1.0f, 0.0f}},
-                        {37, {1.0f, 0.5f, 0.0f}},  {44, {0.0f, 1.0f, 0.0f}},
-                        {51, {-1.0f, 0.0f, 0.0f}}, {57, {0.7f, -0.7f, 0.0f}}};
-  std::vector<float> out = t.mesh;
-  for (int v = 0; v < t.model.face_vertex_count; ++v) {
-    const Eigen::Vector3f p = at(t.mesh, static_cast<std::size_t>(v));
-    Eigen::Vector3f d = Eigen::Vector3f::Zero();
-    for (const Bump& b : bumps) {
-      const Eigen::Vector3f c = at(t.mesh, t.model.landmark_vertices[b.landmark]);
-      d += amplitude * b.direction.normalized() * std::exp(-(p - c).squaredNorm() / (2 * 144.0f));
-    }
-    const Eigen::Vector3f n = at(normals, static_cast<std::size_t>(v)).normalized();
-    d -= d.dot(n) * n;  // along the surface
-    for (int a = 0; a < 3; ++a) out[3 * static_cast<std::size_t>(v) + a] += d[a];
-  }
-  return out;
-}
-
-TEST(FeatureWarp, PutsSlidFeaturesBackOnTheirTexels) {
-  Take t = record(45, "texture");
-  const std::vector<float> slid = slid_mesh(t, 2.5f);
-  auto map = make_texel_map(t.model.atlas_uvs(), t.model.triangle_uvs, 1024, 512);
-  ASSERT_TRUE(map);
-  KinectRegistration registration(KinectCalibration::defaults());
-  // The detector's points: the true ones (with dlib's 2.5 px per frame the correction is
-  // worse than none: docs/texture.md).
-  const std::vector<FeaturePoints>& detected = t.landmarks_color;
-  TakeTextureInput in;
-  in.vertices = slid;
-  in.triangles = t.model.triangles;
-  in.region_vertices = t.model.face_vertex_count;
-  in.frames = t.frames;
-  in.start = t.truth.front();
-  auto plain = texture_from_take(*map, in, registration);
-  ASSERT_TRUE(plain) << plain.error().message;
-  in.features = [&](std::size_t f) -> std::optional<FeaturePoints> { return detected[f]; };
-  in.feature_vertices = t.model.landmark_vertices;
-  auto warped = texture_from_take(*map, in, registration);
-  ASSERT_TRUE(warped) << warped.error().message;
-  ASSERT_TRUE(warped->warp);
-  EXPECT_GE(warped->warp->landmarks, 40);
-  // The warp's offset at each interior landmark against the slide it must undo.
-  double slide = 0.0, error = 0.0;
-  for (int l = 17; l < 68; ++l) {
-    const std::size_t v = t.model.landmark_vertices[static_cast<std::size_t>(l)];
-    Eigen::Vector3d d, o;
-    for (int a = 0; a < 3; ++a) {
-      d[a] = slid[3 * v + a] - t.mesh[3 * v + a];
-      o[a] = warped->warp->offsets[3 * v + a];
-    }
-    slide += d.norm() / 51.0;
-    error += (o + d).norm() / 51.0;
-  }
-  const Score a = score(t, *map, plain->atlas), b = score(t, *map, warped->atlas);
-  std::printf(
-      "slide %.2f mm mean at the landmarks, left after the warp %.2f mm; atlas %.2f dB "
-      "-> %.2f dB; residual %.2f -> %.2f px\n",
-      slide, error, a.psnr_db, b.psnr_db, warped->warp->residual_px_before,
-      warped->warp->residual_px_after);
-  EXPECT_GT(slide, 0.6);
-  EXPECT_LT(error, 0.7 * slide);
-  EXPECT_GT(b.psnr_db, a.psnr_db + 0.1);
-}
-
-TEST(FeatureWarp, BadInputIsAClearError) {
-  const std::vector<float> v(9, 0.0f), n(9, 0.0f);
-  const std::vector<std::uint32_t> marks(68, 7);  // outside a 3-vertex mesh
-  KinectRegistration registration(KinectCalibration::defaults());
-  auto r = estimate_feature_warp(v, n, marks, {}, registration);
-  ASSERT_FALSE(r);
-  EXPECT_NE(r.error().message.find("outside"), std::string::npos);
 }
 
 }  // namespace

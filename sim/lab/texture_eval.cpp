@@ -14,7 +14,9 @@
 #include "algo/render/rasterizer.hpp"
 #include "algo/texture/take_texture.hpp"
 #include "host/cli/progress.hpp"
+#include "host/cli/tracker_setup.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/lab/raster_pixels.hpp"
 #include "sim/scoring/take_runner.hpp"
 #include "sim/subject/synthetic_capture.hpp"
 #include "storage/asset_files.hpp"
@@ -223,26 +225,16 @@ ColorImage render_avatar(const FaceModel& model, std::span<const float> uvs,
   std::fill(out.pixels.begin(), out.pixels.end(), Rgb8{96, 96, 96});
   if (!rasterize(k, posed, model.triangles, {}, raster)) return out;
   const Eigen::Vector3f light = Eigen::Vector3f(-0.3f, -0.4f, -1.0f).normalized();
-  for (int y = 0; y < k.height; ++y) {
-    for (int x = 0; x < k.width; ++x) {
-      const std::size_t i = raster.index(x, y);
-      const std::int32_t t = raster.triangle[i];
-      if (t == kNoTriangle) continue;
-      const float b[3] = {1.0f - raster.bary1[i] - raster.bary2[i], raster.bary1[i],
-                          raster.bary2[i]};
-      Eigen::Vector2f uv = Eigen::Vector2f::Zero();
-      Eigen::Vector3f n = Eigen::Vector3f::Zero();
-      for (int c = 0; c < 3; ++c) {
-        uv += b[c] * uv_of(uvs, model.triangle_uvs[3 * t + c]);
-        const auto v = model.triangles[3 * t + c];
-        n += b[c] * Eigen::Vector3f(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
-      }
-      const float shade = 0.45f + 0.6f * std::max(0.0f, (r * n.normalized()).dot(light));
-      const Eigen::Vector3f c = (sample(atlas, uv.x(), uv.y()) * shade).cwiseMin(255.0f);
-      out.at(x, y) = Rgb8{static_cast<std::uint8_t>(c.x()), static_cast<std::uint8_t>(c.y()),
-                          static_cast<std::uint8_t>(c.z())};
-    }
-  }
+  for_each_covered_pixel(raster, [&](const RasterPixel& p) {
+    Eigen::Vector2f uv = Eigen::Vector2f::Zero();
+    for (int c = 0; c < 3; ++c)
+      uv += p.bary[c] * uv_of(uvs, model.triangle_uvs[3 * p.triangle + c]);
+    const Eigen::Vector3f n = interpolate(normals, model.triangles, p);
+    const float shade = 0.45f + 0.6f * std::max(0.0f, (r * n.normalized()).dot(light));
+    const Eigen::Vector3f c = (sample(atlas, uv.x(), uv.y()) * shade).cwiseMin(255.0f);
+    out.at(p.x, p.y) = Rgb8{static_cast<std::uint8_t>(c.x()), static_cast<std::uint8_t>(c.y()),
+                            static_cast<std::uint8_t>(c.z())};
+  });
   return out;
 }
 
@@ -274,6 +266,15 @@ Result<void> write_picture(const std::string& path, const std::vector<ColorImage
   if (!f) return fail("could not write " + path + "; check the folder exists and is writable");
   return success();
 }
+
+constexpr const char* kTextureScoring =
+    "PSNR over the visible face (inside the jaw line, up to 25 mm above the brows, facing "
+    "forward; observed, not over-exposed in every view) against the renderer's surface colour, "
+    "after one least-squares gain per channel (exposure is unobservable), in the atlas's UV "
+    "space (so the fit's correspondence error counts); _on_fitted_surface: each texel against "
+    "the painted colour where its fitted point lands on the true surface (the still avatar's "
+    "appearance); seam error: mean absolute 8-bit difference of the atlas across UV seams of "
+    "the face, both sides observed";
 
 // One subject's line of the JSON.
 nlohmann::json run_json(std::uint64_t seed, const AtlasScore& score, double on_surface,
@@ -340,21 +341,111 @@ Result<void> write_avatar_picture(const std::string& path, const FaceModel& mode
                               crop(side, side_centre, crop_px, out_px)});
 }
 
+// What one subject's run is given: the lab's choices and what is loaded once.
+struct TextureEvalSetup {
+  const FaceModel* model = nullptr;
+  std::vector<float> atlas_uvs;
+  const TexelMap* map = nullptr;
+  std::vector<bool> face;
+  LandmarkDetector* detector = nullptr;  // null: true landmarks
+  const LandmarkEmbedding* embedding = nullptr;
+  TakeTextureOptions texture;
+  std::string world;
+  int frames = 90;
+  bool truth_mesh = false;  // texture the true mesh (an upper bound: no fit error)
+  std::string png;
+};
+
+struct SubjectTexture {
+  nlohmann::json json;
+  AtlasScore score;
+  double on_surface = 0.0, observed = 0.0, seconds = 0.0;
+};
+
+// One synthetic subject: capture, fit from frame 0's landmarks, texture as the product does
+// (texture_capture's inputs), score.
+Result<SubjectTexture> texture_subject(const TextureEvalSetup& setup, std::uint64_t seed,
+                                       bool picture) {
+  const FaceModel& model = *setup.model;
+  const std::vector<float> identity = identity_draw(seed, model.identity_count);
+  const std::vector<float> neutral(static_cast<std::size_t>(model.expression_count), 0.0f);
+  auto cap = capture(model, identity, neutral, seed, setup.frames, false, {}, setup.world, seed,
+                     UnitCalibration::kCalibrated, setup.detector, true);
+  if (!cap) return cap.failure();
+  std::vector<Eigen::Vector2d> points = cap->truth_color_px;
+  if (setup.detector) {
+    setup.detector->reset_tracking();
+    auto found = setup.detector->detect(cap->color);
+    if (!found) return fail("dlib: " + found.error().message);
+    points.assign(found->points.begin(), found->points.end());
+  }
+  auto target = make_fit_target(*cap, points, false);
+  if (!target) return target.failure();
+  if (setup.detector && setup.embedding)
+    target->landmark_vertices = setup.embedding->for_expression("neutral");  // as the device
+  auto fit = fit_neutral(model, *target);
+  if (!fit) return fit.failure();
+  const std::vector<float>& mesh = setup.truth_mesh ? cap->truth_mesh : fit->vertices;
+  const LandmarkPairs pairs = landmark_pairs(model, mesh, *target);
+  const TakeTextureInput in{mesh,        model.triangles, model.face_vertex_count,
+                            cap->frames, pairs.model,     pairs.camera,
+                            std::nullopt};
+  const KinectRegistration registration(cap->calibration);
+  const auto t0 = Clock::now();
+  auto tex = texture_from_take(*setup.map, in, registration, setup.texture);
+  SubjectTexture out;
+  out.seconds = seconds_since(t0);
+  if (!tex) return tex.failure();
+  out.score = score_atlas(model, setup.atlas_uvs, setup.face, *setup.map, tex->atlas, *cap->camera);
+  out.on_surface =
+      surface_psnr_db(model, setup.face, *setup.map, tex->atlas, mesh, tex->poses.front(),
+                      cap->truth_mesh, cap->truth_pose, cap->intrinsics, *cap->camera);
+  out.observed = static_cast<double>(tex->atlas.report.observed_texels) /
+                 std::max(1, tex->atlas.report.covered_texels);
+  out.json = run_json(seed, out.score, out.on_surface, out.observed, *tex, fit->rms_to_depth_mm,
+                      out.seconds);
+  if (picture && !setup.png.empty())
+    if (auto ok = write_avatar_picture(setup.png, model, setup.atlas_uvs, mesh, *tex, *cap, points);
+        !ok)
+      return ok.failure();
+  return out;
+}
+
+// The lab's choices from the command line.
+Result<void> texture_eval_options(const ParsedOptions& options, TextureEvalSetup& setup) {
+  auto frames = options.get_int("frames");
+  auto views = options.get_int("views");
+  if (!frames) return frames.failure();
+  if (!views) return views.failure();
+  if (*frames < 2) return fail("--frames >= 2");
+  setup.frames = static_cast<int>(*frames);
+  setup.texture.max_views = static_cast<int>(*views);
+  setup.texture.texture.delight = !options.flag("no-delight");
+  setup.world = options.get("world");
+  setup.png = options.get("png");
+  if (options.get("mesh") != "fitted" && options.get("mesh") != "truth")
+    return fail("--mesh is fitted or truth");
+  setup.truth_mesh = options.get("mesh") == "truth";
+  return success();
+}
+
 int run_eval_texture(const ParsedOptions& options) {
   auto subjects = options.get_int("subjects");
   auto first = options.get_int("first-seed");
-  auto frames = options.get_int("frames");
   auto size = options.get_int("size");
-  auto views = options.get_int("views");
-  for (const auto* r : {&subjects, &first, &frames, &size, &views})
+  for (const auto* r : {&subjects, &first, &size})
     if (!*r) return report_failure(r->error());
-  if (*subjects < 1 || *frames < 2) return report_failure({"--subjects >= 1 and --frames >= 2"});
+  if (*subjects < 1) return report_failure({"--subjects >= 1"});
+  TextureEvalSetup setup;
+  if (auto ok = texture_eval_options(options, setup); !ok) return report_failure(ok.error());
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
-  const std::vector<float> atlas_uvs = model->atlas_uvs();
-  auto map = make_texel_map(atlas_uvs, model->triangle_uvs,
+  setup.model = &*model;
+  setup.atlas_uvs = model->atlas_uvs();
+  auto map = make_texel_map(setup.atlas_uvs, model->triangle_uvs,
                             static_cast<int>(*size) * model->uv_tiles(), static_cast<int>(*size));
   if (!map) return report_failure(map.error());
+  setup.map = &*map;
   const bool dlib = options.get("landmarks") == "dlib";
   if (!dlib && options.get("landmarks") != "truth")
     return report_failure({"--landmarks is dlib or truth"});
@@ -363,80 +454,37 @@ int run_eval_texture(const ParsedOptions& options) {
     auto d = load_landmark_detector(options.get("shape-predictor"));
     if (!d) return report_failure(d.error());
     detector.emplace(std::move(*d));
+    setup.detector = &*detector;
   }
   // dlib's points mark the vertices of the shipped embedding, as on the device.
   auto embedding = landmark_embedding_beside(*model, default_face_model_path());
   if (!embedding) return report_failure(embedding.error());
-  const std::string world = options.get("world");
-  const std::vector<bool> face = visible_face_triangles(*model);
+  if (*embedding) setup.embedding = &**embedding;
+  setup.face = visible_face_triangles(*model);
   nlohmann::json runs = nlohmann::json::array();
   double psnr_sum = 0, surface_sum = 0, psnr_min = 1e9, seam_sum = 0, seconds_sum = 0,
          seconds_max = 0, seen = 0;
   Progress progress("eval texture", *subjects);
   for (long long s = 0; s < *subjects; ++s) {
     const auto seed = static_cast<std::uint64_t>(*first + s);
-    const std::vector<float> identity = identity_draw(seed, model->identity_count);
-    const std::vector<float> neutral(static_cast<std::size_t>(model->expression_count), 0.0f);
-    auto cap = capture(*model, identity, neutral, seed, static_cast<int>(*frames), false, {}, world,
-                       seed, UnitCalibration::kCalibrated, detector ? &*detector : nullptr, true);
-    if (!cap)
-      return report_failure({"subject " + std::to_string(seed) + ": " + cap.error().message});
-    std::vector<Eigen::Vector2d> points = cap->truth_color_px;
-    if (detector) {
-      detector->reset_tracking();
-      auto found = detector->detect(cap->color);
-      if (!found)
-        return report_failure(
-            {"subject " + std::to_string(seed) + ": dlib: " + found.error().message});
-      points.assign(found->points.begin(), found->points.end());
-    }
-    auto target = make_fit_target(*cap, points, false);
-    if (!target) return report_failure(target.error());
-    if (detector && *embedding)
-      target->landmark_vertices = (*embedding)->for_expression("neutral");  // as the device
-    auto fit = fit_neutral(*model, *target);
-    if (!fit) return report_failure(fit.error());
-    const LandmarkPairs pairs = landmark_pairs(*model, fit->vertices, *target);
-    const TakeTextureInput in{fit->vertices, model->triangles, model->face_vertex_count,
-                              cap->frames,   pairs.model,      pairs.camera,
-                              std::nullopt};
-    const KinectRegistration registration(cap->calibration);
-    const auto t0 = Clock::now();
-    TakeTextureOptions topt;
-    topt.max_views = static_cast<int>(*views);
-    topt.texture.delight = !options.flag("no-delight");
-    auto tex = texture_from_take(*map, in, registration, topt);
-    const double seconds = seconds_since(t0);
-    if (!tex)
-      return report_failure({"subject " + std::to_string(seed) + ": " + tex.error().message});
-    const AtlasScore score = score_atlas(*model, atlas_uvs, face, *map, tex->atlas, *cap->camera);
-    const double on_surface =
-        surface_psnr_db(*model, face, *map, tex->atlas, fit->vertices, tex->poses.front(),
-                        cap->truth_mesh, cap->truth_pose, cap->intrinsics, *cap->camera);
-    const double observed = static_cast<double>(tex->atlas.report.observed_texels) /
-                            std::max(1, tex->atlas.report.covered_texels);
-    runs.push_back(
-        run_json(seed, score, on_surface, observed, *tex, fit->rms_to_depth_mm, seconds));
-    psnr_sum += score.psnr_db;
-    surface_sum += on_surface;
-    psnr_min = std::min(psnr_min, score.psnr_db);
-    seam_sum += score.seam_error;
-    seconds_sum += seconds;
-    seconds_max = std::max(seconds_max, seconds);
-    seen += observed;
-    const std::string png = options.get("png");
-    if (s == 0 && !png.empty()) {
-      if (auto ok = write_avatar_picture(png, *model, atlas_uvs, fit->vertices, *tex, *cap, points);
-          !ok)
-        return report_failure(ok.error());
-    }
+    auto r = texture_subject(setup, seed, s == 0);
+    if (!r) return report_failure({"subject " + std::to_string(seed) + ": " + r.error().message});
+    runs.push_back(r->json);
+    psnr_sum += r->score.psnr_db;
+    surface_sum += r->on_surface;
+    psnr_min = std::min(psnr_min, r->score.psnr_db);
+    seam_sum += r->score.seam_error;
+    seconds_sum += r->seconds;
+    seconds_max = std::max(seconds_max, r->seconds);
+    seen += r->observed;
     progress.update(s + 1);
   }
   const double n = static_cast<double>(*subjects);
   nlohmann::json out = {
       {"subjects", *subjects},
-      {"world", world},
+      {"world", setup.world},
       {"landmarks", dlib ? "dlib on frame 0 (as the device)" : "truth"},
+      {"mesh", setup.truth_mesh ? "truth (upper bound)" : "fitted"},
       {"atlas_size", *size},
       {"texture_psnr_db", psnr_sum / n},
       {"texture_psnr_db_min", psnr_min},
@@ -446,15 +494,7 @@ int run_eval_texture(const ParsedOptions& options) {
       {"texture_s", seconds_sum / n},
       {"texture_s_max", seconds_max},
       {"budget", {{"texture_psnr_db", ">= 30"}, {"texture_s", "<= 3 (one core)"}}},
-      {"scoring",
-       "PSNR over the visible face (inside the jaw line, up to 25 mm above the brows, facing "
-       "forward; observed, not over-exposed in every view) against the renderer's surface colour, "
-       "after one "
-       "least-squares gain per channel (exposure is unobservable), in the atlas's UV space (so the "
-       "fit's correspondence error counts); _on_fitted_surface: each texel against the painted "
-       "colour where its fitted point lands on the true surface (the still avatar's appearance); "
-       "seam error: mean absolute "
-       "8-bit difference of the atlas across UV seams of the face, both sides observed"},
+      {"scoring", kTextureScoring},
       {"runs", runs}};
   std::cout << out.dump(2) << "\n";
   return kExitOk;
@@ -463,25 +503,27 @@ int run_eval_texture(const ParsedOptions& options) {
 }  // namespace
 
 std::vector<Command> texture_eval_commands() {
-  return {{{"eval texture",
-            "the subject texture against the synthetic camera's painted skin (JSON)",
-            "Per subject a textured synthetic head turn (world preset --world), fused; the "
-            "neutral is fitted from --landmarks on frame 0 and textured as `facebooth texture` "
-            "does. texture_s: the texture step alone (alignment to every frame + atlas), one "
-            "thread. --png writes the first subject's colour frame next to its textured avatar "
-            "drawn by the project's rasterizer, frontal and turned.",
-            {{"subjects", "N", "synthetic subjects", "3"},
-             {"first-seed", "N", "seed of the first subject", "1"},
-             {"frames", "N", "frames per head turn", "90"},
-             {"size", "PX", "atlas height (its width: one square per UV tile)", "1024"},
-             {"views", "N", "frames blended (spread over the take)", "15"},
-             {"no-delight", "", "keep the frames' shading in the atlas (for comparison)", ""},
-             {"world", "PRESET", "synthetic world preset (world_presets.hpp)", "texture"},
-             {"landmarks", "dlib|truth", "the fit's landmarks on frame 0", "dlib"},
-             {"shape-predictor", "FILE", "dlib's 68-point model", ""},
-             {"png", "FILE", "picture: colour frame | avatar | avatar turned", ""},
-             {"json", "", "JSON report on stdout (the only output format)", ""}}},
-           run_eval_texture}};
+  return {
+      {{"eval texture",
+        "the subject texture against the synthetic camera's painted skin (JSON)",
+        "Per subject a textured synthetic head turn (world preset --world), fused; the "
+        "neutral is fitted from --landmarks on frame 0 and textured as `facebooth texture` "
+        "does. texture_s: the texture step alone (alignment to every frame + atlas), one "
+        "thread. --png writes the first subject's colour frame next to its textured avatar "
+        "drawn by the project's rasterizer, frontal and turned.",
+        {{"subjects", "N", "synthetic subjects", "3"},
+         {"first-seed", "N", "seed of the first subject", "1"},
+         {"frames", "N", "frames per head turn", "90"},
+         {"size", "PX", "atlas height (its width: one square per UV tile)", "1024"},
+         {"views", "N", "frames blended (spread over the take)", "15"},
+         {"mesh", "fitted|truth", "texture the fitted or (an upper bound) the true mesh", "fitted"},
+         {"no-delight", "", "keep the frames' shading in the atlas (for comparison)", ""},
+         {"world", "PRESET", "synthetic world preset (world_presets.hpp)", "texture"},
+         {"landmarks", "dlib|truth", "the fit's landmarks on frame 0", "dlib"},
+         {"shape-predictor", "FILE", "dlib's 68-point model", ""},
+         {"png", "FILE", "picture: colour frame | avatar | avatar turned", ""},
+         {"json", "", "JSON report on stdout (the only output format)", ""}}},
+       run_eval_texture}};
 }
 
 }  // namespace fb::cli

@@ -12,6 +12,7 @@
 #include "algo/core/mesh_normals.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "sim/lab/lab_commands.hpp"
+#include "sim/lab/raster_pixels.hpp"
 #include "sim/lab/transfer_image_lab.hpp"
 #include "storage/export/mesh_files.hpp"
 #include "storage/export/png_file.hpp"
@@ -84,23 +85,13 @@ ColorImage render_mesh(const MeshData& mesh, const View& view, int side) {
   std::fill(out.pixels.begin(), out.pixels.end(), Rgb8{70, 74, 80});
   if (!rasterize(k, posed, mesh.triangles, {}, raster)) return out;
   const Eigen::Vector3f light = Eigen::Vector3f(-0.4f, 0.5f, 1.0f).normalized();  // model frame
-  for (int y = 0; y < side; ++y) {
-    for (int x = 0; x < side; ++x) {
-      const std::size_t i = raster.index(x, y);
-      const std::int32_t t = raster.triangle[i];
-      if (t == kNoTriangle) continue;
-      const float b[3] = {1.0f - raster.bary1[i] - raster.bary2[i], raster.bary1[i],
-                          raster.bary2[i]};
-      Eigen::Vector3f n = Eigen::Vector3f::Zero();
-      for (int c = 0; c < 3; ++c)
-        n += b[c] * Eigen::Vector3f(normals.data() +
-                                    3 * std::size_t{mesh.triangles[3 * std::size_t(t) + c]});
-      const float shade = 0.25f + 0.75f * std::max(0.0f, n.normalized().dot(light));
-      out.at(x, y) =
-          Rgb8{static_cast<std::uint8_t>(225 * shade), static_cast<std::uint8_t>(205 * shade),
-               static_cast<std::uint8_t>(190 * shade)};
-    }
-  }
+  for_each_covered_pixel(raster, [&](const RasterPixel& p) {
+    const Eigen::Vector3f n = interpolate(normals, mesh.triangles, p);
+    const float shade = 0.25f + 0.75f * std::max(0.0f, n.normalized().dot(light));
+    out.at(p.x, p.y) =
+        Rgb8{static_cast<std::uint8_t>(225 * shade), static_cast<std::uint8_t>(205 * shade),
+             static_cast<std::uint8_t>(190 * shade)};
+  });
   return out;
 }
 

@@ -195,17 +195,10 @@ Result<SubjectId> SessionStore::add_subject(const std::string& name) {
 }
 
 Result<std::vector<SubjectInfo>> SessionStore::subjects() const {
-  auto stmt =
-      sql::prepare(impl_->db.get(), "SELECT id, name, created_at FROM subjects ORDER BY id");
-  if (!stmt) return stmt.failure();
-  std::vector<SubjectInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    out.push_back({stmt->int64(0), stmt->text(1), stmt->text(2)});
-  }
-  return out;
+  return impl_->rows<SubjectInfo>("SELECT id, name, created_at FROM subjects ORDER BY id",
+                                  std::nullopt, [](sql::Statement& stmt) {
+                                    return SubjectInfo{stmt.int64(0), stmt.text(1), stmt.text(2)};
+                                  });
 }
 
 Result<SubjectInfo> SessionStore::subject(SubjectId id) const {
@@ -260,34 +253,27 @@ Result<SessionInfo> SessionStore::session(SessionId id) const {
 }
 
 Result<std::vector<SessionInfo>> SessionStore::sessions() const {
-  auto stmt = sql::prepare(
-      impl_->db.get(),
+  const std::string query =
       "SELECT s.id, s.subject_id, s.created_at, s.state, s.folder, "
       "(SELECT count(*) FROM captures c WHERE c.session_id=s.id), "
       "(SELECT count(*) FROM captures c WHERE c.session_id=s.id AND c.state='done'), " +
-          std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
-          (impl_->schema_version >= 5 ? ", s.origin_booth, s.origin_id" : ", NULL, NULL") +
-          " FROM sessions s ORDER BY s.id");
-  if (!stmt) return stmt.failure();
-  std::vector<SessionInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
+      std::string(impl_->schema_version >= 4 ? "s.calibration_json" : "NULL") +
+      (impl_->schema_version >= 5 ? ", s.origin_booth, s.origin_id" : ", NULL, NULL") +
+      " FROM sessions s ORDER BY s.id";
+  return impl_->rows<SessionInfo>(query, std::nullopt, [&](sql::Statement& stmt) {
     SessionInfo s;
-    s.id = stmt->int64(0);
-    s.subject = stmt->int64(1);
-    s.created_at = stmt->text(2);
-    s.complete = stmt->text(3) == "complete";
-    s.folder = impl_->root / stmt->text(4);
-    s.capture_count = stmt->int32(5);
-    s.done_count = stmt->int32(6);
-    s.calibration_json = stmt->text(7);
-    s.origin_booth = stmt->text(8);
-    s.origin_session = stmt->int64(9);
-    out.push_back(std::move(s));
-  }
-  return out;
+    s.id = stmt.int64(0);
+    s.subject = stmt.int64(1);
+    s.created_at = stmt.text(2);
+    s.complete = stmt.text(3) == "complete";
+    s.folder = impl_->root / stmt.text(4);
+    s.capture_count = stmt.int32(5);
+    s.done_count = stmt.int32(6);
+    s.calibration_json = stmt.text(7);
+    s.origin_booth = stmt.text(8);
+    s.origin_session = stmt.int64(9);
+    return s;
+  });
 }
 
 Result<void> SessionStore::set_session_calibration(SessionId session,

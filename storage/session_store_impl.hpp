@@ -13,6 +13,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <system_error>
@@ -220,13 +221,15 @@ struct SessionStore::Impl {
     return row;
   }
 
-  // Every row `query` (one parameter: `key`) selects, each made into a T by `read(statement)`.
+  // Every row `query` selects, each made into a T by `read(statement)`; `key`, when given, is
+  // bound to the query's one parameter.
   template <class T, class Read>
-  Result<std::vector<T>> rows(std::string_view query, std::int64_t key, Read read) const {
+  Result<std::vector<T>> rows(std::string_view query, std::optional<std::int64_t> key,
+                              Read read) const {
     std::vector<T> out;
     auto stmt = sql::prepare(db.get(), query);
     if (!stmt) return stmt.failure();
-    stmt->bind(1, key);
+    if (key) stmt->bind(1, *key);
     for (;;) {
       auto row = stmt->step();
       if (!row) return row.failure();

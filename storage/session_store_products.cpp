@@ -80,27 +80,20 @@ Result<std::vector<MeshId>> SessionStore::add_meshes(SessionId session,
 }
 
 Result<std::vector<MeshInfo>> SessionStore::meshes(SessionId session) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, session_id, capture_idx, role, name, vertex_count, "
-                           "triangle_count FROM meshes WHERE session_id=? ORDER BY id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, session);
-  std::vector<MeshInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    MeshInfo m;
-    m.id = stmt->int64(0);
-    m.session = stmt->int64(1);
-    if (!stmt->is_null(2)) m.capture_index = stmt->int32(2);
-    m.role = mesh_role_from(stmt->text(3));
-    m.name = stmt->text(4);
-    m.vertex_count = stmt->int32(5);
-    m.triangle_count = stmt->int32(6);
-    out.push_back(std::move(m));
-  }
-  return out;
+  return impl_->rows<MeshInfo>(
+      "SELECT id, session_id, capture_idx, role, name, vertex_count, triangle_count FROM meshes "
+      "WHERE session_id=? ORDER BY id",
+      session, [](sql::Statement& stmt) {
+        MeshInfo m;
+        m.id = stmt.int64(0);
+        m.session = stmt.int64(1);
+        if (!stmt.is_null(2)) m.capture_index = stmt.int32(2);
+        m.role = mesh_role_from(stmt.text(3));
+        m.name = stmt.text(4);
+        m.vertex_count = stmt.int32(5);
+        m.triangle_count = stmt.int32(6);
+        return m;
+      });
 }
 
 Result<MeshData> SessionStore::read_mesh(MeshId id) const {
@@ -153,28 +146,20 @@ Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> 
 }
 
 Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT id, subject_id, session_id, shape_names_json, vertex_count, "
-                           "triangle_count, created_at FROM rigs WHERE subject_id=? "
-                           "ORDER BY id DESC");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, subject);
-  std::vector<RigInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    RigInfo info;
-    info.id = stmt->int64(0);
-    info.subject = stmt->int64(1);
-    info.session = stmt->optional_int64(2);
-    info.shape_names = names_from_json(stmt->text(3));
-    info.vertex_count = stmt->int32(4);
-    info.triangle_count = stmt->int32(5);
-    info.created_at = stmt->text(6);
-    out.push_back(std::move(info));
-  }
-  return out;
+  return impl_->rows<RigInfo>(
+      "SELECT id, subject_id, session_id, shape_names_json, vertex_count, triangle_count, "
+      "created_at FROM rigs WHERE subject_id=? ORDER BY id DESC",
+      subject, [](sql::Statement& stmt) {
+        RigInfo info;
+        info.id = stmt.int64(0);
+        info.subject = stmt.int64(1);
+        info.session = stmt.optional_int64(2);
+        info.shape_names = names_from_json(stmt.text(3));
+        info.vertex_count = stmt.int32(4);
+        info.triangle_count = stmt.int32(5);
+        info.created_at = stmt.text(6);
+        return info;
+      });
 }
 
 Result<std::optional<RigInfo>> SessionStore::newest_rig(SubjectId subject) const {
@@ -225,18 +210,12 @@ Result<ModelId> SessionStore::add_model(const std::string& kind, const std::stri
 }
 
 Result<std::vector<ModelInfo>> SessionStore::models() const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           "SELECT m.id, m.kind, m.params_json, f.bytes, m.created_at FROM models "
-                           "m JOIN files f ON f.id=m.file_id ORDER BY m.id");
-  if (!stmt) return stmt.failure();
-  std::vector<ModelInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    out.push_back({stmt->int64(0), stmt->text(1), stmt->text(2), stmt->int64(3), stmt->text(4)});
-  }
-  return out;
+  return impl_->rows<ModelInfo>(
+      "SELECT m.id, m.kind, m.params_json, f.bytes, m.created_at FROM models m JOIN files f ON "
+      "f.id=m.file_id ORDER BY m.id",
+      std::nullopt, [](sql::Statement& stmt) {
+        return ModelInfo{stmt.int64(0), stmt.text(1), stmt.text(2), stmt.int64(3), stmt.text(4)};
+      });
 }
 
 Result<std::vector<std::uint8_t>> SessionStore::read_model(ModelId id) const {
@@ -311,18 +290,9 @@ TakeInfo take_from_row(sql::Statement& stmt) {
 }  // namespace
 
 Result<std::vector<TakeInfo>> SessionStore::takes(SubjectId subject) const {
-  auto stmt = sql::prepare(impl_->db.get(),
-                           take_columns(impl_->schema_version) + "WHERE subject_id=? ORDER BY id");
-  if (!stmt) return stmt.failure();
-  stmt->bind(1, subject);
-  std::vector<TakeInfo> out;
-  for (;;) {
-    auto row = stmt->step();
-    if (!row) return row.failure();
-    if (!*row) break;
-    out.push_back(take_from_row(*stmt));
-  }
-  return out;
+  return impl_->rows<TakeInfo>(
+      take_columns(impl_->schema_version) + "WHERE subject_id=? ORDER BY id", subject,
+      take_from_row);
 }
 
 Result<TakeData> SessionStore::read_take(TakeId id) const {

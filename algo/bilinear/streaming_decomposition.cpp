@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 
 namespace fb {
 namespace {
@@ -149,22 +150,13 @@ Result<CoreAccumulator> CoreAccumulator::create(const StreamShape& shape,
   if (auto ok = check_shape(shape); !ok) return ok.failure();
   if (factors.identity.rows() != shape.identities || factors.expression.rows() != shape.expressions)
     return fail("the mode factors are for another tensor size");
-  if (id_knobs < 1 || id_knobs > shape.identities)
-    return fail("identity knobs must be 1.." + std::to_string(shape.identities) +
-                " (the number of identities), got " + std::to_string(id_knobs));
-  if (exp_knobs < 1 || exp_knobs > shape.expressions)
-    return fail("expression knobs must be 1.." + std::to_string(shape.expressions) + ", got " +
-                std::to_string(exp_knobs));
+  auto truncated = truncated_factors(factors, shape.rows, shape.identities, shape.expressions,
+                                     id_knobs, exp_knobs);
+  if (!truncated) return truncated.failure();
   CoreAccumulator c;
   c.shape_ = shape;
   TruncatedTensor& o = c.out_;
-  o.rows = shape.rows;
-  o.id_knobs = id_knobs;
-  o.exp_knobs = exp_knobs;
-  o.identity = factors.identity.leftCols(id_knobs);
-  o.expression = factors.expression.leftCols(exp_knobs);
-  o.identity_spectrum = factors.identity_spectrum;
-  o.expression_spectrum = factors.expression_spectrum;
+  o = std::move(*truncated);
   o.core.assign(static_cast<std::size_t>(shape.rows) * id_knobs * exp_knobs, 0.0f);
   c.u_exp_ = o.expression.cast<float>();
   c.y_batch_.resize(shape.rows, static_cast<Eigen::Index>(exp_knobs) * kCoreBatch);

@@ -42,26 +42,26 @@ Result<void> check(const FactoredTensor& t) {
   return success();
 }
 
-Result<void> check_knobs(int id_knobs, int exp_knobs, int identities, int expressions) {
+}  // namespace
+
+Result<TruncatedTensor> truncated_factors(const ModeFactors& f, int rows, int identities,
+                                          int expressions, int id_knobs, int exp_knobs) {
   if (id_knobs < 1 || id_knobs > identities)
     return fail("identity knobs must be 1.." + std::to_string(identities) + " (the number of " +
                 "identities), got " + std::to_string(id_knobs));
   if (exp_knobs < 1 || exp_knobs > expressions)
     return fail("expression knobs must be 1.." + std::to_string(expressions) + ", got " +
                 std::to_string(exp_knobs));
-  return success();
-}
-
-void copy_spectra(const ModeFactors& f, TruncatedTensor& out, int id_knobs, int exp_knobs) {
+  TruncatedTensor out;
+  out.rows = rows;
   out.id_knobs = id_knobs;
   out.exp_knobs = exp_knobs;
   out.identity = f.identity.leftCols(id_knobs);
   out.expression = f.expression.leftCols(exp_knobs);
   out.identity_spectrum = f.identity_spectrum;
   out.expression_spectrum = f.expression_spectrum;
+  return out;
 }
-
-}  // namespace
 
 ModeFactors factors_from_grams(const Eigen::MatrixXd& identity_gram,
                                const Eigen::MatrixXd& expression_gram) {
@@ -95,10 +95,7 @@ Result<ModeFactors> mode_factors(const DataTensor& t) {
     g_exp.selfadjointView<Eigen::Lower>().rankUpdate(slice.transpose());
   }
   g_exp = g_exp.selfadjointView<Eigen::Lower>();
-  ModeFactors f;
-  sorted_eigen(g_id, f.identity, f.identity_spectrum);
-  sorted_eigen(g_exp, f.expression, f.expression_spectrum);
-  return f;
+  return factors_from_grams(g_id, g_exp);
 }
 
 Result<ModeFactors> mode_factors(const FactoredTensor& t) {
@@ -120,20 +117,15 @@ Result<ModeFactors> mode_factors(const FactoredTensor& t) {
       const double v = a_e2.cwiseProduct(weighted[static_cast<std::size_t>(e)]).sum();
       g_exp(e, e2) = g_exp(e2, e) = v;
     }
-  ModeFactors f;
-  sorted_eigen(g_id, f.identity, f.identity_spectrum);
-  sorted_eigen(g_exp, f.expression, f.expression_spectrum);
-  return f;
+  return factors_from_grams(g_id, g_exp);
 }
 
 Result<TruncatedTensor> truncate(const DataTensor& t, const ModeFactors& f, int id_knobs,
                                  int exp_knobs) {
   if (auto ok = check(t); !ok) return ok.failure();
-  if (auto ok = check_knobs(id_knobs, exp_knobs, t.identities, t.expressions); !ok)
-    return ok.failure();
-  TruncatedTensor out;
-  out.rows = t.rows;
-  copy_spectra(f, out, id_knobs, exp_knobs);
+  auto truncated = truncated_factors(f, t.rows, t.identities, t.expressions, id_knobs, exp_knobs);
+  if (!truncated) return truncated.failure();
+  TruncatedTensor& out = *truncated;
   const Eigen::Index rows = t.rows;
   const Eigen::MatrixXf u_id = out.identity.cast<float>();
   // Y: column e = vec(T_e U~_id) (rows x Kid); core = Y U~_exp.
@@ -146,7 +138,7 @@ Result<TruncatedTensor> truncate(const DataTensor& t, const ModeFactors& f, int 
   out.core.resize(static_cast<std::size_t>(rows) * id_knobs * exp_knobs);
   Eigen::Map<Eigen::MatrixXf>(out.core.data(), rows * id_knobs, exp_knobs).noalias() =
       y * out.expression.cast<float>();
-  return out;
+  return truncated;
 }
 
 Eigen::MatrixXd factored_core(const FactoredTensor& t, const Eigen::MatrixXd& identity,
@@ -165,16 +157,14 @@ Eigen::MatrixXd factored_core(const FactoredTensor& t, const Eigen::MatrixXd& id
 Result<TruncatedTensor> truncate(const FactoredTensor& t, const ModeFactors& f, int id_knobs,
                                  int exp_knobs) {
   if (auto ok = check(t); !ok) return ok.failure();
-  if (auto ok = check_knobs(id_knobs, exp_knobs, t.identities, t.expressions); !ok)
-    return ok.failure();
-  TruncatedTensor out;
-  out.rows = t.rows;
-  copy_spectra(f, out, id_knobs, exp_knobs);
+  auto truncated = truncated_factors(f, t.rows, t.identities, t.expressions, id_knobs, exp_knobs);
+  if (!truncated) return truncated.failure();
+  TruncatedTensor& out = *truncated;
   const Eigen::MatrixXf coeffs = factored_core(t, out.identity, out.expression).cast<float>();
   out.core.resize(static_cast<std::size_t>(t.rows) * id_knobs * exp_knobs);
   Eigen::Map<Eigen::MatrixXf>(out.core.data(), t.rows, id_knobs * exp_knobs).noalias() =
       t.basis * coeffs;
-  return out;
+  return truncated;
 }
 
 }  // namespace fb

@@ -75,6 +75,11 @@ Result<TruncatedTensor> truncate(const DataTensor& tensor, const ModeFactors& fa
                                  int exp_knobs);
 Result<TruncatedTensor> truncate(const FactoredTensor& tensor, const ModeFactors& factors,
                                  int id_knobs, int exp_knobs);
+// The truncation of a rows x identities x expressions tensor before its core is filled in: the
+// knobs checked as truncate() does, U~_id, U~_exp and the spectra from `factors` (shared with
+// the streaming core build, streaming_decomposition.hpp).
+Result<TruncatedTensor> truncated_factors(const ModeFactors& factors, int rows, int identities,
+                                          int expressions, int id_knobs, int exp_knobs);
 
 // Factored core in coefficient space: K x (Kexp * Kid), column b * Kid + a; the dense core is
 // basis * this. Lets evaluations of many knob counts work in K dimensions.

@@ -10,56 +10,36 @@
 namespace fb {
 namespace {
 
-// Per-row float accumulator (a row has at most a few hundred terms, so float is exact enough),
-// flushed into the double accumulator per row.
-struct Normal6f {
-  float a[21] = {};
-  float b[6] = {};
-  float r2 = 0.0f;
+// Upper triangle of J^T W J (21), J^T W r (6), sum r^2, inlier count. A row sums into the float
+// one (a row has at most a few hundred terms, so float is exact enough), flushed into the double
+// one per row.
+template <class T>
+struct Normal6T {
+  T a[21] = {};
+  T b[6] = {};
+  T r2 = 0;
   int count = 0;
 
   void add(const float j[6], float r, float w) {
     int k = 0;
     for (int i = 0; i < 6; ++i) {
-      const float wji = w * j[i];
+      const T wji = static_cast<T>(w * j[i]);
       for (int c = i; c < 6; ++c) a[k++] += wji * j[c];
       b[i] += wji * r;
     }
-    r2 += r * r;
+    r2 += static_cast<T>(r) * r;
     ++count;
   }
-};
-
-// Upper triangle of J^T W J (21), J^T W r (6), sum r^2, inlier count.
-struct Normal6 {
-  double a[21] = {};
-  double b[6] = {};
-  double r2 = 0.0;
-  int count = 0;
-
-  void add(const float j[6], float r, float w) {
-    int k = 0;
-    for (int i = 0; i < 6; ++i) {
-      const double wji = static_cast<double>(w * j[i]);
-      for (int c = i; c < 6; ++c) a[k++] += wji * j[c];
-      b[i] += wji * r;
-    }
-    r2 += static_cast<double>(r) * r;
-    ++count;
-  }
-  void merge(const Normal6f& o) {
-    for (int i = 0; i < 21; ++i) a[i] += o.a[i];
-    for (int i = 0; i < 6; ++i) b[i] += o.b[i];
-    r2 += o.r2;
-    count += o.count;
-  }
-  void merge(const Normal6& o) {
+  template <class U>
+  void merge(const Normal6T<U>& o) {
     for (int i = 0; i < 21; ++i) a[i] += o.a[i];
     for (int i = 0; i < 6; ++i) b[i] += o.b[i];
     r2 += o.r2;
     count += o.count;
   }
 };
+using Normal6f = Normal6T<float>;
+using Normal6 = Normal6T<double>;
 
 }  // namespace
 
@@ -69,7 +49,8 @@ void IcpTracker::configure(const FusionOptions& options) {
 }
 
 FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const ModelView& model,
-                                               const RigidPoseF& initial, ParallelRunner& runner) const {
+                                               const RigidPoseF& initial,
+                                               ParallelRunner& runner) const {
   IcpResult result;
   result.world_from_camera = initial;
   result.solved = true;

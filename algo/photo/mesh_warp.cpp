@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "algo/core/polygon.hpp"
+
 namespace fb {
 namespace {
 
@@ -71,17 +73,6 @@ void rasterize(const MeshWarpInput& in, Maps& m) {
         m.cover[k] = Cover::kMesh;
       }
   }
-}
-
-bool inside_polygon(std::span<const Eigen::Vector2f> poly, float x, float y) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Eigen::Vector2f& p = poly[i];
-    const Eigen::Vector2f& q = poly[j];
-    if ((p.y() > y) != (q.y() > y) && x < (q.x() - p.x()) * (y - p.y()) / (q.y() - p.y()) + p.x())
-      in = !in;
-  }
-  return in;
 }
 
 void mark_mouth(std::span<const Eigen::Vector2f> mouth, Maps& m) {

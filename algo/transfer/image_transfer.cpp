@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "algo/core/clock.hpp"
+#include "algo/core/polygon.hpp"
 
 namespace fb {
 
@@ -19,18 +20,6 @@ std::vector<double> luminance(const FloatRgb& f) {
   for (std::size_t i = 0; i < y.size(); ++i)
     y[i] = 0.299 * f.r[i] + 0.587 * f.g[i] + 0.114 * f.b[i];
   return y;
-}
-
-// Inside the polygon (even-odd rule).
-bool inside(const std::vector<Eigen::Vector2d>& polygon, double x, double y) {
-  bool in = false;
-  for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const auto& a = polygon[i];
-    const auto& b = polygon[j];
-    if ((a.y() > y) != (b.y() > y) && x < (b.x() - a.x()) * (y - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
 }
 
 // The face region in the output geometry: jaw line (inset) and brows (raised), >= 2 px from the
@@ -48,7 +37,7 @@ std::vector<std::uint8_t> face_region(const Landmarks68& p, int width, int heigh
   std::vector<std::uint8_t> mask(static_cast<std::size_t>(width) * height, 0);
   for (int y = 2; y < height - 2; ++y)
     for (int x = 2; x < width - 2; ++x)
-      mask[static_cast<std::size_t>(y) * width + x] = inside(polygon, x, y) ? 1 : 0;
+      mask[static_cast<std::size_t>(y) * width + x] = inside_polygon(polygon, x, y) ? 1 : 0;
   return mask;
 }
 

@@ -11,19 +11,10 @@
 
 #include "algo/core/clock.hpp"
 #include "firmware/daemon/daemon_impl.hpp"
+#include "firmware/daemon/status_figures.hpp"
 
 namespace fb {
 namespace {
-
-std::string fixed(double v, int digits = 1) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, std::isfinite(v) ? v : 0.0);
-  return buf;
-}
-
-double finite(double v) {
-  return std::isfinite(v) ? v : 0.0;
-}
 
 // Frames a self-calibration keeps (the estimator's colour gradients are ~1.2 MB a frame; more
 // frames than this are subsampled by it), within the daemon's memory budget.
@@ -41,10 +32,10 @@ bool is_default_calibration(const KinectCalibration& c) {
 }
 
 nlohmann::json correction_json(const RegistrationCorrection& c) {
-  return {{"dx_px", finite(c.dx_px)},
-          {"dy_px", finite(c.dy_px)},
-          {"rotation_deg", finite(c.rotation_deg)},
-          {"depth_scale", finite(c.depth_scale)}};
+  return {{"dx_px", finite_or_zero(c.dx_px)},
+          {"dy_px", finite_or_zero(c.dy_px)},
+          {"rotation_deg", finite_or_zero(c.rotation_deg)},
+          {"depth_scale", finite_or_zero(c.depth_scale)}};
 }
 
 }  // namespace
@@ -186,10 +177,10 @@ Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
   const SelfCalibrationResult& e = *estimate;
   nlohmann::json report = {{"ok", e.ok},
                            {"applied", false},
-                           {"misregistration_px", finite(e.misregistration_px)},
-                           {"residual_px", finite(e.residual_px)},
-                           {"residual_px_p95", finite(e.residual_px_p95)},
-                           {"confidence", finite(e.confidence)},
+                           {"misregistration_px", finite_or_zero(e.misregistration_px)},
+                           {"residual_px", finite_or_zero(e.residual_px)},
+                           {"residual_px_p95", finite_or_zero(e.residual_px_p95)},
+                           {"confidence", finite_or_zero(e.confidence)},
                            {"frames", got},
                            {"frames_used", e.frames},
                            {"samples", e.samples},
@@ -207,8 +198,8 @@ Result<nlohmann::json> Daemon::Impl::self_calibrate(int frames) {
         calibration_store->path_for(calibration_key).string() + ").";
   } else {
     const KinectCalibration calibrated = with_registration(current, e.correction);
-    const std::string note = "registration moved by " + fixed(e.misregistration_px) +
-                             " px, residual " + fixed(e.residual_px, 2) + " px";
+    const std::string note = "registration moved by " + fixed_or_zero(e.misregistration_px) +
+                             " px, residual " + fixed_or_zero(e.residual_px, 2) + " px";
     if (auto ok =
             apply_calibration(calibrated, to_string(CalibrationSource::kSelfCalibration), note);
         !ok)
@@ -298,14 +289,15 @@ bool Daemon::Impl::registration_allows_fit(CaptureCommit& commit, std::int64_t s
       std::fprintf(stderr, "faceboothd: %s: registration not checked: %s\n", from.c_str(),
                    c.error().message.c_str());
     else if (c->valid)
-      commit.qa_scores["misregistration_px"] = finite(c->misregistration_px);
+      commit.qa_scores["misregistration_px"] = finite_or_zero(c->misregistration_px);
   }
   if (!health->needs_calibration()) return true;
   const RegistrationStatus r = health->status();
   qa.passed = false;
   qa.landmarks = qa.fit = "refused: camera needs calibration";
   qa.reason = "the camera needs calibration (depth and colour " +
-              fixed(r.decisive.misregistration_px) + " px apart, limit " + fixed(r.limit_px) +
+              fixed_or_zero(r.decisive.misregistration_px) + " px apart, limit " +
+              fixed_or_zero(r.limit_px) +
               " px), so this take was not fitted; calibrate it (\"Calibrate camera\" on the page, "
               "or POST /api/camera/self-calibrate), then record the take again";
   return false;

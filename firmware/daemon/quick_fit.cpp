@@ -44,6 +44,15 @@ struct QuickFitter::State {
     neutral_session = session;
     return success();
   }
+
+  // The transfer an expression fit of `session` starts from: the session's neutral, or, when it
+  // has none (it failed, or the store has none), the mean face, which still gives the
+  // refinement a start in the right expression. True when the mean face stands in.
+  Result<bool> transfer_for(std::int64_t session) {
+    if (neutral_session == session && transfer) return false;
+    if (auto ok = set_neutral(0, guide_meshes.front(), std::nullopt, {}); !ok) return ok.failure();
+    return true;
+  }
 };
 
 namespace {
@@ -192,13 +201,9 @@ Result<QuickFitResult> QuickFitter::fit_with_points(
         !ok)
       return ok.failure();
   } else {
-    if (s.neutral_session != session || !s.transfer) {
-      // No neutral for this session (it failed, or the store has none): transfer from the mean
-      // face, which still gives the refinement a start in the right expression.
-      if (auto ok = s.set_neutral(0, s.guide_meshes.front(), std::nullopt, {}); !ok)
-        return ok.failure();
-      r.neutral_was_mean_face = true;
-    }
+    auto mean_face = s.transfer_for(session);
+    if (!mean_face) return mean_face.failure();
+    if (*mean_face) r.neutral_was_mean_face = true;
     std::optional<RigidPose> seed;
     if (s.neutral_session == session) seed = s.neutral_pose;  // nullopt for a stored neutral
     auto fit =
@@ -239,10 +244,7 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
         !ok)
       return ok.failure();
   } else {
-    if (s.neutral_session != session || !s.transfer) {
-      if (auto ok = s.set_neutral(0, s.guide_meshes.front(), std::nullopt, {}); !ok)
-        return ok.failure();
-    }
+    if (auto mean_face = s.transfer_for(session); !mean_face) return mean_face.failure();
     auto fit =
         fit_expression(s.model, *s.transfer, s.guide_meshes[static_cast<std::size_t>(guide_index)],
                        next.target, {}, result.fit.camera_from_model);

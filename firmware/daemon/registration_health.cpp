@@ -2,30 +2,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <utility>
 
 #include "firmware/daemon/frame_spool.hpp"
+#include "firmware/daemon/status_figures.hpp"
 
 namespace fb {
 namespace {
 
-std::string fixed(double v, int digits = 1) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, std::isfinite(v) ? v : 0.0);
-  return buf;
-}
-
-// A number for the JSON: never NaN or infinite (the page would print "nan").
-double finite(double v) {
-  return std::isfinite(v) ? v : 0.0;
-}
-
 nlohmann::json check_json(const RegistrationCheck& c) {
   if (!c.valid) return nullptr;
-  nlohmann::json j = {{"misregistration_px", finite(c.misregistration_px)},
-                      {"residual_px", finite(c.residual_px)},
-                      {"confidence", finite(c.confidence)},
+  nlohmann::json j = {{"misregistration_px", finite_or_zero(c.misregistration_px)},
+                      {"residual_px", finite_or_zero(c.residual_px)},
+                      {"confidence", finite_or_zero(c.confidence)},
                       {"confident", c.confident},
                       {"frames", c.frames},
                       {"samples", c.samples},
@@ -56,9 +45,10 @@ nlohmann::json to_json(const RegistrationStatus& s) {
       {"state", to_string(s.verdict)},
       {"needs_calibration", s.verdict == RegistrationVerdict::kNeedsCalibration},
       // The figures that decide the verdict (null until a confident estimate exists).
-      {"misregistration_px", d.valid ? nlohmann::json(finite(d.misregistration_px)) : nullptr},
-      {"residual_px", d.valid ? nlohmann::json(finite(d.residual_px)) : nullptr},
-      {"confidence", d.valid ? nlohmann::json(finite(d.confidence)) : nullptr},
+      {"misregistration_px",
+       d.valid ? nlohmann::json(finite_or_zero(d.misregistration_px)) : nullptr},
+      {"residual_px", d.valid ? nlohmann::json(finite_or_zero(d.residual_px)) : nullptr},
+      {"confidence", d.valid ? nlohmann::json(finite_or_zero(d.confidence)) : nullptr},
       {"measured_on", d.valid ? nlohmann::json(d.from) : nullptr},
       {"limit_px", s.limit_px},
       {"checks", s.checks},
@@ -66,9 +56,9 @@ nlohmann::json to_json(const RegistrationStatus& s) {
       {"calibration",
        {{"source", s.calibration_source},
         {"note", s.calibration_note},
-        {"dx_px", finite(s.correction.dx_px)},
-        {"dy_px", finite(s.correction.dy_px)},
-        {"rotation_deg", finite(s.correction.rotation_deg)}}},
+        {"dx_px", finite_or_zero(s.correction.dx_px)},
+        {"dy_px", finite_or_zero(s.correction.dy_px)},
+        {"rotation_deg", finite_or_zero(s.correction.rotation_deg)}}},
       {"message", s.message},
   };
   return j;
@@ -265,8 +255,9 @@ std::string RegistrationHealth::advice_text(const RegistrationCheck& check) cons
       break;
   }
   return "The camera needs calibration: its depth and colour images are " +
-         fixed(check.misregistration_px) + " px apart (limit " +
-         fixed(options_.max_misregistration_px) + " px, confidence " + fixed(check.confidence, 2) +
+         fixed_or_zero(check.misregistration_px) + " px apart (limit " +
+         fixed_or_zero(options_.max_misregistration_px) + " px, confidence " +
+         fixed_or_zero(check.confidence, 2) +
          "), so landmarks would land on the wrong depth and fitted faces would be distorted; "
          "no session is fitted until it is calibrated. Let the booth self-calibrate: with a "
          "person (or objects with clear outlines) 0.5-2 m in front of the camera, press "

@@ -104,6 +104,16 @@ std::vector<OptionSpec> rig_option_specs() {
            "pull of the re-estimated example weights towards the guide recipes (mm^2)", "0.05"}};
 }
 
+Result<RigInputs> load_rig_inputs(const ParsedOptions& options) {
+  auto model = load_face_model();
+  if (!model) return model.failure();
+  auto guide = load_guide(*model, options.get("guide"));
+  if (!guide) return guide.failure();
+  auto rig = rig_options(options, *model);
+  if (!rig) return rig.failure();
+  return RigInputs{std::move(*model), std::move(*guide), std::move(*rig)};
+}
+
 // Random held-out expression mixes: every fitting shape is on with probability 0.2, U(0, 1).
 std::vector<std::vector<float>> random_mixes(int count, int shapes, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -204,12 +214,11 @@ Result<nlohmann::json> run_refit(SessionStore& store, SessionId session, const F
 }
 
 int run_rig(const ParsedOptions& options) {
-  auto model = load_face_model();
-  if (!model) return report_failure(model.error());
-  auto guide = load_guide(*model, options.get("guide"));
-  if (!guide) return report_failure(guide.error());
-  auto rig_opts = rig_options(options, *model);
-  if (!rig_opts) return report_failure(rig_opts.error());
+  auto inputs = load_rig_inputs(options);
+  if (!inputs) return report_failure(inputs.error());
+  const FaceModel& model = inputs->model;
+  const GuideSet& guide = inputs->guide;
+  RigOptions& rig_opts = inputs->rig;
   const bool save = options.flag("save");
   const std::string store_dir = options.get("store");
   const std::string synthetic = options.get("synthetic");
@@ -239,31 +248,31 @@ int run_rig(const ParsedOptions& options) {
     if (!opened) return report_failure(opened.error());
     store.emplace(std::move(*opened));
     if (refit) {
-      auto done = run_refit(*store, session, *model, *guide, convention == "dlib");
+      auto done = run_refit(*store, session, model, guide, convention == "dlib");
       if (!done) return report_failure(done.error());
       refit_json = std::move(*done);
     }
     auto loaded =
-        load_session_examples(*store, session, *model, *guide, options.flag("allow-missing"));
+        load_session_examples(*store, session, model, guide, options.flag("allow-missing"));
     if (!loaded) return report_failure(loaded.error());
     ex = std::move(*loaded);
   } else {
     auto seed = options.get_int("synthetic");
     if (!seed) return report_failure(seed.error());
-    const auto identity = identity_draw(static_cast<std::uint64_t>(*seed), model->identity_count);
-    for (const auto& ge : guide->expressions) {
-      auto w = guide_weights(ge, *model);
+    const auto identity = identity_draw(static_cast<std::uint64_t>(*seed), model.identity_count);
+    for (const auto& ge : guide.expressions) {
+      auto w = guide_weights(ge, model);
       if (!w) return report_failure(w.error());
-      w->resize(static_cast<std::size_t>(model->fitting_expression_count));
-      ex.meshes.push_back(face(*model, identity, *w));
+      w->resize(static_cast<std::size_t>(model.fitting_expression_count));
+      ex.meshes.push_back(face(model, identity, *w));
       ex.weights.push_back(*w);
       ex.names.push_back(ge.name);
       ex.capture_indices.push_back(ge.id);
     }
   }
   auto bar = std::make_shared<Progress>("rig", 1000);
-  rig_opts->progress = rig_progress(bar);
-  auto rigged = rig_examples(ex, *model, *rig_opts);
+  rig_opts.progress = rig_progress(bar);
+  auto rigged = rig_examples(ex, model, rig_opts);
   bar.reset();
   if (!rigged) return report_failure(rigged.error());
   const RigResult* rig = &rigged->result;
@@ -278,7 +287,7 @@ int run_rig(const ParsedOptions& options) {
   out["rig_s"] = rig->seconds;
   out["round_mean_residual_mm"] = rig->round_residual_mm;
   out["residual_region"] = "mean over the model's fitting vertices";
-  out["per_example"] = residual_json(*rig, ex.names, *model, ex.weights);
+  out["per_example"] = residual_json(*rig, ex.names, model, ex.weights);
   const std::filesystem::path dir = options.get("out");
   if (!dir.empty()) {
     std::error_code ec;

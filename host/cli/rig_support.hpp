@@ -15,6 +15,7 @@
 #include "algo/bilinear/bilinear_model.hpp"
 #include "algo/core/camera_model.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/guide/guide_expressions.hpp"
 #include "algo/rigging/example_rigging.hpp"
 #include "host/cli/command_line.hpp"
 #include "host/cli/progress.hpp"
@@ -34,6 +35,13 @@ std::vector<float> face(const FaceModel& model, std::span<const float> identity,
 std::function<void(std::string_view, double)> rig_progress(std::shared_ptr<Progress> bar);
 Result<RigOptions> rig_options(const ParsedOptions& options, const FaceModel& model);
 std::vector<OptionSpec> rig_option_specs();
+// What `rig` and `sync` rig with: the face model, the guide (--guide) and the rig options.
+struct RigInputs {
+  FaceModel model;
+  GuideSet guide;
+  RigOptions rig;
+};
+Result<RigInputs> load_rig_inputs(const ParsedOptions& options);
 // Random held-out expression mixes: every fitting shape is on with probability 0.2, U(0, 1).
 std::vector<std::vector<float>> random_mixes(int count, int shapes, std::uint64_t seed);
 

@@ -1,10 +1,10 @@
 // facebooth camera self-calibrate: the registration estimated from ordinary frames.
 #include <chrono>
-#include <cstdio>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
+#include "algo/core/figure_text.hpp"
 #include "algo/sensor/self_calibration.hpp"
 #include "drivers/camera/common/calibrated_camera.hpp"
 #include "drivers/camera/common/device_json.hpp"
@@ -14,12 +14,6 @@
 
 namespace fb::cli {
 namespace {
-
-std::string px(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.2f", v);
-  return text;
-}
 
 nlohmann::ordered_json result_json(const SelfCalibrationResult& r) {
   nlohmann::ordered_json j;
@@ -75,14 +69,14 @@ int run_self_calibrate(const ParsedOptions& options) {
   } else {
     std::cout << "camera " << info.uri << ": " << result->frames << " frames, " << result->samples
               << " depth-edge samples\n"
-              << "  registration correction: dx " << px(result->correction.dx_px) << " px, dy "
-              << px(result->correction.dy_px) << " px, rotation "
-              << px(result->correction.rotation_deg) << " deg\n"
-              << "  the calibration it started from was off by " << px(result->misregistration_px)
-              << " px\n"
-              << "  residual after correction: median " << px(result->residual_px) << " px, p95 "
-              << px(result->residual_px_p95) << " px; confidence " << px(result->confidence)
-              << "\n";
+              << "  registration correction: dx " << figure_text(result->correction.dx_px)
+              << " px, dy " << figure_text(result->correction.dy_px) << " px, rotation "
+              << figure_text(result->correction.rotation_deg) << " deg\n"
+              << "  the calibration it started from was off by "
+              << figure_text(result->misregistration_px) << " px\n"
+              << "  residual after correction: median " << figure_text(result->residual_px)
+              << " px, p95 " << figure_text(result->residual_px_p95) << " px; confidence "
+              << figure_text(result->confidence) << "\n";
   }
   if (!result->ok) {
     return report_failure({"self-calibration of " + info.uri + " is not usable: " + result->why});

@@ -42,6 +42,23 @@ nlohmann::json summary_json(const ExportSummary& s) {
       {"path", s.path.string()}, {"bytes", s.bytes}, {"files", s.files}, {"seconds", s.seconds}};
 }
 
+Result<FaceModelSubject> face_model_subject(const ParsedOptions& options, std::uint64_t seed,
+                                            std::string_view log) {
+  FaceModelSubject out;
+  out.model_path = options.get("face-model").empty() ? default_face_model_path().string()
+                                                     : options.get("face-model");
+  std::cerr << log << out.model_path << "...\n";
+  auto model = load_face_model(out.model_path);
+  if (!model) return model.failure();
+  out.model = std::move(*model);
+  SyntheticSubjectOptions subject_options;
+  subject_options.seed = seed;
+  auto subject = make_synthetic_subject(out.model, subject_options);
+  if (!subject) return subject.failure();
+  out.subject = std::move(*subject);
+  return out;
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -262,18 +279,11 @@ int run_export(const ParsedOptions& options) {
   if (from_model) {
     auto seed = options.get_int("seed");
     if (!seed) return report_failure(seed.error());
-    const std::string model_path = options.get("face-model").empty()
-                                       ? default_face_model_path().string()
-                                       : options.get("face-model");
-    std::cerr << "export: loading the face model " << model_path << "...\n";
-    auto model = load_face_model(model_path);
-    if (!model) return report_failure(model.error());
-    SyntheticSubjectOptions subject_options;
-    subject_options.seed = static_cast<std::uint64_t>(*seed);
-    auto subject = make_synthetic_subject(*model, subject_options);
-    if (!subject) return report_failure(subject.error());
-    content = synthetic_content(*subject, subject_options.seed, model_path);
-    use_face_model_uvs(content, *model);
+    auto made = face_model_subject(options, static_cast<std::uint64_t>(*seed),
+                                   "export: loading the face model ");
+    if (!made) return report_failure(made.error());
+    content = synthetic_content(made->subject, static_cast<std::uint64_t>(*seed), made->model_path);
+    use_face_model_uvs(content, made->model);
   } else {
     auto session = options.get_int("session");
     if (!session) return report_failure(session.error());

@@ -315,21 +315,17 @@ int run_sync(const ParsedOptions& options) {
   auto rounds = options.get_int("watch-rounds");
   if (!rate || !interval || !rounds)
     return report_failure(!rate ? rate.error() : !interval ? interval.error() : rounds.error());
-  auto model = load_face_model();
-  if (!model) return report_failure(model.error());
-  auto guide = load_guide(*model, options.get("guide"));
-  if (!guide) return report_failure(guide.error());
-  auto rig_opts = rig_options(options, *model);
-  if (!rig_opts) return report_failure(rig_opts.error());
+  auto inputs = load_rig_inputs(options);
+  if (!inputs) return report_failure(inputs.error());
 
   SyncSettings settings;
   settings.token = *token;
   settings.rig = !options.flag("no-rig");
   settings.upload = !options.flag("no-upload");
   settings.max_bytes_per_s = *rate * 1e6;
-  settings.model = &*model;
-  settings.guide = &*guide;
-  settings.rig_options = *rig_opts;
+  settings.model = &inputs->model;
+  settings.guide = &inputs->guide;
+  settings.rig_options = inputs->rig;
   settings.allow_missing = options.flag("allow-missing");
   StoreOptions so;
   auto store = SessionStore::open(store_dir, so);

@@ -1,22 +1,16 @@
 // facebooth-lab eval self-calibration | bench calibration: self-calibration scored on seeded
 // decalibrated synthetic units (sim/scoring/self_calibration_eval.hpp).
-#include <cstdio>
 #include <iostream>
 
 #include <nlohmann/json.hpp>
 
+#include "algo/core/figure_text.hpp"
 #include "host/cli/progress.hpp"
 #include "sim/lab/lab_commands.hpp"
 #include "sim/scoring/self_calibration_eval.hpp"
 
 namespace fb::cli {
 namespace {
-
-std::string px(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.2f", v);
-  return text;
-}
 
 int run_eval(const ParsedOptions& options) {
   auto units = options.get_int("units");
@@ -38,8 +32,8 @@ int run_eval(const ParsedOptions& options) {
   } else {
     std::cout << "self-calibration: " << (*j)["self_calibration_units_ok"].get<int>() << " of "
               << o.units << " units ok; registration error p95 "
-              << px((*j)["self_calibration_residual_px_p95"].get<double>()) << " px, mean "
-              << px((*j)["self_calibration_residual_px_mean"].get<double>()) << " px; "
+              << figure_text((*j)["self_calibration_residual_px_p95"].get<double>()) << " px, mean "
+              << figure_text((*j)["self_calibration_residual_px_mean"].get<double>()) << " px; "
               << (*j)["self_calibration_wrongly_ok"].get<int>() << " wrongly ok\n";
   }
   return kExitOk;

@@ -119,16 +119,10 @@ int run_eval_storage(const ParsedOptions& options) {
 
   // 3. One full subject: the face model with a random identity, 20 captures (640x480 colour),
   // the rig and 20 fitted meshes in a store; then every export format from that session.
-  const std::string model_path = options.get("face-model").empty()
-                                     ? default_face_model_path().string()
-                                     : options.get("face-model");
-  std::cerr << "eval storage: building a synthetic subject from " << model_path << "...\n";
-  auto model = load_face_model(model_path);
-  if (!model) return report_failure(model.error());
-  SyntheticSubjectOptions subject_options;
-  subject_options.seed = static_cast<std::uint64_t>(*seed);
-  auto subject = make_synthetic_subject(*model, subject_options);
-  if (!subject) return report_failure(subject.error());
+  auto made = face_model_subject(options, static_cast<std::uint64_t>(*seed),
+                                 "eval storage: building a synthetic subject from ");
+  if (!made) return report_failure(made.error());
+  const SyntheticSubject* subject = &made->subject;
   const fs::path store_root = scratch->path() / "subject-store";
   SessionId session = 0;
   {

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "algo/core/clock.hpp"
+#include "algo/core/polygon.hpp"
 #include "algo/transfer/image_transfer.hpp"
 #include "host/cli/stats.hpp"
 #include "sim/camera/synthetic_camera.hpp"
@@ -32,15 +33,8 @@ std::vector<bool> face_mask(const FacePhoto& truth) {
   const int w = truth.image.width, h = truth.image.height;
   std::vector<bool> mask(static_cast<std::size_t>(w) * h);
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      bool in = false;
-      for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++)
-        if ((poly[i].y() > y) != (poly[j].y() > y) &&
-            x < (poly[j].x() - poly[i].x()) * (y - poly[i].y()) / (poly[j].y() - poly[i].y()) +
-                    poly[i].x())
-          in = !in;
-      mask[static_cast<std::size_t>(y) * w + x] = in;
-    }
+    for (int x = 0; x < w; ++x)
+      mask[static_cast<std::size_t>(y) * w + x] = inside_polygon(poly, x, y);
   return mask;
 }
 

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "algo/core/polygon.hpp"
 #include "algo/transfer/image_transfer.hpp"
 #include "algo/transfer/vtc_transfer.hpp"
 #include "sim/subject/synthetic_photo.hpp"
@@ -34,13 +35,7 @@ double face_psnr(const ColorImage& out, const FacePhoto& truth) {
   long long n = 0;
   for (int y = 0; y < out.height; ++y)
     for (int x = 0; x < out.width; ++x) {
-      bool in = false;
-      for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++)
-        if ((poly[i].y() > y) != (poly[j].y() > y) &&
-            x < (poly[j].x() - poly[i].x()) * (y - poly[i].y()) / (poly[j].y() - poly[i].y()) +
-                    poly[i].x())
-          in = !in;
-      if (!in) continue;
+      if (!inside_polygon(poly, x, y)) continue;
       const Rgb8 a = out.at(x, y), b = truth.image.at(x, y);
       se += std::pow(a.r - b.r, 2.0) + std::pow(a.g - b.g, 2.0) + std::pow(a.b - b.b, 2.0);
       n += 3;

@@ -202,7 +202,9 @@ SalientRegions salient_regions(const FloatImage& luminance,
           }
       }
       line.box = {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
-      if (line.length() < o.min_line_px) continue;
+      if (line.length() <
+          std::min(o.min_line_px, zones.empty() ? o.min_line_px : o.min_crows_feet_px))
+        continue;
       if (landmarks) {
         Eigen::Vector2d c = Eigen::Vector2d::Zero();
         for (const auto& p : line.pixels) c += p.cast<double>();
@@ -214,6 +216,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
             if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
               line.zone = static_cast<int>(z);
           if (line.zone < 0) continue;
+          // Crow's feet are short rays (10-15 mm): a shorter line counts there.
+          if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) continue;
         }
         // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
         if (o.inside_face_only && zones.empty()) {
@@ -259,7 +263,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
     {
       const int zone = zone_of[k];
       const PixelRectI& z = zones[static_cast<std::size_t>(zone)];
-      const bool across = zone == 0, whole = zone > 0;
+      const bool across = zone == 0 && o.forehead_across, whole = zone > 0;
       const int zx0 = across || whole ? z.x : std::max(x0, z.x - o.margin_px);
       const int zy0 = whole ? z.y : std::max(y0, z.y - o.margin_px);
       const int zx1 = across || whole ? z.x + z.width : std::min(x1, z.x + z.width + o.margin_px);

@@ -202,9 +202,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
           }
       }
       line.box = {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
-      if (line.length() <
-          std::min(o.min_line_px, zones.empty() ? o.min_line_px : o.min_crows_feet_px))
-        continue;
+      if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
       if (landmarks) {
         Eigen::Vector2d c = Eigen::Vector2d::Zero();
         for (const auto& p : line.pixels) c += p.cast<double>();
@@ -216,8 +214,6 @@ SalientRegions salient_regions(const FloatImage& luminance,
             if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
               line.zone = static_cast<int>(z);
           if (line.zone < 0) continue;
-          // Crow's feet are short rays (10-15 mm): a shorter line counts there.
-          if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) continue;
         }
         // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
         if (o.inside_face_only && zones.empty()) {
@@ -232,6 +228,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
           near_lid += eyelid_distance(p.cast<double>(), *landmarks) < o.eyelid_radius_px;
         if (2 * near_lid > static_cast<int>(line.pixels.size())) continue;
       }
+      // Crow's feet are short rays (10-15 mm): a shorter line counts there.
+      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) continue;
       out.lines.push_back(std::move(line));
     }
   // Cluster: boxes closer than the gap merge until none do.

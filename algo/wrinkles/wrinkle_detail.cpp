@@ -73,24 +73,24 @@ void keep_near_lines(WrinkleDetail& d, int r) {
     }
 }
 
-// The largest value in the (2r+1)^2 square around each pixel (separable).
-FloatImage spread_max(const FloatImage& in, int r) {
-  FloatImage tmp = in, out = in;
+// The largest value within r pixels along x or along y.
+FloatImage max_along(const FloatImage& in, int r, bool along_x) {
+  FloatImage out = in;
+  const int n = along_x ? in.width : in.height;
   for (int y = 0; y < in.height; ++y)
     for (int x = 0; x < in.width; ++x) {
+      const int c = along_x ? x : y;
       float m = 0.0f;
-      for (int i = std::max(0, x - r); i <= std::min(in.width - 1, x + r); ++i)
-        m = std::max(m, in.at(i, y));
-      tmp.at(x, y) = m;
-    }
-  for (int y = 0; y < in.height; ++y)
-    for (int x = 0; x < in.width; ++x) {
-      float m = 0.0f;
-      for (int j = std::max(0, y - r); j <= std::min(in.height - 1, y + r); ++j)
-        m = std::max(m, tmp.at(x, j));
+      for (int i = std::max(0, c - r); i <= std::min(n - 1, c + r); ++i)
+        m = std::max(m, along_x ? in.at(i, y) : in.at(x, i));
       out.at(x, y) = m;
     }
   return out;
+}
+
+// The largest value in the (2r+1)^2 square around each pixel.
+FloatImage spread_max(const FloatImage& in, int r) {
+  return max_along(max_along(in, r, true), r, false);
 }
 
 // WrinkleDetailOptions' gate: the face's pixels are `face` (non-zero), or the image's.

@@ -323,12 +323,7 @@ CaseFace::CaseFace(const WrinkleCase& c, const FaceModel& model, const WrinkleCa
 Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& model,
                                      const KinectRegistration& registration) {
   const PinholeIntrinsics k = c.intrinsics;
-  std::vector<Eigen::Vector3f> posed(c.vertices.size() / 3);
-  for (std::size_t v = 0; v < posed.size(); ++v)
-    posed[v] =
-        c.camera_from_model
-            .apply(Eigen::Vector3d(c.vertices[3 * v], c.vertices[3 * v + 1], c.vertices[3 * v + 2]))
-            .cast<float>();
+  const std::vector<Eigen::Vector3f> posed = camera_vertices(c);
   PinholeIntrinsics ks = k;
   ks.width *= kSuper, ks.height *= kSuper, ks.fx *= kSuper, ks.fy *= kSuper;
   ks.cx = kSuper * k.cx + (kSuper - 1) / 2.0, ks.cy = kSuper * k.cy + (kSuper - 1) / 2.0;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "algo/render/rasterizer.hpp"
@@ -113,10 +114,15 @@ TEST(ExpressionRatio, DividingByTheWarpedNeutralRecoversTheReliefShading) {
         raw.push_back(expression_image.at(x, y));
         worst = std::max(worst, std::abs(got.back() - truth.back()));
       }
+    std::printf("%s: frame vs relief shading corr %.3f; ratio corr %.3f, worst %.4f\n",
+                cubic ? "Catmull-Rom" : "bilinear", correlation(raw, truth),
+                correlation(got, truth), worst);
     // The albedo hides the relief in the frame; the ratio shows it.
     EXPECT_LT(std::abs(correlation(raw, truth)), 0.45) << cubic;
-    EXPECT_GT(correlation(got, truth), 0.97) << cubic;
-    EXPECT_LT(worst, 0.02) << cubic;  // the relief's lines are 0.05 deep
+    // The relief's lines are 0.05 deep; bilinear sampling smooths the neutral's albedo a little
+    // (measured 0.973, worst 0.012), Catmull-Rom hardly (1.000, 0.0015).
+    EXPECT_GT(correlation(got, truth), cubic ? 0.99 : 0.96);
+    EXPECT_LT(worst, cubic ? 0.005 : 0.02);
   }
 }
 

@@ -123,6 +123,13 @@ bool near(const PixelRectI& a, const PixelRectI& b, int gap) {
          b.y - gap < a.y + a.height;
 }
 
+// Lines of one cluster: closer than the gap; on the forehead (zone 0) also side by side at the
+// same height (its lines run across it and are found in pieces).
+bool joins(const PixelRectI& a, const PixelRectI& b, int zone, const SalientOptions& o) {
+  if (near(a, b, o.cluster_gap_px)) return true;
+  return zone == 0 && o.join_forehead_rows && a.y < b.y + b.height && b.y < a.y + a.height;
+}
+
 }  // namespace
 
 std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
@@ -241,7 +248,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
     merged = false;
     for (std::size_t i = 0; i < boxes.size() && !merged; ++i)
       for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j)
-        if (zone_of[i] == zone_of[j] && near(boxes[i], boxes[j], o.cluster_gap_px)) {
+        if (zone_of[i] == zone_of[j] && joins(boxes[i], boxes[j], zone_of[i], o)) {
           boxes[i] = merge(boxes[i], boxes[j]);
           boxes.erase(boxes.begin() + static_cast<long>(j));
           zone_of.erase(zone_of.begin() + static_cast<long>(j));

@@ -136,6 +136,7 @@ WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& s
   wo.local_light = options.flag("local-light");
   wo.ratio_cubic = options.flag("cubic");
   wo.regions.forehead_across = options.flag("forehead-across");
+  wo.regions.join_forehead_rows = options.flag("join-rows");
   if (const auto f = options.get_int("feather"); f) wo.feather_px = static_cast<int>(*f);
   if (const std::string g = options.get("gate"); !g.empty()) {
     const auto comma = g.find(',');
@@ -361,6 +362,7 @@ std::vector<Command> wrinkles_eval_commands() {
              {"no-meshes", "", "neither (the frame and its landmarks alone: before round 5)", ""},
              {"cubic", "", "warp the neutral with Catmull-Rom (not bilinear)", ""},
              {"forehead-across", "", "the forehead region across its zone (round 4)", ""},
+             {"join-rows", "", "forehead lines at one height join however far apart", ""},
              {"gate", "LOW,HIGH", "heights fall to 0 where the relief is no more than noise", ""},
              {"threshold", "T", "the detector's gradient threshold (SalientOptions)", ""},
              {"min-crows-feet", "PX", "the shortest line kept at the eyes", "8"},

@@ -26,29 +26,6 @@ float luma(const ColorImage& c, double x, double y) {
 
 }  // namespace
 
-void feather_heights(FloatImage& height_mm, const Image<std::uint8_t>& domain, int px) {
-  if (px <= 0) return;
-  const int w = domain.width, h = domain.height;
-  // City-block distance (in pixels, capped) to the nearest pixel outside the domain.
-  std::vector<int> d(domain.pixels.size());
-  for (std::size_t i = 0; i < d.size(); ++i) d[i] = domain.pixels[i] ? px : 0;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      int& v = d[static_cast<std::size_t>(y) * w + x];
-      if (x > 0) v = std::min(v, d[static_cast<std::size_t>(y) * w + x - 1] + 1);
-      if (y > 0) v = std::min(v, d[static_cast<std::size_t>(y - 1) * w + x] + 1);
-      if (x == 0 || y == 0) v = std::min(v, 1);
-    }
-  for (int y = h - 1; y >= 0; --y)
-    for (int x = w - 1; x >= 0; --x) {
-      int& v = d[static_cast<std::size_t>(y) * w + x];
-      if (x + 1 < w) v = std::min(v, d[static_cast<std::size_t>(y) * w + x + 1] + 1);
-      if (y + 1 < h) v = std::min(v, d[static_cast<std::size_t>(y + 1) * w + x] + 1);
-    }
-  for (std::size_t i = 0; i < d.size(); ++i)
-    height_mm.pixels[i] *= static_cast<float>(std::min(d[i], px)) / static_cast<float>(px);
-}
-
 Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
                                      const KinectRegistration& registration,
                                      std::span<const WrinkleExemplar> exemplars,
@@ -115,8 +92,15 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
                   "the face");
     detail_options.given_regions.push_back({b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1});
   }
-  auto detail =
-      wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars, detail_options);
+  WrinkleFace face;
+  face.intrinsics = k;
+  face.expression = {posed, in.triangles};
+  if (in.neutral != nullptr && in.neutral->camera_vertices.size() == posed.size()) {
+    face.neutral = {in.neutral->camera_vertices, in.triangles};
+    face.neutral_luminance = &in.neutral->luminance;
+  }
+  auto detail = wrinkle_detail(out.luminance, out.landmarks, face_depth, k.fx, exemplars,
+                               detail_options, &face);
   if (!detail) return detail.failure();
   out.detail = std::move(*detail);
   feather_heights(out.detail.synthesis.height_mm, out.detail.synthesis.domain, options.feather_px);
@@ -128,6 +112,7 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
   auto maps = detail_maps(*in.map, in.uvs, in.triangle_uvs, in.vertices, in.triangles, view);
   if (!maps) return maps.failure();
   out.maps = std::move(*maps);
+  out.camera_vertices = std::move(posed);
   return out;
 }
 

@@ -21,6 +21,8 @@
 
 namespace fb {
 
+struct CaptureDetail;
+
 struct CaptureDetailInput {
   const ColorImage* color = nullptr;  // the capture's frontal colour frame (colour camera)
   std::span<const float> vertices;    // the fitted mesh, model frame, 3 floats per vertex
@@ -31,11 +33,16 @@ struct CaptureDetailInput {
   const TexelMap* map = nullptr;
   std::span<const float> uvs;
   std::span<const std::uint32_t> triangle_uvs;
+  // The subject's neutral capture's result (its luminance and mesh in the depth grid): the
+  // expression's luminance is divided by it, warped through the two meshes (the expression
+  // ratio image, WrinkleDetailOptions::ratio_image). Null for the neutral itself.
+  const CaptureDetail* neutral = nullptr;
 };
 
 struct CaptureDetailOptions {
   WrinkleDetailOptions detail;
-  int feather_px = 3;  // feather_heights() before the maps (0 = off)
+  // feather_heights() again before the maps, beyond WrinkleDetailOptions::feather_px (0 = off).
+  int feather_px = 0;
   // Regions given by hand in the colour frame's pixels (`facebooth wrinkles --region`): each
   // becomes the box of the depth-grid pixels whose colour lies inside it (at the mesh's depth),
   // and goes to detail.given_regions (instead of the detected ones unless
@@ -45,14 +52,11 @@ struct CaptureDetailOptions {
 
 struct CaptureDetail {
   FloatImage luminance;  // the colour frame's luma in the depth camera's grid, 0..1
-  std::array<Eigen::Vector2d, 68> landmarks;  // in that grid
-  WrinkleDetail detail;                       // regions and heights in that grid
-  DetailMaps maps;                            // in the UV layout
+  std::array<Eigen::Vector2d, 68> landmarks;     // in that grid
+  std::vector<Eigen::Vector3f> camera_vertices;  // the mesh in the depth camera (mm)
+  WrinkleDetail detail;                          // regions and heights in that grid
+  DetailMaps maps;                               // in the UV layout
 };
-
-// Heights faded to 0 over `px` pixels towards the edge of the synthesis domain (chamfer
-// distance), so the maps show no step where a region's box or a feature mask ends.
-void feather_heights(FloatImage& height_mm, const Image<std::uint8_t>& domain, int px);
 
 Result<CaptureDetail> capture_detail(const CaptureDetailInput& input,
                                      const KinectRegistration& registration,

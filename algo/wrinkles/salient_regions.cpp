@@ -123,6 +123,13 @@ bool near(const PixelRectI& a, const PixelRectI& b, int gap) {
          b.y - gap < a.y + a.height;
 }
 
+// Lines of one cluster: closer than the gap; on the forehead (zone 0) also side by side at the
+// same height (its lines run across it and are found in pieces).
+bool joins(const PixelRectI& a, const PixelRectI& b, int zone, const SalientOptions& o) {
+  if (near(a, b, o.cluster_gap_px)) return true;
+  return zone == 0 && o.join_forehead_rows && a.y < b.y + b.height && b.y < a.y + a.height;
+}
+
 }  // namespace
 
 std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
@@ -202,7 +209,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
           }
       }
       line.box = {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
-      if (line.length() < o.min_line_px) continue;
+      if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
       if (landmarks) {
         Eigen::Vector2d c = Eigen::Vector2d::Zero();
         for (const auto& p : line.pixels) c += p.cast<double>();
@@ -228,6 +235,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
           near_lid += eyelid_distance(p.cast<double>(), *landmarks) < o.eyelid_radius_px;
         if (2 * near_lid > static_cast<int>(line.pixels.size())) continue;
       }
+      // Crow's feet are short rays (10-15 mm): a shorter line counts there.
+      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) continue;
       out.lines.push_back(std::move(line));
     }
   // Cluster: boxes closer than the gap merge until none do.
@@ -239,7 +248,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
     merged = false;
     for (std::size_t i = 0; i < boxes.size() && !merged; ++i)
       for (std::size_t j = i + 1; j < boxes.size() && !merged; ++j)
-        if (zone_of[i] == zone_of[j] && near(boxes[i], boxes[j], o.cluster_gap_px)) {
+        if (zone_of[i] == zone_of[j] && joins(boxes[i], boxes[j], zone_of[i], o)) {
           boxes[i] = merge(boxes[i], boxes[j]);
           boxes.erase(boxes.begin() + static_cast<long>(j));
           zone_of.erase(zone_of.begin() + static_cast<long>(j));
@@ -259,7 +268,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
     {
       const int zone = zone_of[k];
       const PixelRectI& z = zones[static_cast<std::size_t>(zone)];
-      const bool across = zone == 0, whole = zone > 0;
+      const bool across = zone == 0 && o.forehead_across, whole = zone > 0;
       const int zx0 = across || whole ? z.x : std::max(x0, z.x - o.margin_px);
       const int zy0 = whole ? z.y : std::max(y0, z.y - o.margin_px);
       const int zx1 = across || whole ? z.x + z.width : std::min(x1, z.x + z.width + o.margin_px);

@@ -246,7 +246,7 @@ std::vector<WrinkleExemplar> rescale_exemplars(std::span<const WrinkleExemplar> 
   std::vector<WrinkleExemplar> out;
   const double scale = from_mm_per_px / to_mm_per_px;
   for (const auto& e : exemplars)
-    out.push_back({e.name, resample(e.height_mm, scale), resample(e.luminance, scale)});
+    out.push_back({e.name, resample(e.height_mm, scale), resample(e.luminance, scale), e.shaded});
   return out;
 }
 

@@ -32,6 +32,9 @@ struct WrinkleExemplar {
   std::string name;
   FloatImage height_mm;
   FloatImage luminance;
+  // The luminance is shade_relief() of the heights (the shipped set): it may be re-shaded for
+  // another light (WrinkleDetailOptions::local_light). False for a photograph (user exemplars).
+  bool shaded = true;
 };
 
 // The exemplars resampled from their pixel size to the input image's (both images alike, the

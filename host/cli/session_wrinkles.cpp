@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -65,6 +66,9 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
   CaptureDetailOptions detail_options;
   detail_options.detail.exemplar_mm_per_px = options.exemplar_mm_per_px;
   std::vector<CaptureWrinkleReport> out;
+  // The neutral (capture 0, first) is synthesised from its own frame; every other capture from
+  // its ratio to the neutral (WrinkleDetailOptions::ratio_image).
+  std::optional<CaptureDetail> neutral;
   for (const auto& [index, mesh_id] : *meshes) {
     const auto t0 = Clock::now();
     const std::string where =
@@ -92,9 +96,11 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
     in.map = &*map;
     in.uvs = uvs;
     in.triangle_uvs = model.triangle_uvs;
+    if (index != 0 && neutral) in.neutral = &*neutral;
     CaptureDetailOptions capture_options = detail_options;
     capture_options.detail.given_alongside = options.also_detect;
     capture_options.detail.regions.wrinkle_zones = options.zones;
+    capture_options.detail.local_light = options.local_light;
     const ColorImage& color = capture->frames.front().color;
     for (const auto& g : options.regions) {
       if (g.capture && *g.capture != index) continue;
@@ -116,6 +122,7 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
     r.regions = static_cast<int>(detail->detail.regions.regions.size());
     r.given_regions = static_cast<int>(capture_options.color_regions.size());
     r.texels_with_detail = detail->maps.texels_with_detail;
+    r.ratio_to_neutral = in.neutral != nullptr;
     for (const float h : detail->maps.displacement_mm.pixels)
       r.max_height_mm = std::max(r.max_height_mm, static_cast<double>(std::abs(h)));
     if (options.save) {
@@ -131,11 +138,13 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
                                      {"texels_with_detail", r.texels_with_detail},
                                      {"mm_per_px", detail->detail.image_mm_per_px},
                                      {"mesh_id", mesh_id},
+                                     {"ratio_to_neutral", r.ratio_to_neutral},
                                      {"calibration", note.empty() ? "recorded" : "defaults"}};
       auto id = store.add_wrinkle_detail(session, index, (*rig)->id, data, params.dump());
       if (!id) return id.failure();
       r.stored = *id;
     }
+    if (index == 0) neutral = std::move(*detail);
     r.seconds = ms_since(t0) / 1000.0;
     out.push_back(r);
     if (progress) progress(static_cast<int>(out.size()), static_cast<int>(meshes->size()));

@@ -18,10 +18,11 @@ namespace fb::cli {
 struct CaptureWrinkleReport {
   int capture_index = 0;
   std::string expression;
-  int regions = 0;             // regions synthesised in (detected and/or given)
-  int given_regions = 0;       // of them given by hand
-  int texels_with_detail = 0;  // of the maps
-  double max_height_mm = 0.0;  // largest |displacement| in the maps
+  int regions = 0;                // regions synthesised in (detected and/or given)
+  int given_regions = 0;          // of them given by hand
+  int texels_with_detail = 0;     // of the maps
+  double max_height_mm = 0.0;     // largest |displacement| in the maps
+  bool ratio_to_neutral = false;  // synthesised from the expression ratio image
   std::optional<WrinkleDetailId> stored;
   double seconds = 0.0;
 };
@@ -39,7 +40,8 @@ struct WrinkleSessionOptions {
   };
   std::vector<GivenRegion> regions;
   bool also_detect = false;
-  bool zones = true;  // detect only in the wrinkle zones (SalientOptions::wrinkle_zones)
+  bool zones = true;         // detect only in the wrinkle zones (SalientOptions::wrinkle_zones)
+  bool local_light = false;  // WrinkleDetailOptions::local_light
 };
 
 // Fails with what to do when the session has no rig, no fitted neutral, or a capture without a

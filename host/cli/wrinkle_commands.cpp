@@ -100,6 +100,7 @@ int run_wrinkles(const ParsedOptions& options) {
   if (options.flag("zones") && options.flag("no-zones"))
     return report_failure({"--zones (the default) and --no-zones exclude each other"});
   wo.zones = !options.flag("no-zones");
+  wo.local_light = options.flag("local-light");
   if (wo.also_detect && wo.regions.empty())
     return report_failure({"--also-detect goes with --region (detection is the default)"});
   StoreOptions so;
@@ -123,6 +124,7 @@ int run_wrinkles(const ParsedOptions& options) {
                         {"given_regions", r.given_regions},
                         {"texels_with_detail", r.texels_with_detail},
                         {"max_height_mm", r.max_height_mm},
+                        {"ratio_to_neutral", r.ratio_to_neutral},
                         {"seconds", r.seconds}};
     if (r.stored) j["detail_id"] = *r.stored;
     out["details"].push_back(j);
@@ -173,6 +175,10 @@ std::vector<Command> wrinkle_commands() {
               "elsewhere (cheeks, under the eyes) not synthesised (docs/wrinkles.md)",
               ""},
              {"no-zones", "", "the paper's detector alone: lines anywhere on the face", ""},
+             {"local-light", "",
+              "shade the exemplars per region for the fitted mesh's normal there (measured "
+              "worse on the lab's cases; docs/wrinkles.md)",
+              ""},
              {"no-save", "", "build and report only; the store is opened read-only", ""}}},
            run_wrinkles}};
 }

@@ -135,6 +135,7 @@ Result<std::vector<WrinkleExemplar>> load_user_exemplar(const UserExemplarSpec& 
     e.name = stem + "_" + std::to_string(angle);
     e.height_mm = angle == 0 ? height : rotate_square(height, angle, side);
     e.luminance = angle == 0 ? luma : rotate_square(luma, angle, side);
+    e.shaded = false;  // a photograph: its own light, never re-shaded
     out.push_back(std::move(e));
   }
   return out;

@@ -237,6 +237,8 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
     return z;
   };
   std::vector<bool> inside(windows->size());
+  // The neutral is another exposure: its own noise (the raised-brow cases keep theirs).
+  const std::uint64_t noise_seed = mix64(o.seed ^ 0x3c0104) + (o.raised_brows ? 0 : 0x5e11);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       Eigen::Vector3f sum = Eigen::Vector3f::Zero();
@@ -283,8 +285,7 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
       std::uint8_t ch[3];
       for (int k3 = 0; k3 < 3; ++k3)
         ch[k3] = static_cast<std::uint8_t>(std::clamp(
-            sum[k3] / kSamples + 3.0 * gaussian(mix64(o.seed ^ 0x3c0104), 3 * idx + k3) + 0.5, 0.0,
-            255.0));
+            sum[k3] / kSamples + 3.0 * gaussian(noise_seed, 3 * idx + k3) + 0.5, 0.0, 255.0));
       c.color.at(x, y) = {ch[0], ch[1], ch[2]};
       c.luminance.at(x, y) = (0.299f * ch[0] + 0.587f * ch[1] + 0.114f * ch[2]) / 255.0f;
     }
@@ -293,15 +294,36 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
   return c;
 }
 
-Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& model,
-                                     const KinectRegistration& registration) {
-  const PinholeIntrinsics k = c.intrinsics;
-  std::vector<Eigen::Vector3f> posed(c.vertices.size() / 3);
-  for (std::size_t v = 0; v < posed.size(); ++v)
-    posed[v] =
+Result<WrinkleCase> make_neutral_case(const FaceModel& model, WrinkleCaseOptions options) {
+  options.relief = WrinkleRelief::kNone;
+  options.raised_brows = false;
+  return make_wrinkle_case(model, options);
+}
+
+std::vector<Eigen::Vector3f> camera_vertices(const WrinkleCase& c) {
+  std::vector<Eigen::Vector3f> out(c.vertices.size() / 3);
+  for (std::size_t v = 0; v < out.size(); ++v)
+    out[v] =
         c.camera_from_model
             .apply(Eigen::Vector3d(c.vertices[3 * v], c.vertices[3 * v + 1], c.vertices[3 * v + 2]))
             .cast<float>();
+  return out;
+}
+
+CaseFace::CaseFace(const WrinkleCase& c, const FaceModel& model, const WrinkleCase* n)
+    : expression(camera_vertices(c)) {
+  face.intrinsics = c.intrinsics;
+  face.expression = {expression, model.triangles};
+  if (n == nullptr) return;
+  neutral = camera_vertices(*n);
+  face.neutral = {neutral, model.triangles};
+  face.neutral_luminance = &n->luminance;
+}
+
+Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& model,
+                                     const KinectRegistration& registration) {
+  const PinholeIntrinsics k = c.intrinsics;
+  const std::vector<Eigen::Vector3f> posed = camera_vertices(c);
   PinholeIntrinsics ks = k;
   ks.width *= kSuper, ks.height *= kSuper, ks.fx *= kSuper, ks.fy *= kSuper;
   ks.cx = kSuper * k.cx + (kSuper - 1) / 2.0, ks.cy = kSuper * k.cy + (kSuper - 1) / 2.0;
@@ -388,9 +410,10 @@ WrinkleScore score_wrinkles(const WrinkleCase& c, const WrinkleDetail& d, int ma
         }
       }
       if (det) ++d_n, d_in += t5;
-      if (!t5)
-        s.max_displacement_outside_mm =
-            std::max(s.max_displacement_outside_mm, static_cast<double>(std::abs(got)));
+      if (!t5 && std::abs(got) > s.max_displacement_outside_mm) {
+        s.max_displacement_outside_mm = std::abs(got);
+        s.max_outside_x = x, s.max_outside_y = y;
+      }
     }
   if (t_n > 1) {
     const double cov = sgt - sg * st / t_n, vg = sgg - sg * sg / t_n, vt = stt - st * st / t_n;

@@ -61,6 +61,23 @@ struct WrinkleCase {
 
 Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseOptions& options);
 
+// The subject's neutral capture beside a case made with `options`: the same subject, camera and
+// light, brows down, no relief, its own sensor noise (another exposure).
+Result<WrinkleCase> make_neutral_case(const FaceModel& model, WrinkleCaseOptions options);
+
+// The case's mesh in its camera (mm), as wrinkle_detail's WrinkleFace wants it.
+std::vector<Eigen::Vector3f> camera_vertices(const WrinkleCase& c);
+
+// What the product gives wrinkle_detail for a case: its mesh, and (optional) the neutral's frame
+// and mesh. Holds the vertices the face's spans point into; not copyable or movable.
+struct CaseFace {
+  CaseFace(const WrinkleCase& c, const FaceModel& model, const WrinkleCase* neutral);
+  CaseFace(const CaseFace&) = delete;
+  CaseFace& operator=(const CaseFace&) = delete;
+  std::vector<Eigen::Vector3f> expression, neutral;
+  WrinkleFace face;
+};
+
 // The case as the Kinect delivers it (what a stored capture holds): depth in mm in the depth
 // camera's image, and `color` moved into the colour camera's image through the unit's
 // registration at the surface's depth (each depth pixel's 3 x 3 sub-samples splatted, holes
@@ -71,6 +88,7 @@ Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& mode
 struct WrinkleScore {
   double height_mae_mm = 0, zero_field_mae_mm = 0, wrinkle_pixel_mae_mm = 0, height_correlation = 0;
   double region_recall = 0, region_precision = 0, max_displacement_outside_mm = 0;
+  int max_outside_x = -1, max_outside_y = -1;  // where the largest outside height is
 };
 
 // Scores against the truth. T: the true relief windows; T+m: grown by the margin; D: the

@@ -62,17 +62,11 @@ double noise(std::uint64_t i) {
   return std::sqrt(-2.0 * std::log(u)) * std::cos(2.0 * M_PI * v);
 }
 
-// The booth's key light in the tangent frame of a skin patch whose normal is (nx, ny, 1)
-// (model frame: x right, y up), as SkinLight wants it (x right, y down, z out of the skin).
+// The booth's key light for a skin patch whose normal is (nx, ny, 1) in the model frame (x
+// right, y up; the face frontal, so the camera's frame is (x, -y, -z)).
 SkinLight local_light(double nx, double ny) {
-  const Eigen::Vector3f l = Eigen::Vector3f(-0.35f, 0.45f, 1.0f).normalized();
-  const Eigen::Vector3f n =
-      Eigen::Vector3f(static_cast<float>(nx), static_cast<float>(ny), 1.0f).normalized();
-  const Eigen::Vector3f tx = (Eigen::Vector3f::UnitX() - n * n.x()).normalized();
-  const Eigen::Vector3f ty = n.cross(tx);
-  SkinLight out;
-  out.to_light = Eigen::Vector3f(l.dot(tx), -l.dot(ty), l.dot(n));
-  return out;
+  return skin_light_for(Eigen::Vector3f(static_cast<float>(nx), static_cast<float>(-ny), -1.0f),
+                        WrinkleDetailOptions{}.to_light);
 }
 
 // Six orientations of grooves 0.2-1.0 mm deep, sigma 0.9 mm, 7.3 mm apart, at 0.25 mm per px.
@@ -142,44 +136,15 @@ void score_synthesis(const WrinkleCase& c, const FloatImage& h) {
 }
 
 // The neutral frame (brows down, no relief) warped into the expression's image through the two
-// meshes (one topology): per pixel the expression mesh's triangle and barycentrics, the same
-// point on the neutral mesh, projected into the neutral's frame. Off the mesh: 0.
-Result<FloatImage> warp_neutral(const FaceModel& model, const WrinkleCase& c,
-                                const WrinkleCase& neutral) {
-  const auto posed = [](const WrinkleCase& k) {
-    std::vector<Eigen::Vector3f> out(k.vertices.size() / 3);
-    for (std::size_t v = 0; v < out.size(); ++v)
-      out[v] = k.camera_from_model
-                   .apply(Eigen::Vector3d(k.vertices[3 * v], k.vertices[3 * v + 1],
-                                          k.vertices[3 * v + 2]))
-                   .cast<float>();
-    return out;
-  };
-  const std::vector<Eigen::Vector3f> e = posed(c), n = posed(neutral);
+// meshes (algo/wrinkles' warp_neutral, as the product does).
+Result<FloatImage> warp_case_neutral(const FaceModel& model, const WrinkleCase& c,
+                                     const WrinkleCase& neutral) {
+  const CaseFace face(c, model, &neutral);
   RasterBuffers raster;
   raster.reset(c.intrinsics.width, c.intrinsics.height);
-  if (auto ok = rasterize(c.intrinsics, e, model.triangles, {}, raster); !ok) return ok.failure();
-  FloatImage out;
-  out.resize(c.luminance.width, c.luminance.height);
-  const FloatImage& src = neutral.luminance;
-  for (int y = 0; y < out.height; ++y)
-    for (int x = 0; x < out.width; ++x) {
-      out.at(x, y) = 0.0f;
-      const std::size_t i = raster.index(x, y);
-      const std::int32_t t = raster.triangle[i];
-      if (t == kNoTriangle) continue;
-      const float b1 = raster.bary1[i], b2 = raster.bary2[i], b0 = 1.0f - b1 - b2;
-      const auto* tri = &model.triangles[3 * static_cast<std::size_t>(t)];
-      const Eigen::Vector3f p = b0 * n[tri[0]] + b1 * n[tri[1]] + b2 * n[tri[2]];
-      const double u = c.intrinsics.fx * p.x() / p.z() + c.intrinsics.cx;
-      const double v = c.intrinsics.fy * p.y() / p.z() + c.intrinsics.cy;
-      if (u < 0 || v < 0 || u > src.width - 2 || v > src.height - 2) continue;
-      const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
-      const auto au = static_cast<float>(u - u0), av = static_cast<float>(v - v0);
-      out.at(x, y) = (1 - av) * ((1 - au) * src.at(u0, v0) + au * src.at(u0 + 1, v0)) +
-                     av * ((1 - au) * src.at(u0, v0 + 1) + au * src.at(u0 + 1, v0 + 1));
-    }
-  return out;
+  if (auto ok = rasterize(c.intrinsics, face.expression, model.triangles, {}, raster); !ok)
+    return ok.failure();
+  return warp_neutral(c.intrinsics, raster, face.face.neutral, neutral.luminance);
 }
 
 std::vector<double> parse_list(const std::string& s) {
@@ -226,10 +191,9 @@ int run_diag(const ParsedOptions& options) {
                                                  std::max(0.02f, flat->luminance.pixels[i]) +
                                              2.0 / 255.0 * noise(i));
     if (options.flag("neutral-ratio")) {
-      co.raised_brows = false;
-      auto neutral = make_wrinkle_case(*model, co);
+      auto neutral = make_neutral_case(*model, co);
       if (!neutral) return report_failure(neutral.error());
-      auto warped = warp_neutral(*model, *c, *neutral);
+      auto warped = warp_case_neutral(*model, *c, *neutral);
       if (!warped) return report_failure(warped.error());
       for (std::size_t i = 0; i < input.pixels.size(); ++i)
         if (warped->pixels[i] > 0.02f)

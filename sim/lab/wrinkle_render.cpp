@@ -116,12 +116,14 @@ int run_render_wrinkles(const ParsedOptions& options) {
   co.seed = static_cast<std::uint64_t>(*seed);
   auto c = make_wrinkle_case(*model, co);
   if (!c) return report_failure(c.error());
+  auto neutral = make_neutral_case(*model, co);
+  if (!neutral) return report_failure(neutral.error());
+  const CaseFace face(*c, *model, &*neutral);  // the product's input: the ratio to the neutral
   WrinkleDetailOptions wo;
   wo.exemplar_mm_per_px = set->mm_per_px;
   auto d = wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx,
-                          set->exemplars, wo);
+                          set->exemplars, wo, &face.face);
   if (!d) return report_failure(d.error());
-  feather_heights(d->synthesis.height_mm, d->synthesis.domain, CaptureDetailOptions{}.feather_px);
   Scene s;
   s.model = &*model;
   s.c = &*c;

@@ -94,8 +94,8 @@ Result<Setup> load_setup(const ParsedOptions& options) {
   return Setup{std::move(*model), std::move(*set)};
 }
 
-Result<WrinkleCase> make_case(const Setup& setup, WrinkleRelief relief, std::uint64_t seed,
-                              bool light_vary, double distance_mm = 700.0) {
+WrinkleCaseOptions case_options(const Setup& setup, WrinkleRelief relief, std::uint64_t seed,
+                                bool light_vary, double distance_mm = 700.0) {
   WrinkleCaseOptions co;
   co.relief = relief;
   co.seed = seed;
@@ -103,7 +103,12 @@ Result<WrinkleCase> make_case(const Setup& setup, WrinkleRelief relief, std::uin
   co.distance_mm = distance_mm;
   co.scan_crops = setup.exemplars.exemplars;
   co.scan_mm_per_px = setup.exemplars.mm_per_px;
-  return make_wrinkle_case(setup.model, co);
+  return co;
+}
+
+Result<WrinkleCase> make_case(const Setup& setup, WrinkleRelief relief, std::uint64_t seed,
+                              bool light_vary, double distance_mm = 700.0) {
+  return make_wrinkle_case(setup.model, case_options(setup, relief, seed, light_vary, distance_mm));
 }
 
 std::vector<WrinkleExemplar> exemplars_for(const Setup& setup, WrinkleRelief relief) {
@@ -123,6 +128,31 @@ nlohmann::json score_json(const WrinkleScore& s) {
           {"max_displacement_outside_mm", s.max_displacement_outside_mm}};
 }
 
+// The eval's method options beyond the regions (round 5's ratio image, light and gate).
+WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& setup) {
+  WrinkleDetailOptions wo;
+  wo.exemplar_mm_per_px = setup.exemplars.mm_per_px;
+  wo.ratio_image = !options.flag("no-ratio");
+  wo.local_light = options.flag("local-light");
+  wo.ratio_cubic = options.flag("cubic");
+  wo.regions.forehead_across = options.flag("forehead-across");
+  wo.regions.join_forehead_rows = options.flag("join-rows");
+  if (const auto f = options.get_int("feather"); f) wo.feather_px = static_cast<int>(*f);
+  if (const std::string g = options.get("gate"); !g.empty()) {
+    const auto comma = g.find(',');
+    wo.gate_low = std::stod(g.substr(0, comma));
+    wo.gate_high = std::stod(g.substr(comma + 1));
+  }
+  if (const std::string t = options.get("threshold"); !t.empty())
+    wo.regions.gradient_threshold = std::stof(t);
+  if (const auto k = options.get_int("min-line"); k) wo.regions.min_line_px = static_cast<int>(*k);
+  if (const auto k = options.get_int("min-crows-feet"); k)
+    wo.regions.min_crows_feet_px = static_cast<int>(*k);
+  if (const auto k = options.get_int("keep-near-lines"); k)
+    wo.keep_near_lines_px = static_cast<int>(*k);
+  return wo;
+}
+
 int run_eval_wrinkles(const ParsedOptions& options) {
   const auto subjects = options.get_int("subjects");
   const auto first = options.get_int("first-seed");
@@ -138,9 +168,9 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   const auto distance = options.get_double("distance-mm");
   if (!distance || *distance < 500 || *distance > 1500)
     return report_failure({"--distance-mm takes a distance in 500-1500 mm"});
-  WrinkleDetailOptions wo;
-  wo.exemplar_mm_per_px = setup->exemplars.mm_per_px;
+  WrinkleDetailOptions wo = detail_options(options, *setup);
   wo.regions.wrinkle_zones = zones;
+  const bool meshes = !options.flag("no-meshes");
   nlohmann::json runs = nlohmann::json::array(), summary;
   WrinkleScore worst{0, 0, 0, 1, 1, 1, 0};
   Progress progress("eval wrinkles", 2 * static_cast<int>(*subjects));
@@ -157,9 +187,17 @@ int run_eval_wrinkles(const ParsedOptions& options) {
         for (const auto& r : c->true_regions)
           wo.given_regions.push_back({r.x - 5, r.y - 5, r.width + 10, r.height + 10});
       }
+      std::optional<WrinkleCase> neutral;
+      if (meshes && wo.ratio_image) {
+        auto n =
+            make_neutral_case(setup->model, case_options(*setup, relief, seed, vary, *distance));
+        if (!n) return report_failure(n.error());
+        neutral = std::move(*n);
+      }
+      const CaseFace face(*c, setup->model, neutral ? &*neutral : nullptr);
       const auto t0 = Clock::now();
-      auto d =
-          wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx, ex, wo);
+      auto d = wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx, ex,
+                              wo, meshes ? &face.face : nullptr);
       const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
       if (!d) return report_failure(d.error());
       const WrinkleScore sc = score_wrinkles(*c, *d, wo.regions.margin_px);
@@ -184,6 +222,13 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       run["seed"] = seed;
       run["regions_detected"] = d->regions.regions.size();
       run["true_regions"] = c->true_regions.size();
+      run["max_outside_at"] = {sc.max_outside_x, sc.max_outside_y};
+      run["regions"] = nlohmann::json::array();
+      for (const auto& r : d->regions.regions)
+        run["regions"].push_back({r.x, r.y, r.width, r.height});
+      run["true_windows"] = nlohmann::json::array();
+      for (const auto& r : c->true_regions)
+        run["true_windows"].push_back({r.x, r.y, r.width, r.height});
       run["mm_per_px"] = d->image_mm_per_px;
       run["seconds"] = seconds;
       runs.push_back(run);
@@ -204,6 +249,8 @@ int run_eval_wrinkles(const ParsedOptions& options) {
   out["regions"] = given   ? "given: the true windows + 5 px (the paper's user rectangles)"
                    : zones ? "detected in the wrinkle zones (forehead, glabella, crow's feet)"
                            : "detected (salient regions)";
+  out["ratio_image"] = meshes && wo.ratio_image;
+  out["local_light"] = meshes && wo.local_light;
   out["budget"] = {{"height_mae_mm", "<= 0.15"},
                    {"region_recall", ">= 0.9"},
                    {"region_precision", ">= 0.8"},
@@ -231,6 +278,11 @@ int run_bench_wrinkles(const ParsedOptions& options) {
   if (!seed) return report_failure(seed.error());
   auto c = make_case(*setup, WrinkleRelief::kGrooves, static_cast<std::uint64_t>(*seed), false);
   if (!c) return report_failure(c.error());
+  auto neutral = make_neutral_case(
+      setup->model,
+      case_options(*setup, WrinkleRelief::kGrooves, static_cast<std::uint64_t>(*seed), false));
+  if (!neutral) return report_failure(neutral.error());
+  const CaseFace face(*c, setup->model, &*neutral);
   WrinkleDetailOptions wo;
   wo.exemplar_mm_per_px = setup->exemplars.mm_per_px;
   nlohmann::json methods = nlohmann::json::object();
@@ -240,7 +292,7 @@ int run_bench_wrinkles(const ParsedOptions& options) {
     wo.synthesis.search = search;
     const auto t0 = Clock::now();
     auto d = wrinkle_detail(c->luminance, c->landmarks, c->face_depth_mm, c->intrinsics.fx,
-                            setup->exemplars.exemplars, wo);
+                            setup->exemplars.exemplars, wo, &face.face);
     const double s = std::chrono::duration<double>(Clock::now() - t0).count();
     if (!d) return report_failure(d.error());
     const WrinkleScore sc = score_wrinkles(*c, *d, wo.regions.margin_px);
@@ -270,7 +322,9 @@ int run_bench_wrinkles(const ParsedOptions& options) {
                     " frontal, raised brows, grooves case seed " + std::to_string(*seed)},
       {"threads", 1},
       {"budget", {{"per_expression_s", "<= 1.0 (one core)"}}},
-      {"timed", "salient regions + exemplar resampling + EM synthesis (4 iterations)"},
+      {"timed",
+       "ratio image (the neutral warped through the meshes) + salient regions + exemplars "
+       "re-shaded per region and resampled + EM synthesis (4 iterations)"},
       {"methods", methods},
       {"tracking_overhead_ms", (*tracking)["tracking_overhead_ms"]},
       {"tracking", *tracking}};
@@ -303,6 +357,18 @@ std::vector<Command> wrinkles_eval_commands() {
               "rectangles (scores the synthesis alone)",
               "zones"},
              {"png-prefix", "P", "figures", ""},
+             {"no-ratio", "", "no expression ratio image (the frame as it is)", ""},
+             {"local-light", "", "the exemplars re-shaded per region for its mesh normal", ""},
+             {"no-meshes", "", "neither (the frame and its landmarks alone: before round 5)", ""},
+             {"cubic", "", "warp the neutral with Catmull-Rom (not bilinear)", ""},
+             {"forehead-across", "", "the forehead region across its zone (round 4)", ""},
+             {"join-rows", "", "forehead lines at one height join however far apart", ""},
+             {"gate", "LOW,HIGH", "heights fall to 0 where the relief is no more than noise", ""},
+             {"threshold", "T", "the detector's gradient threshold (SalientOptions)", ""},
+             {"min-crows-feet", "PX", "the shortest line kept at the eyes", "8"},
+             {"feather", "PX", "heights faded to 0 over PX at the domain's edge", "5"},
+             {"min-line", "PX", "the shortest line kept (SalientOptions)", "12"},
+             {"keep-near-lines", "PX", "heights only this close to a kept line (0: all)", "0"},
              exemplars,
              json}},
            run_eval_wrinkles},

@@ -114,6 +114,9 @@ TEST_F(WrinklesCli, StoresDetailWhereTheWrinklesAreAndExportsIt) {
   std::cout << r.out << "\n";
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["details"].size(), 2u);
+  // The neutral from its own frame, the brow raiser from its ratio to the neutral.
+  EXPECT_EQ(j["details"][0]["ratio_to_neutral"], false);
+  EXPECT_EQ(j["details"][1]["ratio_to_neutral"], true);
 
   StoreOptions reader;
   reader.read_only = true;
@@ -140,15 +143,16 @@ TEST_F(WrinklesCli, StoresDetailWhereTheWrinklesAreAndExportsIt) {
         scores[i].inside_mean, scores[i].inside_true_mean, scores[i].inside_mae, scores[i].outside,
         scores[i].outside_detail / std::max(1.0, 1.0 * scores[i].outside), scores[i].outside_mean);
   }
-  // Heights where the wrinkles are, several times more than elsewhere. Not "near zero"
-  // elsewhere: the synthesis puts false relief in the detected boxes around brows and eyes
-  // (eval wrinkles' region_precision 0.54, docs/wrinkles.md); these bounds hold that level.
+  // Heights where the wrinkles are, next to none elsewhere. Since round 5 (the ratio to the
+  // neutral, regions from the lines found, heights feathered over the margin) the relief
+  // outside is gone (0.000 of the texels > 5 px away above 0.05 mm, round 4: 0.037) but less
+  // of the true relief is covered (0.44 with |h| > 0.02 mm, round 4: 0.88; docs/wrinkles.md).
   const UvScore& b = scores[1];
   ASSERT_GT(b.inside, 200);
-  EXPECT_GT(b.inside_detail, 0.6 * b.inside);
-  EXPECT_GT(b.inside_mean, 0.05);
-  EXPECT_LT(b.outside_detail, 0.3 * b.outside);
-  EXPECT_LT(b.outside_mean, 0.4 * b.inside_mean);
+  EXPECT_GT(b.inside_detail, 0.35 * b.inside);
+  EXPECT_GT(b.inside_mean, 0.035);
+  EXPECT_LT(b.outside_detail, 0.005 * b.outside);
+  EXPECT_LT(b.outside_mean, 0.1 * b.inside_mean);
   // The neutral (no relief): little detail anywhere.
   EXPECT_LT(scores[0].outside_mean, 0.02);
   EXPECT_LT(scores[0].outside_detail, 0.12 * scores[0].outside);

@@ -43,6 +43,7 @@ struct Correspondence {
   Eigen::Vector3d q;        // depth point
   Eigen::Vector3d n;        // unit, towards the camera
   double confidence = 1.0;  // the target's, at the sample
+  double skin = 1.0;        // the target's skin weight at the sample
 };
 
 bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vector3d& vn,
@@ -58,9 +59,17 @@ bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vecto
   c.n = nf.cast<double>();
   c.q = t.intrinsics.unproject(px, py, d);
   c.confidence = t.confidence.empty() ? 1.0 : static_cast<double>(t.confidence.at(px, py));
+  c.skin = t.skin.empty() ? 1.0 : static_cast<double>(t.skin.at(px, py));
   if (vn.squaredNorm() > 0.5 && vn.dot(c.n) < cos_min) return false;
   const double plane = c.n.dot(x - c.q);
   return std::abs(plane) <= gate_mm && (x - c.q).norm() <= 2.0 * gate_mm + 3.0;
+}
+
+// Hair and a beard are measured in front of the skin: their depth only says the face is not in
+// front of it. A vertex behind such a sample (or on it) takes nothing from it; one in front of
+// it is pushed back as by skin.
+bool behind_hair(const Correspondence& c, const Eigen::Vector3d& x) {
+  return c.skin < 0.5 && c.n.dot(x - c.q) <= 0.0;
 }
 
 // Vertices that the mesh itself does not hide from the camera: rasterise the posed mesh and
@@ -375,6 +384,7 @@ Eigen::Vector3d weighted_pull(const Eigen::Vector3d& p, const Correspondence& c,
                               double robust_scale_mm) {
   const double plane = c.n.dot(p - c.q);
   const double rs = robust_scale_mm > 0 ? plane / robust_scale_mm : 0.0;
+  if (behind_hair(c, p)) return p;
   return p - (c.confidence / (1.0 + rs * rs)) * plane * c.n;
 }
 
@@ -533,7 +543,8 @@ static Result<Eigen::VectorXd> neutral_step(
     const int vtx = depth_set[slot];
     if (!vis[static_cast<std::size_t>(vtx)]) continue;
     Correspondence cc;
-    if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc)) {
+    if (correspond(target, x.row(vtx).transpose(), vn.row(vtx).transpose(), gate, cos_min, cc) &&
+        (o.hair_weight > 0 || !behind_hair(cc, x.row(vtx).transpose()))) {
       corr.push_back(cc);
       corr_v.push_back(vtx);
       corr_slot.push_back(static_cast<int>(slot));
@@ -594,14 +605,16 @@ static Result<Eigen::VectorXd> neutral_step(
     const int vtx = corr_v[k];
     const Eigen::Vector3d& n = corr[k].n;
     const Eigen::Vector3d a = r * v.row(vtx).transpose();
-    const Eigen::Vector3d rn = sp * (r.transpose() * n);
-    j.row(row).head<3>() = sp * a.cross(n).transpose();
-    j.row(row).segment<3>(3) = sp * n.transpose();
+    const double sw =
+        behind_hair(corr[k], x.row(vtx).transpose()) ? sp * std::sqrt(o.hair_weight) : sp;
+    const Eigen::Vector3d rn = sw * (r.transpose() * n);
+    j.row(row).head<3>() = sw * a.cross(n).transpose();
+    j.row(row).segment<3>(3) = sw * n.transpose();
     const Eigen::Index g = 3 * static_cast<Eigen::Index>(corr_slot[k]);
     j.row(row).tail(m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
                           rn.z() * depth_basis.row(g + 2))
                              .cast<double>();
-    res[row] = sp * n.dot(x.row(vtx).transpose() - corr[k].q);
+    res[row] = sw * n.dot(x.row(vtx).transpose() - corr[k].q);
     ++row;
   }
   Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);

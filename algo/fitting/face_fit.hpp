@@ -52,6 +52,10 @@ struct FitTarget {
   // beard and the rims of the eyes and mouth are held by the Laplacian rather than chased; the
   // PCA step (step 1) does not use it (docs/tuning.md: it cost vertex error). Empty = all 1.
   Image<float> confidence;
+  // Optional, [0, 1] per depth pixel: how skin-like the registered colour is
+  // (algo/landmarks/skin_map.hpp). Where it is under 0.5 (hair, a beard) the depth is taken
+  // as a bound: the face lies on or behind it. Empty = all skin.
+  Image<float> skin;
   std::array<FitLandmark, kFitLandmarkCount> landmarks;
   // The mesh vertex each landmark marks when the landmarks follow a detector's convention
   // rather than the model's (dlib: algo/facemodel/landmark_embedding.hpp); unset = the model's
@@ -113,6 +117,9 @@ struct NeutralFitOptions {
   double max_distance_mm = 15.0;   // depth gate of the first round, shrinking to
   double final_distance_mm = 6.0;  // this by the last round
   double max_normal_angle_deg = 70;
+  // Depth on hair or a beard (FitTarget::skin) pushes a face in front of it back at full
+  // weight and pulls one behind it at this weight: how thick the hair is is not known.
+  double hair_weight = 0.5;
   bool refine = true;  // run step 2
   RefineOptions refine_options;
 };

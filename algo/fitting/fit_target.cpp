@@ -39,6 +39,34 @@ std::optional<Eigen::Vector3d> lift_with_depth(const FitTarget& target, const Ei
   return lift_depth(target.depth_mm, target.intrinsics, px, radius_px, strict);
 }
 
+namespace {
+
+// A detector draws the jaw line along what it sees: on a beard or hair that is the beard's
+// outline, up to centimetres off the jaw. Such contour points are dropped; the skin's depth and
+// the interior points place the jaw.
+void drop_contour_on_hair(FitTarget& target) {
+  if (target.skin.empty()) return;
+  constexpr int kRadius = 5;
+  for (int l = 0; l < kFitLandmarkCount; ++l) {
+    FitLandmark& lm = target.landmarks[static_cast<std::size_t>(l)];
+    if (!is_contour_landmark(l) || !lm.valid) continue;
+    const int cx = static_cast<int>(std::lround(lm.pixel.x())),
+              cy = static_cast<int>(std::lround(lm.pixel.y()));
+    double sum = 0;
+    int n = 0;
+    for (int dy = -kRadius; dy <= kRadius; ++dy)
+      for (int dx = -kRadius; dx <= kRadius; ++dx)
+        if (dx * dx + dy * dy <= kRadius * kRadius && target.skin.contains(cx + dx, cy + dy) &&
+            target.depth_mm.at(cx + dx, cy + dy) > 0) {
+          sum += target.skin.at(cx + dx, cy + dy);
+          ++n;
+        }
+    if (n > 0 && sum / n < 0.5) lm = FitLandmark{};
+  }
+}
+
+}  // namespace
+
 Result<void> prepare_fit_target(FitTarget& target) {
   const int w = target.depth_mm.width, h = target.depth_mm.height;
   if (target.depth_mm.empty() || w < 3 || h < 3) return fail("fit: the depth map is empty");
@@ -81,6 +109,9 @@ Result<void> prepare_fit_target(FitTarget& target) {
     }
   if (!target.confidence.empty() && (target.confidence.width != w || target.confidence.height != h))
     return fail("fit: the depth confidence map is not the depth map's size");
+  if (!target.skin.empty() && (target.skin.width != w || target.skin.height != h))
+    return fail("fit: the skin map is not the depth map's size");
+  drop_contour_on_hair(target);
   int valid = 0;
   for (const auto& lm : target.landmarks) valid += lm.valid;
   if (valid == 0) return fail("fit: no face landmarks (no face found in the image)");

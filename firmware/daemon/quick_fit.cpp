@@ -13,6 +13,7 @@
 #include "algo/guide/guide_expressions.hpp"
 #include "algo/landmarks/landmark_detector.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
+#include "algo/landmarks/skin_map.hpp"
 #include "storage/asset_files.hpp"
 
 namespace fb {
@@ -71,6 +72,9 @@ Result<FitTarget> make_target(const CaptureView& view,
   target.normals = view.normals;
   target.confidence = view.confidence;
   target.landmarks = *lifted;
+  // Without a skin map (no colour frame) every depth sample counts as skin.
+  if (auto skin = skin_map(view.depth_mm, view.color, registration, color_points))
+    target.skin = std::move(*skin);
   if (embedding) target.landmark_vertices = embedding->for_expression(expression);
   out.landmarks_valid = 0;
   out.landmarks_3d = 0;

@@ -8,6 +8,7 @@
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/fit_qa.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
+#include "algo/landmarks/skin_map.hpp"
 #include "host/cli/session_texture.hpp"  // session_calibration
 
 namespace fb::cli {
@@ -29,7 +30,7 @@ Result<FitTarget> stored_target(const SessionStore& store, SessionId session, in
                                 const KinectCalibration& calibration,
                                 const std::optional<LandmarkEmbedding>& embedding) {
   CaptureReadOptions ro;
-  ro.max_frames = 0;
+  ro.max_frames = 1;  // frame 0's colour: where the fused depth sees skin
   auto c = store.read_capture(session, index, ro);
   if (!c) return c.failure();
   if (c->fused_depth.width == 0) return fail("no fused depth stored");
@@ -41,9 +42,13 @@ Result<FitTarget> stored_target(const SessionStore& store, SessionId session, in
   FitTarget t;
   t.intrinsics = calibration.depth_intrinsics();
   t.depth_mm = depth_to_float(c->fused_depth);
-  auto lifted = lift_landmarks(px, t.depth_mm, KinectRegistration(calibration));
+  const KinectRegistration registration(calibration);
+  auto lifted = lift_landmarks(px, t.depth_mm, registration);
   if (!lifted) return lifted.failure();
   t.landmarks = *lifted;
+  if (!c->frames.empty())
+    if (auto skin = skin_map(t.depth_mm, c->frames.front().color, registration, px))
+      t.skin = std::move(*skin);
   if (embedding) t.landmark_vertices = embedding->for_expression(c->info.expression);
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;

@@ -185,6 +185,7 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.noise = *noise;
   setup.robust_noise = *robust_noise;
   setup.noiseless_depth = noiseless_depth;
+  setup.skin_map = options.get("skin-map") != "off";
   setup.dlib_fit = fit_landmarks == "dlib";
   if (const std::string e = options.get("landmark-embedding"); e != "model") {
     auto embedding = e == "dlib" ? load_landmark_embedding(*model)
@@ -251,6 +252,10 @@ std::vector<Command> fit_commands() {
           "fit the fused depth (the figure) or, to isolate fusion "
           "error, the noiseless rendering",
           "fused"},
+         {"skin-map", "on|off",
+          "weigh the depth by where frame 0's colour sees skin (hair and beard as bounds, "
+          "contour points on them dropped), as the product does; off for an A/B",
+          "on"},
          {"landmark-embedding", "dlib|model|FILE",
           "the mesh vertices dlib's points mark in the fit: dlib = DATA_DIR/"
           "dlib_landmark_embedding.csv (as the product), model = the model's own landmark "

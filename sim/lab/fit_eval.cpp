@@ -279,7 +279,7 @@ Result<Next> eval_fit_capture(FitRun& run, FitSubject& subject, int e,
   if (!cap) return capture_failed(run, e, ge.name, "capture", cap.error(), j);
   auto fit_points = fit_landmark_points(run, *cap, subject.rng, j);
   if (!fit_points) return capture_failed(run, e, ge.name, "dlib", fit_points.error(), j);
-  auto target = make_fit_target(*cap, *fit_points, setup.noiseless_depth);
+  auto target = make_fit_target(*cap, *fit_points, setup.noiseless_depth, setup.skin_map);
   if (target && setup.dlib_fit && setup.embedding)
     target->landmark_vertices = setup.embedding->for_expression(ge.name);
   if (!target) return capture_failed(run, e, ge.name, "landmarks", target.error(), j);

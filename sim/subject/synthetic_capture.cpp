@@ -1,11 +1,12 @@
 #include "sim/subject/synthetic_capture.hpp"
-#include "algo/core/clock.hpp"
 
 #include <chrono>
 
+#include "algo/core/clock.hpp"
 #include "algo/fusion/view_consistency.hpp"
 #include "algo/landmarks/face_region_box.hpp"
 #include "algo/landmarks/landmark_lifting.hpp"
+#include "algo/landmarks/skin_map.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "sim/camera/world_presets.hpp"
 #include "storage/asset_files.hpp"
@@ -109,7 +110,7 @@ RigidPose fitted_to_truth(const Capture& c, const RigidPose& fitted_camera_from_
 }
 
 Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,
-                                  bool noiseless_depth) {
+                                  bool noiseless_depth, bool skin) {
   const KinectRegistration registration(c.calibration);
   const Image<float>& depth = noiseless_depth ? c.noiseless : c.fused.depth_mm;
   auto lifted = lift_landmarks(color_px, depth, registration);
@@ -122,6 +123,9 @@ Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vecto
     t.confidence = c.confidence;
   }
   t.landmarks = *lifted;
+  // Where the fused depth sees skin, from frame 0's colour (the product does the same).
+  if (skin && !noiseless_depth)
+    if (auto map = skin_map(depth, c.color, registration, color_px)) t.skin = std::move(*map);
   if (auto ok = prepare_fit_target(t); !ok) return ok.failure();
   return t;
 }

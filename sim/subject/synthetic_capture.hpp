@@ -35,7 +35,7 @@ struct Capture {
   KinectCalibration calibration;
   SurfaceView fused;
   Image<float> confidence;  // of the fused depth: the take's frames' agreement (view_consistency)
-  ColorImage color;                // frame 0
+  ColorImage color;         // frame 0
   std::vector<ColorImage> colors;  // every frame (for landmark timing), when kept
   std::vector<Eigen::Vector2d> truth_color_px;
   std::vector<Eigen::Vector2d> truth_depth_px;
@@ -73,9 +73,10 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
 RigidPose fitted_to_truth(const Capture& c, const RigidPose& fitted_camera_from_model);
 
 // The fit target of a capture: colour-image landmarks lifted with the registration and the
-// fused depth (or, for diagnostics, the noiseless rendering).
+// fused depth (or, for diagnostics, the noiseless rendering), with the skin map of frame 0's
+// colour unless `skin` is false (an A/B of the skin map).
 Result<FitTarget> make_fit_target(const Capture& c, std::span<const Eigen::Vector2d> color_px,
-                                  bool noiseless_depth);
+                                  bool noiseless_depth, bool skin = true);
 
 // Gaussian pixel noise (sigma per axis) on landmark positions.
 std::vector<Eigen::Vector2d> noisy(const std::vector<Eigen::Vector2d>& px, double sigma,

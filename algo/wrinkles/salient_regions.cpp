@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "algo/core/polygon.hpp"
+
 namespace fb {
 
 namespace {
@@ -39,16 +41,8 @@ bool on_feature(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d, 68>&
   return false;
 }
 
-bool inside_polygon(const Eigen::Vector2d& q, const std::vector<Eigen::Vector2d>& polygon) {
-  bool in = false;
-  for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const auto& a = polygon[i];
-    const auto& b = polygon[j];
-    if ((a.y() > q.y()) != (b.y() > q.y()) &&
-        q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
+bool in_polygon(const Eigen::Vector2d& q, const std::vector<Eigen::Vector2d>& polygon) {
+  return inside_polygon(polygon, q.x(), q.y());
 }
 
 // The face outline of SalientOptions (image coordinates, y down).
@@ -99,7 +93,7 @@ Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2
                                          l[static_cast<std::size_t>(i + 1)]) < o.mask_brow_px;
       for (const auto& eye : eyes) {
         if (on) break;
-        on = inside_polygon(p, eye);
+        on = in_polygon(p, eye);
         for (std::size_t i = 0; i < eye.size() && !on; ++i)
           on = segment_distance(p, eye[i], eye[(i + 1) % eye.size()]) < o.mask_eye_px;
       }
@@ -226,7 +220,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
         if (o.inside_face_only && zones.empty()) {
           // Most of the line, not its centroid: the head's silhouette is a loop around the face.
           std::size_t inside = 0;
-          for (const auto& p : line.pixels) inside += inside_polygon(p.cast<double>(), outline);
+          for (const auto& p : line.pixels) inside += in_polygon(p.cast<double>(), outline);
           if (2 * inside <= line.pixels.size()) continue;
         }
         // A lid's edge: most of the line lies along the eye's contour.

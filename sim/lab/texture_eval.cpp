@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/core/clock.hpp"
+#include "algo/core/polygon.hpp"
 #include "algo/fitting/face_fit.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "algo/texture/take_texture.hpp"
@@ -57,17 +58,7 @@ std::vector<bool> visible_face_triangles(const FaceModel& m) {
   for (int l = 0; l <= 16; ++l) polygon.push_back(at(m.landmark_vertices[l]).head<2>());
   for (int l = 26; l >= 17; --l)
     polygon.push_back(at(m.landmark_vertices[l]).head<2>() + Eigen::Vector2f(0.0f, 25.0f));
-  auto inside = [&](const Eigen::Vector2f& q) {
-    bool in = false;
-    for (std::size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-      const auto& a = polygon[i];
-      const auto& b = polygon[j];
-      if ((a.y() > q.y()) != (b.y() > q.y()) &&
-          q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x())
-        in = !in;
-    }
-    return in;
-  };
+  auto inside = [&](const Eigen::Vector2f& q) { return inside_polygon(polygon, q.x(), q.y()); };
   const std::vector<float> normals = vertex_normals(m.neutral, m.triangles);
   std::vector<bool> vertex_in(static_cast<std::size_t>(m.vertex_count), false);
   for (int v = 0; v < m.face_vertex_count; ++v)
@@ -259,12 +250,7 @@ Result<void> write_picture(const std::string& path, const std::vector<ColorImage
     for (int y = 0; y < side; ++y)
       for (int x = 0; x < side; ++x)
         sheet.at(static_cast<int>(p) * side + x, y) = panels[p].at(x, y);
-  auto png = encode_png(sheet);
-  if (!png) return png.failure();
-  std::ofstream f(path, std::ios::binary);
-  f.write(reinterpret_cast<const char*>(png->data()), static_cast<std::streamsize>(png->size()));
-  if (!f) return fail("could not write " + path + "; check the folder exists and is writable");
-  return success();
+  return write_png_file(path, sheet);
 }
 
 constexpr const char* kTextureScoring =

@@ -132,12 +132,7 @@ Result<void> write_sheet(const std::string& path, const std::vector<std::vector<
         for (int x = 0; x < side; ++x)
           sheet.at(c * (side + kGap) + x, r * (side + kGap) + y) =
               rows[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)].at(x, y);
-  auto png = encode_png(sheet);
-  if (!png) return png.failure();
-  std::ofstream f(path, std::ios::binary);
-  f.write(reinterpret_cast<const char*>(png->data()), static_cast<std::streamsize>(png->size()));
-  if (!f) return fail("could not write " + path + "; check the folder exists and is writable");
-  return success();
+  return write_png_file(path, sheet);
 }
 
 int run_render_transfer(const ParsedOptions& options) {

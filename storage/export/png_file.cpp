@@ -3,6 +3,7 @@
 #include <png.h>
 
 #include <cstring>
+#include <fstream>
 #include <memory>
 
 namespace fb {
@@ -33,6 +34,16 @@ Result<std::vector<std::uint8_t>> encode_png(const ColorImage& image) {
   }
   out.resize(size);
   return out;
+}
+
+Result<void> write_png_file(const std::filesystem::path& path, const ColorImage& image) {
+  auto png = encode_png(image);
+  if (!png) return png.failure();
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(png->data()), static_cast<std::streamsize>(png->size()));
+  if (!f)
+    return fail("could not write " + path.string() + "; check the folder exists and is writable");
+  return success();
 }
 
 Result<ColorImage> decode_png(const std::vector<std::uint8_t>& bytes) {

@@ -527,7 +527,7 @@ static Result<Eigen::VectorXd> neutral_step(
     const Points& vn, const std::array<int, kFitLandmarkCount>& lm_verts,
     const std::vector<int>& interior, const std::vector<int>& depth_set,
     const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& depth_basis,
-    double gate, double cos_min) {
+    double gate, double w_fea, double cos_min) {
   const int m = static_cast<int>(c.size()), unknowns = 6 + m;
   const std::size_t stride = static_cast<std::size_t>(model.vertex_count) * 3;
   auto basis_row = [&](int v, int d, int k) {
@@ -562,7 +562,7 @@ static Result<Eigen::VectorXd> neutral_step(
   RowMatrix j(rows, unknowns);
   Eigen::VectorXd res(rows);
   Eigen::Index row = 0;
-  const double sf = std::sqrt(2.0 * o.w_fea), sp = std::sqrt(2.0 * o.w_pos);
+  const double sf = std::sqrt(2.0 * w_fea), sp = std::sqrt(2.0 * o.w_pos);
   // Jacobian of x = R v + t w.r.t. (omega, dt, c): [-[Rv]x, I, R B_v]; a row of a projection
   // p (1 x 3) is [(Rv x p)^T, p, (R^T p)^T B_v].
   auto point_rows = [&](int vtx, const Eigen::MatrixXd& proj, const Eigen::VectorXd& r0, double s,
@@ -688,9 +688,10 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     const double f =
         o.rounds > 1 ? std::min(1.0, static_cast<double>(round) / (o.rounds - 1)) : 1.0;
     const double gate = o.max_distance_mm + f * (o.final_distance_mm - o.max_distance_mm);
+    const double w_fea = o.w_fea + f * (o.w_fea_final - o.w_fea);
 
     auto step = neutral_step(model, target, o, c, r, v, x, vn, lm_verts, interior, depth_set,
-                             depth_basis, gate, cos_min);
+                             depth_basis, gate, w_fea, cos_min);
     if (!step) return step.failure();
     const Eigen::VectorXd& d = *step;
     const Eigen::Vector3d w = d.head<3>();

@@ -103,6 +103,9 @@ struct NeutralFitOptions {
   // depth with 1 px landmark noise: w_fea 2 -> 1.05 mm vertex error, 0.5 -> 0.42 mm (landmark
   // noise then dominates the tangential placement), so the default deviates from the paper.
   double w_fea = 0.5;
+  // The landmark weight falls to this over the gate's schedule: the landmarks bring the face
+  // into the basin, the depth then places it (a detector's points are 2-4 px off).
+  double w_fea_final = 0.06;
   double w_pos = 0.5;
   double w_coef = 1.0;
   double landmark_huber_mm = 3.0;  // Huber loss on landmark residuals (robust to wrong points)

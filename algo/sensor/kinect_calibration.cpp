@@ -350,18 +350,28 @@ bool KinectRegistration::depth_to_color(int x, int y, std::uint16_t mm, double& 
   return color_x >= 0.0 && color_x < kWidth;
 }
 
-bool KinectRegistration::depth_to_color_interpolated(double x, double y, double mm,
-                                                     double& color_x, double& color_y) const {
+bool KinectRegistration::depth_to_color_interpolated(double x, double y, double mm, double& color_x,
+                                                     double& color_y) const {
   if (!(mm > 0.0 && mm < 65535.0) || !(x > -1.0 && y > -1.0 && x < kWidth && y < kHeight))
     return false;
   const auto z = static_cast<std::uint16_t>(mm + 0.5);
+  if (z == 0 || z >= kDepthMaxMetricValue) return false;
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
   const double fx = x - x0, fy = y - y0;
+  // depth_to_color() at the four neighbours, its lookups inlined (the texture samples millions).
+  const std::int32_t shift = depth_to_rgb_shift_[z];
+  const double pad = calibration_.pad_info.start_lines;
   double sx = 0.0, sy = 0.0, weight = 0.0;
   for (int dy = 0; dy <= 1; ++dy) {
     for (int dx = 0; dx <= 1; ++dx) {
-      double cx = 0.0, cy = 0.0;
-      if (!depth_to_color(x0 + dx, y0 + dy, z, cx, cy)) continue;
+      const int u = x0 + dx, v = y0 + dy;
+      if (u < 0 || v < 0 || u >= kWidth || v >= kHeight) continue;
+      const std::size_t index = static_cast<std::size_t>(v) * kWidth + u;
+      const double cy =
+          static_cast<double>(registration_table_[2 * index + 1]) / kRegXValScale - pad;
+      if (!(cy >= 0.0 && cy < kHeight)) continue;
+      const double cx = static_cast<double>(registration_table_[2 * index] + shift) / kRegXValScale;
+      if (!(cx >= 0.0 && cx < kWidth)) continue;
       const double w = (dx ? fx : 1.0 - fx) * (dy ? fy : 1.0 - fy) + 1e-9;
       sx += w * cx;
       sy += w * cy;

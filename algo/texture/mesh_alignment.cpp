@@ -82,8 +82,10 @@ AlignStats align_to_depth(std::span<const float> vertices, std::span<const float
   std::vector<Pair> pairs;
   pairs.reserve(samples.size());
   const int iterations = std::max(1, options.iterations);
-  for (int it = 0; it < iterations; ++it) {
-    const double f = iterations > 1 ? static_cast<double>(it) / (iterations - 1) : 1.0;
+  const double settle_rad = options.settle_deg * M_PI / 180.0;
+  for (int it = 0; it < iterations + std::max(0, options.settle_iterations); ++it) {
+    const double f =
+        iterations > 1 ? std::min(1.0, static_cast<double>(it) / (iterations - 1)) : 1.0;
     const double gate = options.first_gate_mm + f * (options.gate_mm - options.first_gate_mm);
     const Eigen::Matrix3d r = camera_from_model.rotation.toRotationMatrix();
     Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Zero();
@@ -134,6 +136,8 @@ AlignStats align_to_depth(std::span<const float> vertices, std::span<const float
     camera_from_model.translation =
         dr * (camera_from_model.translation - centroid) + centroid + d.tail<3>();
     if (angle < 1e-5 && d.tail<3>().norm() < 1e-3) break;
+    // Past the schedule, steps at the final gate until the pose settles.
+    if (it + 1 >= iterations && angle < settle_rad && d.tail<3>().norm() < options.settle_mm) break;
   }
   return stats;
 }

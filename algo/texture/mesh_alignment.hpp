@@ -28,7 +28,16 @@ struct AlignOptions {
   float first_gate_mm = 20.0f;  // residual cut-off of the first iteration (a rough start)
   float gate_mm = 4.0f;         // ... shrinking to this (depth noise plus fit error)
   int max_samples = 5000;       // mesh vertices used (evenly spread over the face)
-  float min_facing = 0.3f;      // cos of the angle between a vertex normal and the view ray
+  // A frame after an aligned one starts from that frame's pose moved on by the last step
+  // (constant velocity): a short schedule from a tighter gate suffices there.
+  int tracking_iterations = 5;
+  float tracking_first_gate_mm = 8.0f;
+  // After the schedule, up to this many more steps at gate_mm until a step is under both
+  // settle limits (a frame whose start was further off than usual catches up).
+  int settle_iterations = 10;
+  float settle_deg = 0.05f;
+  float settle_mm = 0.05f;
+  float min_facing = 0.3f;  // cos of the angle between a vertex normal and the view ray
 };
 
 struct AlignStats {

@@ -25,12 +25,25 @@ Result<TakeTexture> texture_from_take(const TexelMap& map, const TakeTextureInpu
   const PinholeIntrinsics intrinsics = registration.depth_intrinsics();
   TakeTexture out;
   std::vector<int> good;
+  AlignOptions tracking = options.align;
+  tracking.iterations = options.align.tracking_iterations;
+  tracking.first_gate_mm = options.align.tracking_first_gate_mm;
+  RigidPose previous = pose;  // the pose one aligned frame before `pose`
+  bool moving = false;
   for (std::size_t f = 0; f < input.frames.size(); ++f) {
     RigidPose trial = pose;
+    if (moving) {
+      // Constant velocity: the last frame-to-frame motion applied once more.
+      const Eigen::Quaterniond dr = pose.rotation * previous.rotation.conjugate();
+      trial.rotation = (dr * pose.rotation).normalized();
+      trial.translation = dr * (pose.translation - previous.translation) + pose.translation;
+    }
     const AlignStats s = align_to_depth(input.vertices, normals, samples, input.frames[f].depth_mm,
-                                        intrinsics, trial, options.align);
+                                        intrinsics, trial, good.empty() ? options.align : tracking);
     out.alignment.push_back(s);
     if (s.ok()) {
+      moving = !good.empty() && good.back() + 1 == static_cast<int>(f);
+      previous = pose;
       pose = trial;
       ++out.frames_aligned;
       good.push_back(static_cast<int>(f));

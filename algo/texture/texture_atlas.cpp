@@ -51,15 +51,18 @@ class ViewSampler {
     rotation_ = view.camera_from_model.rotation.toRotationMatrix().cast<float>();
     translation_ = view.camera_from_model.translation.cast<float>();
     const std::size_t n = mesh_.vertices.size() / 3;
-    posed_.resize(n);
+    std::vector<Eigen::Vector3f> posed(n);
     for (std::size_t v = 0; v < n; ++v)
-      posed_[v] = rotation_ * Eigen::Vector3f(mesh_.vertices[3 * v], mesh_.vertices[3 * v + 1],
-                                              mesh_.vertices[3 * v + 2]) +
-                  translation_;
-    raster_.reset(intrinsics_.width, intrinsics_.height);
+      posed[v] = rotation_ * Eigen::Vector3f(mesh_.vertices[3 * v], mesh_.vertices[3 * v + 1],
+                                             mesh_.vertices[3 * v + 2]) +
+                 translation_;
+    RasterBuffers raster;
+    raster.reset(intrinsics_.width, intrinsics_.height);
     RasterOptions ro;
     ro.cull_backfaces = false;  // the z-buffer must hold whatever is nearest
-    return rasterize(intrinsics_, posed_, mesh_.triangles, ro, raster_);
+    if (auto ok = rasterize(intrinsics_, posed, mesh_.triangles, ro, raster); !ok) return ok;
+    zbuffer_ = std::move(raster.depth);  // all sampling needs; the rest is freed
+    return {};
   }
 
   bool sample(const Texel& t, Sample& out) const {
@@ -70,8 +73,9 @@ class ViewSampler {
     if (facing < options_.min_facing) return false;
     const Eigen::Vector2d px = intrinsics_.project(p.cast<double>());
     const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
-    if (x < 0 || y < 0 || x >= raster_.width || y >= raster_.height) return false;
-    if (!(p.z() <= raster_.depth[raster_.index(x, y)] + options_.visibility_mm)) return false;
+    if (x < 0 || y < 0 || x >= intrinsics_.width || y >= intrinsics_.height) return false;
+    const std::size_t pixel = static_cast<std::size_t>(y) * intrinsics_.width + x;
+    if (!(p.z() <= zbuffer_[pixel] + options_.visibility_mm)) return false;
     if (view_->depth != nullptr && view_->depth->contains(x, y)) {
       // The sensor must see this surface there: something nearer is an occluder (a hand),
       // something farther or nothing means the true silhouette is not where the mesh's is
@@ -89,7 +93,8 @@ class ViewSampler {
     // A clipped channel is not the surface's colour: such a sample counts only where no view
     // saw the texel unclipped (bright skin facing the light clips red first).
     out.clipped = out.color.maxCoeff() >= options_.clip_level;
-    out.weight = std::pow(w, options_.weight_power) * (out.clipped ? 1e-3f : 1.0f);
+    const float wp = options_.weight_power == 2.0f ? w * w : std::pow(w, options_.weight_power);
+    out.weight = wp * (out.clipped ? 1e-3f : 1.0f);
     return true;
   }
 
@@ -101,8 +106,7 @@ class ViewSampler {
   const TextureView* view_ = nullptr;
   Eigen::Matrix3f rotation_;
   Eigen::Vector3f translation_;
-  std::vector<Eigen::Vector3f> posed_;
-  RasterBuffers raster_;
+  std::vector<float> zbuffer_;  // the posed mesh's nearest depth per depth pixel
 };
 
 using Lighting = std::array<Eigen::Vector4f, 3>;
@@ -216,7 +220,14 @@ Result<TextureAtlas> build_texture_atlas(const TexelMap& map, const TextureMesh&
     x.n = texel_point(map, i, mesh.triangles, mesh.normals).normalized();
     texels.push_back(x);
   }
-  ViewSampler sampler(mesh, registration, options);
+  // Every view posed and rasterised once; the texels are then visited once each, all views
+  // together (texel-major: the texel's data and its sums stay in cache across the views).
+  std::vector<ViewSampler> samplers;
+  samplers.reserve(views.size());
+  for (const auto& view : views) {
+    samplers.emplace_back(mesh, registration, options);
+    if (auto ok = samplers.back().prepare(view); !ok) return ok.failure();
+  }
   TextureAtlas out;
   out.report.views = static_cast<int>(views.size());
   out.report.covered_texels = static_cast<int>(texels.size());
@@ -235,10 +246,9 @@ Result<TextureAtlas> build_texture_atlas(const TexelMap& map, const TextureMesh&
     }
     std::vector<Observation> obs;
     for (std::uint32_t v = 0; v < views.size(); ++v) {
-      if (auto ok = sampler.prepare(views[v]); !ok) return ok.failure();
       Sample s;
       for (std::uint32_t k = 0; k < subset.size(); ++k)
-        if (sampler.sample(texels[subset[k]], s) && !s.clipped) obs.push_back({k, v, s});
+        if (samplers[v].sample(texels[subset[k]], s) && !s.clipped) obs.push_back({k, v, s});
     }
     lighting = estimate_lighting(obs, views.size(), options.lighting_iterations);
   }
@@ -248,11 +258,10 @@ Result<TextureAtlas> build_texture_atlas(const TexelMap& map, const TextureMesh&
   std::vector<Eigen::Vector3f> num(texels.size(), Eigen::Vector3f::Zero()), den = num;
   std::vector<float> weight(texels.size(), 0.0f);
   std::vector<std::uint8_t> unclipped(texels.size(), 0);
-  for (std::size_t v = 0; v < views.size(); ++v) {
-    if (auto ok = sampler.prepare(views[v]); !ok) return ok.failure();
+  for (std::size_t k = 0; k < texels.size(); ++k) {
     Sample s;
-    for (std::size_t k = 0; k < texels.size(); ++k) {
-      if (!sampler.sample(texels[k], s)) continue;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      if (!samplers[v].sample(texels[k], s)) continue;
       for (int c = 0; c < 3; ++c) {
         const float sh = shading(lighting[v][c], s.normal);
         num[k][c] += s.weight * s.color[c] * sh;

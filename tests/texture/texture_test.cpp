@@ -135,10 +135,12 @@ TEST(MeshAlignment, FollowsAHeadTurnFromItsLandmarks) {
                          r->poses[f].rotation.angularDistance(t.truth[f].rotation) * 180.0 / M_PI);
     worst_mm = std::max(worst_mm, (r->poses[f].translation - t.truth[f].translation).norm());
   }
-  EXPECT_LT(worst_deg, 1.0);
+  // Each frame starts from the last one moved on by the last step and steps until it settles
+  // (0.32 deg, 0.35 mm; 0.71 deg, 0.39 mm with a fixed 15-step schedule from the last pose).
+  EXPECT_LT(worst_deg, 0.5);
   std::printf("alignment over %zu frames: worst %.2f deg, %.2f mm\n", t.truth.size(), worst_deg,
               worst_mm);
-  EXPECT_LT(worst_mm, 1.0);
+  EXPECT_LT(worst_mm, 0.6);
 }
 
 TEST(TextureAtlas, RecoversTheRenderedSkinAndRemovesTheShading) {

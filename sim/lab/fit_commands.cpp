@@ -232,7 +232,7 @@ std::vector<Command> fit_commands() {
          {"first-seed", "N", "seed of the first subject", "1"},
          {"expressions", "LIST", "all, or comma-separated names/ids (neutral always runs)", "all"},
          {"frames", "N", "frames per head-turn take fused", "45"},
-         {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
+         landmark_noise_option(),
          {"robustness-noise-px", "PX", "extra neutral fit with this landmark noise (0 = skip)",
           "5"},
          {"png", "FILE", "error map of the first neutral fit (initial | refined)", ""},

@@ -4,9 +4,15 @@
 
 #include <vector>
 
+#include "host/cli/command_line.hpp"
 #include "host/cli/commands.hpp"
 
 namespace fb::cli {
+
+// Options more than one eval offers, spelled once.
+inline OptionSpec landmark_noise_option() {
+  return {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"};
+}
 
 std::vector<Command> bench_camera_commands();           // bench camera
 std::vector<Command> fusion_commands();                 // eval fusion, bench fusion

@@ -402,7 +402,7 @@ std::vector<Command> rig_eval_commands() {
       {"subjects", "N", "synthetic subjects", "2"},
       {"first-seed", "N", "seed of the first subject (identity drawn as eval fit does)", "1"},
       {"frames", "N", "frames per head-turn take fused", "45"},
-      {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
+      landmark_noise_option(),
       {"mixes", "N", "held-out random expression mixes per subject", "20"},
       {"truth", "linear|amplitude|transfer",
        "true personal rig: linear = the model's expression shapes on the subject's identity (the "
@@ -440,7 +440,7 @@ std::vector<Command> rig_eval_commands() {
          {"seed", "N", "identity sampling seed", "1"},
          {"images", "N", "images per held-out subject for the landmark fits (joint fit if > 1)",
           "3"},
-         {"landmark-noise-px", "PX", "Gaussian noise on the true landmarks (per axis)", "1"},
+         landmark_noise_option(),
          {"plot", "FILE.png", "write the error-vs-knobs plot (OpenCV)", ""},
          {"model", "FILE",
           "fit the landmarks with this model file (from `model build`) instead of the in-memory "

@@ -36,6 +36,9 @@ struct WrinkleDetailOptions {
   // Heights faded to 0 over this many pixels towards the synthesis domain's edge (round 5: the
   // regions' margin, so heights reach little beyond the lines found; 0 = off).
   int feather_px = 5;
+  // Heights faded with the distance to the nearest kept line (detected regions only): full up to
+  // line_core_px, 0 from line_reach_px (px, chessboard distance; reach <= core: off).
+  int line_core_px = 0, line_reach_px = 0;
   // Regions given by hand (the paper's user rectangles, margin included): used instead of the
   // detected ones (the features are still left out), or beside them with `given_alongside`.
   std::vector<PixelRectI> given_regions;

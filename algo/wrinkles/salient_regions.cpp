@@ -171,8 +171,9 @@ SalientRegions salient_regions(const FloatImage& luminance,
   }
   for (int y = 2; y + 2 < h; ++y)
     for (int x = 2; x + 2 < w; ++x)
-      if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||
-          sign_change(g, x, y, 0, 1, o.gradient_threshold))
+      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
+          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
+           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
         out.marked.at(x, y) = 1;
   // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
   // join the eyelids' edges into one component centred on the eye.

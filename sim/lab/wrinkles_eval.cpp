@@ -245,7 +245,8 @@ WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& s
   if (const auto k = options.get_int("min-line"); k) wo.regions.min_line_px = static_cast<int>(*k);
   if (const auto k = options.get_int("min-crows-feet"); k)
     wo.regions.min_crows_feet_px = static_cast<int>(*k);
-  wo.regions.zone_majority = options.flag("zone-majority");
+  wo.regions.zone_majority = !options.flag("no-zone-majority");
+  wo.regions.forehead_rows_only = options.flag("forehead-rows");
   if (const auto k = options.get_int("trace-in-zones"); k)
     wo.regions.trace_in_zones = static_cast<int>(*k);
   if (const auto k = options.get_int("row-gap"); k)
@@ -476,11 +477,13 @@ std::vector<Command> wrinkles_eval_commands() {
          {"threshold", "T", "the detector's gradient threshold (SalientOptions)", ""},
          {"min-crows-feet", "PX", "the shortest line kept at the eyes", "8"},
          {"feather", "PX", "heights faded to 0 over PX at the domain's edge", "5"},
-         {"min-line", "PX", "the shortest line kept (SalientOptions)", "12"},
-         {"zone-majority", "", "a line in a zone only with most of its pixels there", ""},
-         {"trace-in-zones", "0|1|2", "lines cut at the zones' borders (1: crow's feet only)", "0"},
+         {"min-line", "PX", "the shortest line kept (SalientOptions)", "10"},
+         {"forehead-rows", "", "in the forehead zone only sign changes along y", ""},
+         {"no-zone-majority", "", "a line in the zone of its centroid (round 5)", ""},
+         {"trace-in-zones", "0|1|2", "lines cut at the zones' borders (1: crow's feet only)", "1"},
          {"row-gap", "PX", "forehead clusters at one height join across this gap", "0"},
-         {"line-fade", "CORE,REACH", "heights fade from CORE to 0 at REACH px from a line", ""},
+         {"line-fade", "CORE,REACH",
+          "heights fade from CORE to 0 at REACH px from a line (0,0: off)", "1,4"},
          {"explain", "", "per run: windows' missed pixels, lines kept/dropped, outside pixels", ""},
          {"keep-near-lines", "PX", "heights only this close to a kept line (0: all)", "0"},
          exemplars,

@@ -126,6 +126,45 @@ bool joins(const PixelRectI& a, const PixelRectI& b, int zone, const SalientOpti
   return o.join_forehead_rows || gap <= o.forehead_row_gap_px;
 }
 
+// The landmark tests of a traced line (SalientOptions): on a feature, in no zone (sets
+// line.zone), outside the face outline, along an eyelid; kKept if it passes them all.
+LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& landmarks,
+                    const std::vector<PixelRectI>& zones,
+                    const std::vector<Eigen::Vector2d>& outline, const SalientOptions& o) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : line.pixels) c += p.cast<double>();
+  c /= static_cast<double>(line.pixels.size());
+  if (on_feature(c, landmarks, o)) return LineDrop::kFeature;
+  if (!zones.empty()) {
+    line.zone = -1;
+    for (std::size_t z = 0; z < zones.size() && line.zone < 0; ++z)
+      if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
+        line.zone = static_cast<int>(z);
+    // Most of the line, not only its centroid (a component of noise and the silhouette can be
+    // centred in a zone).
+    if (line.zone >= 0 && o.zone_majority) {
+      const PixelRectI& z = zones[static_cast<std::size_t>(line.zone)];
+      std::size_t in = 0;
+      for (const auto& p : line.pixels) in += z.contains(p.x(), p.y());
+      if (2 * in <= line.pixels.size()) line.zone = -1;
+    }
+    if (line.zone < 0) return LineDrop::kNoZone;
+  }
+  // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
+  if (o.inside_face_only && zones.empty()) {
+    // Most of the line, not its centroid: the head's silhouette is a loop around the face.
+    std::size_t inside = 0;
+    for (const auto& p : line.pixels) inside += in_polygon(p.cast<double>(), outline);
+    if (2 * inside <= line.pixels.size()) return LineDrop::kOutline;
+  }
+  // A lid's edge: most of the line lies along the eye's contour.
+  int near_lid = 0;
+  for (const auto& p : line.pixels)
+    near_lid += eyelid_distance(p.cast<double>(), landmarks) < o.eyelid_radius_px;
+  if (2 * near_lid > static_cast<int>(line.pixels.size())) return LineDrop::kEyelid;
+  return LineDrop::kKept;
+}
+
 }  // namespace
 
 std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
@@ -221,47 +260,9 @@ SalientRegions salient_regions(const FloatImage& luminance,
         out.dropped.push_back(std::move(line));
       };
       if (landmarks) {
-        Eigen::Vector2d c = Eigen::Vector2d::Zero();
-        for (const auto& p : line.pixels) c += p.cast<double>();
-        c /= static_cast<double>(line.pixels.size());
-        if (on_feature(c, *landmarks, o)) {
-          drop(LineDrop::kFeature);
-          continue;
-        }
-        if (!zones.empty()) {
-          line.zone = -1;
-          for (std::size_t z = 0; z < zones.size() && line.zone < 0; ++z)
-            if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
-              line.zone = static_cast<int>(z);
-          // Most of the line, not only its centroid (a component of noise and the silhouette
-          // can be centred in a zone).
-          if (line.zone >= 0 && o.zone_majority) {
-            const PixelRectI& z = zones[static_cast<std::size_t>(line.zone)];
-            std::size_t in = 0;
-            for (const auto& p : line.pixels) in += z.contains(p.x(), p.y());
-            if (2 * in <= line.pixels.size()) line.zone = -1;
-          }
-          if (line.zone < 0) {
-            drop(LineDrop::kNoZone);
-            continue;
-          }
-        }
-        // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
-        if (o.inside_face_only && zones.empty()) {
-          // Most of the line, not its centroid: the head's silhouette is a loop around the face.
-          std::size_t inside = 0;
-          for (const auto& p : line.pixels) inside += in_polygon(p.cast<double>(), outline);
-          if (2 * inside <= line.pixels.size()) {
-            drop(LineDrop::kOutline);
-            continue;
-          }
-        }
-        // A lid's edge: most of the line lies along the eye's contour.
-        int near_lid = 0;
-        for (const auto& p : line.pixels)
-          near_lid += eyelid_distance(p.cast<double>(), *landmarks) < o.eyelid_radius_px;
-        if (2 * near_lid > static_cast<int>(line.pixels.size())) {
-          drop(LineDrop::kEyelid);
+        if (const LineDrop why = judge_line(line, *landmarks, zones, outline, o);
+            why != LineDrop::kKept) {
+          drop(why);
           continue;
         }
       }

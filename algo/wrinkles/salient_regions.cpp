@@ -121,7 +121,48 @@ bool near(const PixelRectI& a, const PixelRectI& b, int gap) {
 // same height (its lines run across it and are found in pieces).
 bool joins(const PixelRectI& a, const PixelRectI& b, int zone, const SalientOptions& o) {
   if (near(a, b, o.cluster_gap_px)) return true;
-  return zone == 0 && o.join_forehead_rows && a.y < b.y + b.height && b.y < a.y + a.height;
+  if (zone != 0 || !(a.y < b.y + b.height && b.y < a.y + a.height)) return false;
+  const int gap = std::max(a.x, b.x) - std::min(a.x + a.width, b.x + b.width);
+  return o.join_forehead_rows || gap <= o.forehead_row_gap_px;
+}
+
+// The landmark tests of a traced line (SalientOptions): on a feature, in no zone (sets
+// line.zone), outside the face outline, along an eyelid; kKept if it passes them all.
+LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& landmarks,
+                    const std::vector<PixelRectI>& zones,
+                    const std::vector<Eigen::Vector2d>& outline, const SalientOptions& o) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : line.pixels) c += p.cast<double>();
+  c /= static_cast<double>(line.pixels.size());
+  if (on_feature(c, landmarks, o)) return LineDrop::kFeature;
+  if (!zones.empty()) {
+    line.zone = -1;
+    for (std::size_t z = 0; z < zones.size() && line.zone < 0; ++z)
+      if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
+        line.zone = static_cast<int>(z);
+    // Most of the line, not only its centroid (a component of noise and the silhouette can be
+    // centred in a zone).
+    if (line.zone >= 0 && o.zone_majority) {
+      const PixelRectI& z = zones[static_cast<std::size_t>(line.zone)];
+      std::size_t in = 0;
+      for (const auto& p : line.pixels) in += z.contains(p.x(), p.y());
+      if (2 * in <= line.pixels.size()) line.zone = -1;
+    }
+    if (line.zone < 0) return LineDrop::kNoZone;
+  }
+  // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
+  if (o.inside_face_only && zones.empty()) {
+    // Most of the line, not its centroid: the head's silhouette is a loop around the face.
+    std::size_t inside = 0;
+    for (const auto& p : line.pixels) inside += in_polygon(p.cast<double>(), outline);
+    if (2 * inside <= line.pixels.size()) return LineDrop::kOutline;
+  }
+  // A lid's edge: most of the line lies along the eye's contour.
+  int near_lid = 0;
+  for (const auto& p : line.pixels)
+    near_lid += eyelid_distance(p.cast<double>(), landmarks) < o.eyelid_radius_px;
+  if (2 * near_lid > static_cast<int>(line.pixels.size())) return LineDrop::kEyelid;
+  return LineDrop::kKept;
 }
 
 }  // namespace
@@ -169,14 +210,22 @@ SalientRegions salient_regions(const FloatImage& luminance,
   }
   for (int y = 2; y + 2 < h; ++y)
     for (int x = 2; x + 2 < w; ++x)
-      if (sign_change(g, x, y, 1, 0, o.gradient_threshold) ||
-          sign_change(g, x, y, 0, 1, o.gradient_threshold))
+      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
+          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
+           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
         out.marked.at(x, y) = 1;
   // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
   // join the eyelids' edges into one component centred on the eye.
   if (!zones.empty())
     for (std::size_t i = 0; i < out.marked.pixels.size(); ++i)
       if (out.features.pixels[i]) out.marked.pixels[i] = 0;
+  // With SalientOptions::trace_in_zones a line does not cross a zone's border: the zone each
+  // pixel is cut into (-1: none).
+  std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
+  for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
+    for (int y = std::max(0, zones[z].y); y < std::min(h, zones[z].y + zones[z].height); ++y)
+      for (int x = std::max(0, zones[z].x); x < std::min(w, zones[z].x + zones[z].width); ++x)
+        cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
   std::vector<Eigen::Vector2i> stack;
@@ -196,7 +245,9 @@ SalientRegions salient_regions(const FloatImage& luminance,
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int qx = p.x() + dx, qy = p.y() + dy;
-            if (seen.contains(qx, qy) && seen.at(qx, qy) == 1) {
+            if (seen.contains(qx, qy) && seen.at(qx, qy) == 1 &&
+                cut[static_cast<std::size_t>(qy) * w + qx] ==
+                    cut[static_cast<std::size_t>(p.y()) * w + p.x()]) {
               seen.at(qx, qy) = 2;
               stack.emplace_back(qx, qy);
             }
@@ -204,33 +255,22 @@ SalientRegions salient_regions(const FloatImage& luminance,
       }
       line.box = {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
       if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
+      auto drop = [&](LineDrop why) {
+        line.drop = why;
+        out.dropped.push_back(std::move(line));
+      };
       if (landmarks) {
-        Eigen::Vector2d c = Eigen::Vector2d::Zero();
-        for (const auto& p : line.pixels) c += p.cast<double>();
-        c /= static_cast<double>(line.pixels.size());
-        if (on_feature(c, *landmarks, o)) continue;
-        if (!zones.empty()) {
-          line.zone = -1;
-          for (std::size_t z = 0; z < zones.size() && line.zone < 0; ++z)
-            if (zones[z].contains(static_cast<int>(c.x()), static_cast<int>(c.y())))
-              line.zone = static_cast<int>(z);
-          if (line.zone < 0) continue;
+        if (const LineDrop why = judge_line(line, *landmarks, zones, outline, o);
+            why != LineDrop::kKept) {
+          drop(why);
+          continue;
         }
-        // (A zone is inside the face already; the outline, shrunk, cuts the crow's feet.)
-        if (o.inside_face_only && zones.empty()) {
-          // Most of the line, not its centroid: the head's silhouette is a loop around the face.
-          std::size_t inside = 0;
-          for (const auto& p : line.pixels) inside += in_polygon(p.cast<double>(), outline);
-          if (2 * inside <= line.pixels.size()) continue;
-        }
-        // A lid's edge: most of the line lies along the eye's contour.
-        int near_lid = 0;
-        for (const auto& p : line.pixels)
-          near_lid += eyelid_distance(p.cast<double>(), *landmarks) < o.eyelid_radius_px;
-        if (2 * near_lid > static_cast<int>(line.pixels.size())) continue;
       }
       // Crow's feet are short rays (10-15 mm): a shorter line counts there.
-      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) continue;
+      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) {
+        drop(LineDrop::kShort);
+        continue;
+      }
       out.lines.push_back(std::move(line));
     }
   // Cluster: boxes closer than the gap merge until none do.

@@ -26,11 +26,11 @@ struct PixelRectI {
 
 struct SalientOptions {
   float gradient_threshold = 0.005f;  // luminance (0..1) per pixel on both sides of the line
-  int min_line_px = 12;               // lines shorter than this (pores, noise) are dropped
-  float feature_radius_px = 10.0f;    // lines this close to mouth/nose landmarks are dropped
-  float brow_radius_px = 5.0f;        // lines this close to a brow's landmark polyline too
-  int cluster_gap_px = 10;            // lines this close join one region
-  int margin_px = 5;                  // each region grown by this (the paper's 5 px)
+  int min_line_px = 10;  // lines shorter than this (pores, noise) are dropped (12 to round 5)
+  float feature_radius_px = 10.0f;  // lines this close to mouth/nose landmarks are dropped
+  float brow_radius_px = 5.0f;      // lines this close to a brow's landmark polyline too
+  int cluster_gap_px = 10;          // lines this close join one region
+  int margin_px = 5;                // each region grown by this (the paper's 5 px)
   // Against a camera's noise and the skin's colour: the luminance is smoothed and divided by its
   // local mean (x 0.5, so the threshold reads as luminance on mid-grey skin) before the gradient.
   double smooth_sigma_px = 0.7;    // 0 = off
@@ -65,21 +65,40 @@ struct SalientOptions {
   // With zones: forehead lines at the same height join one cluster however far apart (off:
   // recall up on subject 1, 0.63 -> 0.77, MAE and outside figures worse; docs/wrinkles.md).
   bool join_forehead_rows = false;
+  // With zones: forehead clusters side by side at the same height join when the gap between them
+  // is at most this (px; 0 = only cluster_gap_px).
+  int forehead_row_gap_px = 0;
+  // With zones: lines are traced without crossing a zone's border, so a wrinkle in a zone is not
+  // joined through the sensor's noise to the face's silhouette (one component over
+  // the whole face, dropped; round 6: the shadowed side's crow's feet on three of six subjects).
+  // 0: off; 1: the crow's-feet zones only; 2: every zone.
+  int trace_in_zones = 1;
+  // With zones: a line belongs to the zone of its centroid only with most of its pixels in it.
+  bool zone_majority = true;
+  // With zones: in the forehead zone only sign changes along y count (its expression lines run
+  // across it; a sign change along x there is noise or the skin's texture).
+  bool forehead_rows_only = false;
   int min_crows_feet_px = 8;        // min_line_px in the crow's-feet zones (rays 10-15 mm)
   double crows_feet_width = 0.15;   // outwards from the outer eye corner
   double crows_feet_height = 0.18;  // centred on the corner
 };
 
+// Why a traced line was not kept (SalientRegions::dropped, for diagnosis).
+enum class LineDrop { kKept, kShort, kFeature, kNoZone, kOutline, kEyelid };
+
 struct WrinkleLine {
   std::vector<Eigen::Vector2i> pixels;
   PixelRectI box;
   int zone = -1;  // with SalientOptions::wrinkle_zones: the zone of its centroid
+  LineDrop drop = LineDrop::kKept;
   int length() const { return std::max(box.width, box.height); }
 };
 
 struct SalientRegions {
   Image<std::uint8_t> marked;      // 1 where the gradient changes sign over the threshold
   std::vector<WrinkleLine> lines;  // kept lines
+  // Lines at least min(min_line_px, min_crows_feet_px) long that a later test dropped (`drop`).
+  std::vector<WrinkleLine> dropped;
   std::vector<PixelRectI> regions;
   Image<std::uint8_t> features;  // 1 on brows, eyes, nose and mouth (empty without landmarks)
 };

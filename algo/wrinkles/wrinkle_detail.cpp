@@ -73,6 +73,38 @@ void keep_near_lines(WrinkleDetail& d, int r) {
     }
 }
 
+// Heights faded with the chessboard distance to the nearest kept line (WrinkleDetailOptions::
+// line_core_px / line_reach_px); regions given by hand are left as they are.
+void fade_from_lines(WrinkleDetail& d, const WrinkleDetailOptions& o) {
+  const int w = d.input.width, h = d.input.height, far = o.line_reach_px + 1;
+  std::vector<int> dist(static_cast<std::size_t>(w) * h, far);
+  for (const auto& line : d.regions.lines)
+    for (const auto& p : line.pixels) dist[static_cast<std::size_t>(p.y()) * w + p.x()] = 0;
+  auto relax = [&](int x, int y, int dx, int dy) {
+    const int qx = x + dx, qy = y + dy;
+    if (qx < 0 || qy < 0 || qx >= w || qy >= h) return;
+    int& v = dist[static_cast<std::size_t>(y) * w + x];
+    v = std::min(v, dist[static_cast<std::size_t>(qy) * w + qx] + 1);
+  };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (const auto& [dx, dy] : {std::pair{-1, 0}, {-1, -1}, {0, -1}, {1, -1}})
+        relax(x, y, dx, dy);
+  for (int y = h - 1; y >= 0; --y)
+    for (int x = w - 1; x >= 0; --x)
+      for (const auto& [dx, dy] : {std::pair{1, 0}, {1, 1}, {0, 1}, {-1, 1}}) relax(x, y, dx, dy);
+  std::vector<std::uint8_t> given(dist.size(), 0);
+  for (const auto& r : o.given_regions)
+    for (int y = std::max(0, r.y); y < std::min(h, r.y + r.height); ++y)
+      for (int x = std::max(0, r.x); x < std::min(w, r.x + r.width); ++x)
+        given[static_cast<std::size_t>(y) * w + x] = 1;
+  const float span = static_cast<float>(o.line_reach_px - o.line_core_px);
+  for (std::size_t i = 0; i < dist.size(); ++i)
+    if (!given[i])
+      d.synthesis.height_mm.pixels[i] *=
+          std::clamp(static_cast<float>(o.line_reach_px - dist[i]) / span, 0.0f, 1.0f);
+}
+
 // The largest value within r pixels along x or along y.
 FloatImage max_along(const FloatImage& in, int r, bool along_x) {
   FloatImage out = in;
@@ -193,6 +225,9 @@ Result<WrinkleDetail> wrinkle_detail(
   if (options.keep_near_lines_px > 0) keep_near_lines(out, options.keep_near_lines_px);
   if (options.gate_high > options.gate_low) gate_flat(out, options, face ? &raster : nullptr);
   feather_heights(out.synthesis.height_mm, out.synthesis.domain, options.feather_px);
+  if (options.line_reach_px > options.line_core_px && options.line_core_px >= 0 &&
+      (options.given_regions.empty() || options.given_alongside))
+    fade_from_lines(out, options);
   return out;
 }
 

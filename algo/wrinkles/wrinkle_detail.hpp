@@ -36,6 +36,11 @@ struct WrinkleDetailOptions {
   // Heights faded to 0 over this many pixels towards the synthesis domain's edge (round 5: the
   // regions' margin, so heights reach little beyond the lines found; 0 = off).
   int feather_px = 5;
+  // Heights faded with the distance to the nearest kept line (detected regions only): full up to
+  // line_core_px, 0 from line_reach_px (px, chessboard distance; reach <= core: off). Round 6:
+  // a line's marks reach 1-2 px past its groove (smoothing, central differences), so the box's
+  // margin held heights beyond the relief; within 4 px of a line is inside the paper's 5 px.
+  int line_core_px = 1, line_reach_px = 4;
   // Regions given by hand (the paper's user rectangles, margin included): used instead of the
   // detected ones (the features are still left out), or beside them with `given_alongside`.
   std::vector<PixelRectI> given_regions;

@@ -70,7 +70,20 @@ Result<void> write_figure(const std::string& path, const WrinkleCase& c, const W
   };
   for (const auto& r : c.true_regions) draw(r, {255, 80, 0});
   for (const auto& r : d.regions.regions) draw(r, {0, 220, 0});
-  std::vector<cv::Mat> panels = {frame, regions, height_picture(c.true_height_mm, crop),
+  // The detector's view: its input (grey), marked pixels (red), kept lines (green).
+  cv::Mat detector(crop.height, crop.width, CV_8UC3);
+  for (int y = 0; y < crop.height; ++y)
+    for (int x = 0; x < crop.width; ++x) {
+      const auto v = static_cast<std::uint8_t>(
+          std::clamp(255.0f * d.input.at(crop.x + x, crop.y + y), 0.f, 255.f));
+      detector.at<cv::Vec3b>(y, x) =
+          d.regions.marked.at(crop.x + x, crop.y + y) ? cv::Vec3b{0, 0, 255} : cv::Vec3b{v, v, v};
+    }
+  for (const auto& l : d.regions.lines)
+    for (const auto& p : l.pixels)
+      if (crop.contains(p.x(), p.y()))
+        detector.at<cv::Vec3b>(p.y() - crop.y, p.x() - crop.x) = {0, 220, 0};
+  std::vector<cv::Mat> panels = {frame, regions, detector, height_picture(c.true_height_mm, crop),
                                  height_picture(d.synthesis.height_mm, crop)};
   for (auto& p : panels) cv::resize(p, p, {}, 2.0, 2.0, cv::INTER_NEAREST);
   cv::Mat all;
@@ -128,6 +141,90 @@ nlohmann::json score_json(const WrinkleScore& s) {
           {"max_displacement_outside_mm", s.max_displacement_outside_mm}};
 }
 
+const char* drop_name(LineDrop d) {
+  switch (d) {
+    case LineDrop::kKept:
+      return "kept";
+    case LineDrop::kShort:
+      return "short";
+    case LineDrop::kFeature:
+      return "feature";
+    case LineDrop::kNoZone:
+      return "no_zone";
+    case LineDrop::kOutline:
+      return "outline";
+    case LineDrop::kEyelid:
+      return "eyelid";
+  }
+  return "?";
+}
+
+// `--explain`: where recall and the outside displacement come from. Per true window its wrinkle
+// pixels W (|h| >= 0.1 mm) found, on a feature mask inside a region, or in no region; the lines
+// kept and dropped (why); the pixels beyond T + margin above 0.05 mm and the regions they lie in.
+nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int margin) {
+  nlohmann::json out, windows = nlohmann::json::array();
+  auto in_rect = [](const PixelRectI& r, int x, int y, int grow) {
+    return x >= r.x - grow && y >= r.y - grow && x < r.x + r.width + grow &&
+           y < r.y + r.height + grow;
+  };
+  const auto& regions = d.regions.regions;
+  for (const auto& t : c.true_regions) {
+    int n = 0, hit = 0, masked = 0, none = 0;
+    int mx0 = 1 << 20, my0 = 1 << 20, mx1 = -1, my1 = -1;
+    for (int y = t.y; y < t.y + t.height; ++y)
+      for (int x = t.x; x < t.x + t.width; ++x) {
+        if (std::abs(c.true_height_mm.at(x, y)) < 0.1f) continue;
+        ++n;
+        if (d.synthesis.domain.at(x, y)) {
+          ++hit;
+          continue;
+        }
+        bool in_region = false;
+        for (const auto& r : regions) in_region = in_region || in_rect(r, x, y, 0);
+        (in_region ? masked : none) += 1;
+        mx0 = std::min(mx0, x), my0 = std::min(my0, y), mx1 = std::max(mx1, x),
+        my1 = std::max(my1, y);
+      }
+    windows.push_back({{"window", {t.x, t.y, t.width, t.height}},
+                       {"wrinkle_px", n},
+                       {"found", hit},
+                       {"missed_feature_mask", masked},
+                       {"missed_no_region", none},
+                       {"missed_box", {mx0, my0, mx1, my1}}});
+  }
+  out["windows"] = windows;
+  nlohmann::json lines = nlohmann::json::array();
+  for (const auto* set : {&d.regions.lines, &d.regions.dropped})
+    for (const auto& l : *set)
+      lines.push_back({{"drop", drop_name(l.drop)},
+                       {"zone", l.zone},
+                       {"box", {l.box.x, l.box.y, l.box.width, l.box.height}},
+                       {"pixels", l.pixels.size()}});
+  out["lines"] = lines;
+  nlohmann::json outside = nlohmann::json::array();
+  for (int y = 0; y < d.input.height; ++y)
+    for (int x = 0; x < d.input.width; ++x) {
+      const float v = d.synthesis.height_mm.at(x, y);
+      if (std::abs(v) <= 0.05f) continue;
+      bool near_truth = false;
+      int dist = 1 << 20;
+      for (const auto& t : c.true_regions) {
+        near_truth = near_truth || in_rect(t, x, y, margin);
+        const int dx = std::max({t.x - x, 0, x - (t.x + t.width - 1)});
+        const int dy = std::max({t.y - y, 0, y - (t.y + t.height - 1)});
+        dist = std::min(dist, std::max(dx, dy));
+      }
+      if (near_truth) continue;
+      int region = -1;
+      for (std::size_t r = 0; r < regions.size() && region < 0; ++r)
+        if (in_rect(regions[r], x, y, 0)) region = static_cast<int>(r);
+      outside.push_back({{"at", {x, y}}, {"mm", v}, {"region", region}, {"px_from_truth", dist}});
+    }
+  out["outside_over_0.05"] = outside;
+  return out;
+}
+
 // The eval's method options beyond the regions (round 5's ratio image, light and gate).
 WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& setup) {
   WrinkleDetailOptions wo;
@@ -148,6 +245,17 @@ WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& s
   if (const auto k = options.get_int("min-line"); k) wo.regions.min_line_px = static_cast<int>(*k);
   if (const auto k = options.get_int("min-crows-feet"); k)
     wo.regions.min_crows_feet_px = static_cast<int>(*k);
+  wo.regions.zone_majority = !options.flag("no-zone-majority");
+  wo.regions.forehead_rows_only = options.flag("forehead-rows");
+  if (const auto k = options.get_int("trace-in-zones"); k)
+    wo.regions.trace_in_zones = static_cast<int>(*k);
+  if (const auto k = options.get_int("row-gap"); k)
+    wo.regions.forehead_row_gap_px = static_cast<int>(*k);
+  if (const std::string f = options.get("line-fade"); !f.empty()) {
+    const auto comma = f.find(',');
+    wo.line_core_px = std::stoi(f.substr(0, comma));
+    wo.line_reach_px = std::stoi(f.substr(comma + 1));
+  }
   if (const auto k = options.get_int("keep-near-lines"); k)
     wo.keep_near_lines_px = static_cast<int>(*k);
   return wo;
@@ -230,6 +338,7 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       for (const auto& r : c->true_regions)
         run["true_windows"].push_back({r.x, r.y, r.width, r.height});
       run["mm_per_px"] = d->image_mm_per_px;
+      if (options.flag("explain")) run["explain"] = explain_json(*c, *d, wo.regions.margin_px);
       run["seconds"] = seconds;
       runs.push_back(run);
       const std::string png = options.get("png-prefix");
@@ -340,50 +449,58 @@ std::vector<Command> wrinkles_eval_commands() {
                              "directory's wrinkle_exemplars",
                              ""};
   const OptionSpec json{"json", "", "JSON report on stdout (the only output format)", ""};
-  return {{{"eval wrinkles",
-            "wrinkle heights from a colour frame against synthetic relief of known depth (JSON)",
-            "Per subject two cases, a textured synthetic face with raised brows rendered as the "
-            "booth's colour frame: synthetic grooves 0.2-1.0 mm deep (all exemplars), and the "
-            "scan's own forehead and crow's-feet relief (synthesised from the brow-furrow "
-            "exemplars only). --png-prefix P writes P-grooves.png and P-scan.png: frame, "
-            "regions (true blue, detected green), true and synthesised heights.",
-            {{"subjects", "N", "synthetic subjects per case", "3"},
-             {"first-seed", "N", "seed of the first subject", "1"},
-             {"light", "booth|vary", "the booth's key light or a per-take one", "booth"},
-             {"distance-mm", "MM", "the face's distance from the camera", "700"},
-             {"regions", "detected|zones|truth",
-              "detected regions; detected only in the wrinkle zones (SalientOptions::"
-              "wrinkle_zones); or the true windows + 5 px given as the paper's user "
-              "rectangles (scores the synthesis alone)",
-              "zones"},
-             {"png-prefix", "P", "figures", ""},
-             {"no-ratio", "", "no expression ratio image (the frame as it is)", ""},
-             {"local-light", "", "the exemplars re-shaded per region for its mesh normal", ""},
-             {"no-meshes", "", "neither (the frame and its landmarks alone: before round 5)", ""},
-             {"cubic", "", "warp the neutral with Catmull-Rom (not bilinear)", ""},
-             {"forehead-across", "", "the forehead region across its zone (round 4)", ""},
-             {"join-rows", "", "forehead lines at one height join however far apart", ""},
-             {"gate", "LOW,HIGH", "heights fall to 0 where the relief is no more than noise", ""},
-             {"threshold", "T", "the detector's gradient threshold (SalientOptions)", ""},
-             {"min-crows-feet", "PX", "the shortest line kept at the eyes", "8"},
-             {"feather", "PX", "heights faded to 0 over PX at the domain's edge", "5"},
-             {"min-line", "PX", "the shortest line kept (SalientOptions)", "12"},
-             {"keep-near-lines", "PX", "heights only this close to a kept line (0: all)", "0"},
-             exemplars,
-             json}},
-           run_eval_wrinkles},
-          {{"bench wrinkles",
-            "time one expression's wrinkle detail, PatchMatch against brute force (JSON)",
-            "One 640x480 frontal frame (grooves case), one thread, both searches on the same "
-            "input and regions. Then section 4's tracked-frame detail: the maps blended per "
-            "frame over 1000 frames of random weights (tracking_overhead_ms) against the same "
-            "blend over every texel of the full maps.",
-            {{"seed", "N", "subject", "1"},
-             {"map-size", "PX",
-              "detail map height for the tracking blend (facebooth wrinkles' default)", "256"},
-             exemplars,
-             json}},
-           run_bench_wrinkles}};
+  return {
+      {{"eval wrinkles",
+        "wrinkle heights from a colour frame against synthetic relief of known depth (JSON)",
+        "Per subject two cases, a textured synthetic face with raised brows rendered as the "
+        "booth's colour frame: synthetic grooves 0.2-1.0 mm deep (all exemplars), and the "
+        "scan's own forehead and crow's-feet relief (synthesised from the brow-furrow "
+        "exemplars only). --png-prefix P writes P-grooves.png and P-scan.png: frame, "
+        "regions (true blue, detected green), true and synthesised heights.",
+        {{"subjects", "N", "synthetic subjects per case", "3"},
+         {"first-seed", "N", "seed of the first subject", "1"},
+         {"light", "booth|vary", "the booth's key light or a per-take one", "booth"},
+         {"distance-mm", "MM", "the face's distance from the camera", "700"},
+         {"regions", "detected|zones|truth",
+          "detected regions; detected only in the wrinkle zones (SalientOptions::"
+          "wrinkle_zones); or the true windows + 5 px given as the paper's user "
+          "rectangles (scores the synthesis alone)",
+          "zones"},
+         {"png-prefix", "P", "figures", ""},
+         {"no-ratio", "", "no expression ratio image (the frame as it is)", ""},
+         {"local-light", "", "the exemplars re-shaded per region for its mesh normal", ""},
+         {"no-meshes", "", "neither (the frame and its landmarks alone: before round 5)", ""},
+         {"cubic", "", "warp the neutral with Catmull-Rom (not bilinear)", ""},
+         {"forehead-across", "", "the forehead region across its zone (round 4)", ""},
+         {"join-rows", "", "forehead lines at one height join however far apart", ""},
+         {"gate", "LOW,HIGH", "heights fall to 0 where the relief is no more than noise", ""},
+         {"threshold", "T", "the detector's gradient threshold (SalientOptions)", ""},
+         {"min-crows-feet", "PX", "the shortest line kept at the eyes", "8"},
+         {"feather", "PX", "heights faded to 0 over PX at the domain's edge", "5"},
+         {"min-line", "PX", "the shortest line kept (SalientOptions)", "10"},
+         {"forehead-rows", "", "in the forehead zone only sign changes along y", ""},
+         {"no-zone-majority", "", "a line in the zone of its centroid (round 5)", ""},
+         {"trace-in-zones", "0|1|2", "lines cut at the zones' borders (1: crow's feet only)", "1"},
+         {"row-gap", "PX", "forehead clusters at one height join across this gap", "0"},
+         {"line-fade", "CORE,REACH",
+          "heights fade from CORE to 0 at REACH px from a line (0,0: off)", "1,4"},
+         {"explain", "", "per run: windows' missed pixels, lines kept/dropped, outside pixels", ""},
+         {"keep-near-lines", "PX", "heights only this close to a kept line (0: all)", "0"},
+         exemplars,
+         json}},
+       run_eval_wrinkles},
+      {{"bench wrinkles",
+        "time one expression's wrinkle detail, PatchMatch against brute force (JSON)",
+        "One 640x480 frontal frame (grooves case), one thread, both searches on the same "
+        "input and regions. Then section 4's tracked-frame detail: the maps blended per "
+        "frame over 1000 frames of random weights (tracking_overhead_ms) against the same "
+        "blend over every texel of the full maps.",
+        {{"seed", "N", "subject", "1"},
+         {"map-size", "PX",
+          "detail map height for the tracking blend (facebooth wrinkles' default)", "256"},
+         exemplars,
+         json}},
+       run_bench_wrinkles}};
 }
 
 }  // namespace fb::cli

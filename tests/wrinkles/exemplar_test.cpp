@@ -102,6 +102,42 @@ TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
   EXPECT_EQ(salient_regions(lum, std::nullopt, o).regions.size(), 2u);
 }
 
+// Round 6: a crow's-feet ray joined to a long groove outside the zone (as the shadowed side's
+// noise joined the rays to the face's silhouette) is one component centred off the zone and was
+// dropped; traced without crossing the crow's-feet zone's border, the ray is a region there.
+TEST(SalientRegions, CrowsFeetRayCutFromWhatJoinsItOutsideItsZone) {
+  auto groove = [](double d) { return -0.3 * std::exp(-0.5 * d * d / (1.5 * 1.5)); };
+  const auto height = make(200, 160, [&](int x, int y) {
+    double z = 0.0;
+    if (x >= 155 && x < 186) z += groove(y - 100);             // the ray, on to the "silhouette"
+    if (y >= 20 && y < 150 && y != 100) z += groove(x - 186);  // the long groove outside
+    return z;
+  });
+  const FloatImage lum = shade_relief(height, 0.25);
+  std::array<Eigen::Vector2d, 68> l;
+  for (auto& p : l) p = {100.0, 400.0};  // off the image: no feature near the ray
+  l[0] = {20, 150}, l[16] = {180, 150};  // jaw 160 px wide
+  for (int i = 0; i < 5; ++i) l[17 + i] = {40.0 + 12.5 * i, 60}, l[22 + i] = {110.0 + 12.5 * i, 60};
+  l[27] = {100, 80};
+  for (int i = 0; i < 6; ++i) {  // eyes: 36 and 45 are the outer corners
+    l[36 + i] = {50.0 + 6.0 * (i % 4), 100.0 + (i < 4 ? -2.0 : 2.0)};
+    l[42 + i] = {126.0 + 6.0 * (i % 4), 100.0 + (i < 4 ? -2.0 : 2.0)};
+  }
+  l[36] = {50, 100}, l[45] = {150, 100};
+  SalientOptions o;
+  const auto zones = wrinkle_zones(l, o);
+  ASSERT_TRUE(zones[3].contains(160, 100));
+  auto found = [&](int trace) {
+    o.trace_in_zones = trace;
+    const SalientRegions r = salient_regions(lum, l, o);
+    for (const auto& reg : r.regions)
+      if (reg.contains(160, 100) && reg.contains(170, 100)) return true;
+    return false;
+  };
+  EXPECT_FALSE(found(0));  // round 5: one component, centred outside the zone
+  EXPECT_TRUE(found(1));
+}
+
 TEST(Exemplar, TheShippedSetIsWhatTheConverterMakesFromTheScan) {
   const fs::path shipped = fs::path(FB_DATA_DIR) / "wrinkle_exemplars";
   auto doc = nlohmann::json::parse(std::ifstream(shipped / "exemplars.json"));

@@ -228,13 +228,17 @@ TEST_F(WrinklesOptions, WrinkleZonesKeepRegionsWhereWrinklesForm) {
   EXPECT_LE(j["details"][1]["regions"].get<int>(), 4);
   auto n = test::run_command(wrinkles("--no-save --no-zones"), test::Stderr::kToLog);
   ASSERT_EQ(n.exit_code, 0) << n.out;
-  // The paper's detector boxes the brows and eyes with the lines: more of the map has detail.
+  // Both runs synthesise detail. (Round 5 asserted the paper's detector put more texels under
+  // detail, its box spanning the brows and eyes; since round 6 the heights fade to 0 within 4 px
+  // of the kept lines, so both runs' detail follows their lines: zones 3,098 texels, --no-zones
+  // 2,393, round 5: 3,495 and 4,373. The region precision above still tells the two apart.)
+  const auto paper_run = nlohmann::json::parse(n.out);
   const int zoned_texels = j["details"][1]["texels_with_detail"].get<int>();
-  const int paper_texels =
-      nlohmann::json::parse(n.out)["details"][1]["texels_with_detail"].get<int>();
+  const int paper_texels = paper_run["details"][1]["texels_with_detail"].get<int>();
   std::printf("brow raiser, texels with detail: zones %d, --no-zones %d\n", zoned_texels,
               paper_texels);
-  EXPECT_GT(paper_texels, zoned_texels);
+  EXPECT_GT(zoned_texels, 1000);
+  EXPECT_GT(paper_texels, 1000);
   auto both = test::run_command(wrinkles("--no-save --zones --no-zones"), test::Stderr::kMerged);
   EXPECT_NE(both.exit_code, 0);
   EXPECT_NE(both.out.find("exclude each other"), std::string::npos) << both.out;

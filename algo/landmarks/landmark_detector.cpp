@@ -297,8 +297,8 @@ struct LandmarkDetector::State {
   DetectedLandmarks result(const dlib::rectangle& r, const dlib::full_object_detection& shape,
                            bool tracked, bool from_landmarks) const {
     DetectedLandmarks out;
-    out.face = {static_cast<int>(r.left()), static_cast<int>(r.top()), static_cast<int>(r.width()),
-                static_cast<int>(r.height())};
+    out.face = PixelRect::from_size(static_cast<int>(r.left()), static_cast<int>(r.top()),
+                                    static_cast<int>(r.width()), static_cast<int>(r.height()));
     out.tracked = tracked;
     out.from_landmarks = from_landmarks;
     out.detection_score = last_score;

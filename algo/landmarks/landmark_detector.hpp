@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/core/result.hpp"
 
 namespace fb {
@@ -49,14 +50,10 @@ struct LandmarkDetectorOptions {
   double min_appearance_correlation = 0.7;
 };
 
-struct PixelBox {
-  int x = 0, y = 0, width = 0, height = 0;
-};
-
 struct DetectedLandmarks {
   // The face box the shape predictor ran on, colour image px: the detector's box, or on frames
   // tracked from points the previous frame's points mapped to a detector-style box.
-  PixelBox face;
+  PixelRect face;
   std::array<Eigen::Vector2d, 68> points{};  // iBUG order, colour image px
   bool tracked = false;  // not a full-image pass: found in the tracking window or from points
   bool from_landmarks = false;     // the box came from the previous frame's points (no detector)

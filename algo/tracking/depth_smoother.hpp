@@ -6,15 +6,10 @@
 #include <vector>
 
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/tracking/tracker_options.hpp"
 
 namespace fb {
-
-// Half-open pixel rectangle [x0, x1) x [y0, y1).
-struct PixelRect {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-};
 
 struct EdgeAwareMeanOptions {
   int radius_px = 1;      // (2r+1)^2 window

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/core/result.hpp"
 
 namespace fb {
@@ -77,17 +78,12 @@ struct FloatRgb {
   std::vector<float> r, g, b;
 };
 
-// Output pixels [x0, x1) x [y0, y1).
-struct PixelRect {
-  int x0 = 0, y0 = 0, x1 = 1 << 30, y1 = 1 << 30;
-};
-
 // The output image: `source` sampled (bilinear, clamped) at each output pixel's point, which is
 // the pixel's barycentric position over `source_controls`; pixels with no triangle sample the
 // source at `fallback`(pixel). Only the pixels in `box` are computed (the rest are 0).
 FloatRgb warp_image(const ColorImage& source, const WarpMesh& mesh, const WarpMap& map,
                     const std::vector<Eigen::Vector2d>& source_controls,
-                    const Similarity2d& fallback, const PixelRect& box = {});
+                    const Similarity2d& fallback, const PixelRect& box = kAllPixels);
 
 ColorImage to_color_image(const FloatRgb& image);
 

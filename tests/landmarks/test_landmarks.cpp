@@ -294,18 +294,18 @@ TEST(Landmarks, DlibReanchorsOnTheResampledWindowWhenTheFaceJumpsNearer) {
     double error = 0;
     for (int l = 0; l < 68; ++l) error += (second->points[l] - target.second[l]).norm();
     std::printf("800 -> %.0f mm: face box %d -> %d px, %s, %.2f px from the true points\n",
-                distance_mm, first->face.width, second->face.width,
+                distance_mm, first->face.width(), second->face.width(),
                 second->tracked ? "window" : "full image", error / 68);
     EXPECT_FALSE(second->from_landmarks);
     return {*second, error / 68};
   };
   const auto [nearer, nearer_error] = jump_to(667.0);
   EXPECT_TRUE(nearer.tracked);
-  EXPECT_GE(nearer.face.width, 110);  // from 104 px
+  EXPECT_GE(nearer.face.width(), 110);  // from 104 px
   EXPECT_LT(nearer_error, 3.5);
   const auto [near, near_error] = jump_to(500.0);
   EXPECT_TRUE(near.tracked);
-  EXPECT_GE(near.face.width, 130);
+  EXPECT_GE(near.face.width(), 130);
   EXPECT_LT(near_error, 3.5);
 }
 
@@ -439,9 +439,9 @@ TEST(Landmarks, PackedPredictorMatchesDlibsShapePredictor) {
         const Rgb8& p = f.color.at(x, y);
         gray[y][x] = static_cast<unsigned char>((77 * p.r + 150 * p.g + 29 * p.b) >> 8);
       }
-    const PixelBox& b = found->face;
+    const PixelRect& b = found->face;
     const dlib::full_object_detection theirs =
-        dlibs(gray, dlib::rectangle(b.x, b.y, b.x + b.width - 1, b.y + b.height - 1));
+        dlibs(gray, dlib::rectangle(b.x0, b.y0, b.x1 - 1, b.y1 - 1));
     ASSERT_EQ(theirs.num_parts(), 68u);
     for (int l = 0; l < 68; ++l) {
       const double d =

@@ -13,6 +13,7 @@ struct PixelRect {
   constexpr int width() const { return x1 - x0; }
   constexpr int height() const { return y1 - y0; }
   constexpr bool empty() const { return x1 <= x0 || y1 <= y0; }
+  constexpr bool contains(int x, int y) const { return x >= x0 && y >= y0 && x < x1 && y < y1; }
 };
 
 // No limit: every pixel of any image.

@@ -84,13 +84,14 @@ Result<CaptureDetail> capture_detail(const CaptureDetailInput& in,
   WrinkleDetailOptions detail_options = options.detail;
   for (std::size_t r = 0; r < given.size(); ++r) {
     const auto& b = given[r];
-    const PixelRectI& c = options.color_regions[r];
+    const PixelRect& c = options.color_regions[r];
     if (b[2] < b[0])
-      return fail("the region " + std::to_string(c.x) + "," + std::to_string(c.y) + "," +
-                  std::to_string(c.width) + "," + std::to_string(c.height) +
+      return fail("the region " + std::to_string(c.x0) + "," + std::to_string(c.y0) + "," +
+                  std::to_string(c.width()) + "," + std::to_string(c.height()) +
                   " of the colour frame is not seen by the depth camera; give a rectangle on "
                   "the face");
-    detail_options.given_regions.push_back({b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1});
+    detail_options.given_regions.push_back(
+        PixelRect::from_size(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1));
   }
   WrinkleFace face;
   face.intrinsics = k;

@@ -47,7 +47,7 @@ struct CaptureDetailOptions {
   // becomes the box of the depth-grid pixels whose colour lies inside it (at the mesh's depth),
   // and goes to detail.given_regions (instead of the detected ones unless
   // detail.given_alongside).
-  std::vector<PixelRectI> color_regions;
+  std::vector<PixelRect> color_regions;
 };
 
 struct CaptureDetail {

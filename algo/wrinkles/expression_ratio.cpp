@@ -73,13 +73,13 @@ FloatImage ratio_image(const FloatImage& luminance, const FloatImage& warped, fl
 }
 
 std::vector<Eigen::Vector3f> region_normals(const RasterBuffers& raster, const MeshInCamera& mesh,
-                                            std::span<const PixelRectI> regions) {
+                                            std::span<const PixelRect> regions) {
   std::vector<Eigen::Vector3f> out;
   const std::size_t nt = mesh.triangles.size() / 3;
   for (const auto& r : regions) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-    for (int y = std::max(0, r.y); y < std::min(raster.height, r.y + r.height); ++y)
-      for (int x = std::max(0, r.x); x < std::min(raster.width, r.x + r.width); ++x) {
+    for (int y = std::max(0, r.y0); y < std::min(raster.height, r.y1); ++y)
+      for (int x = std::max(0, r.x0); x < std::min(raster.width, r.x1); ++x) {
         const std::int32_t t = raster.triangle[raster.index(x, y)];
         if (t == kNoTriangle || static_cast<std::size_t>(t) >= nt) continue;
         const std::uint32_t* tri = &mesh.triangles[3 * static_cast<std::size_t>(t)];

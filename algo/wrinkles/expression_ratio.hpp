@@ -50,7 +50,7 @@ FloatImage ratio_image(const FloatImage& luminance, const FloatImage& warped,
 // The mean unit normal (camera frame, towards the camera) of the mesh's triangles seen in each
 // region; (0, 0, -1) for a region the mesh does not cover.
 std::vector<Eigen::Vector3f> region_normals(const RasterBuffers& raster, const MeshInCamera& mesh,
-                                            std::span<const PixelRectI> regions);
+                                            std::span<const PixelRect> regions);
 
 // `base` with its light direction re-expressed for a skin patch whose normal is `normal`
 // (camera frame), the key light coming from `to_light` (camera frame). SkinLight's frame is x

@@ -105,31 +105,28 @@ Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2
   return out;
 }
 
-PixelRectI merge(const PixelRectI& a, const PixelRectI& b) {
-  const int x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
-  const int x1 = std::max(a.x + a.width, b.x + b.width),
-            y1 = std::max(a.y + a.height, b.y + b.height);
-  return {x0, y0, x1 - x0, y1 - y0};
+PixelRect merge(const PixelRect& a, const PixelRect& b) {
+  return PixelRect{std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1),
+                   std::max(a.y1, b.y1)};
 }
 
-bool near(const PixelRectI& a, const PixelRectI& b, int gap) {
-  return a.x - gap < b.x + b.width && b.x - gap < a.x + a.width && a.y - gap < b.y + b.height &&
-         b.y - gap < a.y + a.height;
+bool near(const PixelRect& a, const PixelRect& b, int gap) {
+  return a.x0 - gap < b.x1 && b.x0 - gap < a.x1 && a.y0 - gap < b.y1 && b.y0 - gap < a.y1;
 }
 
 // Lines of one cluster: closer than the gap; on the forehead (zone 0) also side by side at the
 // same height (its lines run across it and are found in pieces).
-bool joins(const PixelRectI& a, const PixelRectI& b, int zone, const SalientOptions& o) {
+bool joins(const PixelRect& a, const PixelRect& b, int zone, const SalientOptions& o) {
   if (near(a, b, o.cluster_gap_px)) return true;
-  if (zone != 0 || !(a.y < b.y + b.height && b.y < a.y + a.height)) return false;
-  const int gap = std::max(a.x, b.x) - std::min(a.x + a.width, b.x + b.width);
+  if (zone != 0 || !(a.y0 < b.y1 && b.y0 < a.y1)) return false;
+  const int gap = std::max(a.x0, b.x0) - std::min(a.x1, b.x1);
   return o.join_forehead_rows || gap <= o.forehead_row_gap_px;
 }
 
 // The landmark tests of a traced line (SalientOptions): on a feature, in no zone (sets
 // line.zone), outside the face outline, along an eyelid; kKept if it passes them all.
 LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& landmarks,
-                    const std::vector<PixelRectI>& zones,
+                    const std::vector<PixelRect>& zones,
                     const std::vector<Eigen::Vector2d>& outline, const SalientOptions& o) {
   Eigen::Vector2d c = Eigen::Vector2d::Zero();
   for (const auto& p : line.pixels) c += p.cast<double>();
@@ -143,7 +140,7 @@ LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& la
     // Most of the line, not only its centroid (a component of noise and the silhouette can be
     // centred in a zone).
     if (line.zone >= 0 && o.zone_majority) {
-      const PixelRectI& z = zones[static_cast<std::size_t>(line.zone)];
+      const PixelRect& z = zones[static_cast<std::size_t>(line.zone)];
       std::size_t in = 0;
       for (const auto& p : line.pixels) in += z.contains(p.x(), p.y());
       if (2 * in <= line.pixels.size()) line.zone = -1;
@@ -167,18 +164,18 @@ LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& la
 
 }  // namespace
 
-std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
-                                      const SalientOptions& o) {
+std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
+                                     const SalientOptions& o) {
   const double jaw = (l[16] - l[0]).norm();
   double brow_top = 1e30;
   for (int i = 17; i <= 26; ++i) brow_top = std::min(brow_top, l[static_cast<std::size_t>(i)].y());
   auto rect = [](double x0, double y0, double x1, double y1) {
     const int ix = static_cast<int>(std::floor(std::min(x0, x1))),
               iy = static_cast<int>(std::floor(std::min(y0, y1)));
-    return PixelRectI{ix, iy, static_cast<int>(std::ceil(std::max(x0, x1))) - ix,
-                      static_cast<int>(std::ceil(std::max(y0, y1))) - iy};
+    return PixelRect{ix, iy, static_cast<int>(std::ceil(std::max(x0, x1))),
+                     static_cast<int>(std::ceil(std::max(y0, y1)))};
   };
-  std::vector<PixelRectI> zones;
+  std::vector<PixelRect> zones;
   // Forehead: between the brows' outer ends, from the outline's top down to the brows' mean
   // height; the glabella (vertical frown lines) between the inner ends down to the nose's
   // bridge.
@@ -202,7 +199,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
   const ImageGradient g = image_gradient(detection_image(luminance, o));
   std::vector<Eigen::Vector2d> outline;
-  std::vector<PixelRectI> zones;
+  std::vector<PixelRect> zones;
   if (landmarks) {
     if (o.wrinkle_zones) zones = wrinkle_zones(*landmarks, o);
     outline = face_outline(*landmarks, o);
@@ -223,8 +220,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
   // pixel is cut into (-1: none).
   std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
   for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
-    for (int y = std::max(0, zones[z].y); y < std::min(h, zones[z].y + zones[z].height); ++y)
-      for (int x = std::max(0, zones[z].x); x < std::min(w, zones[z].x + zones[z].width); ++x)
+    for (int y = std::max(0, zones[z].y0); y < std::min(h, zones[z].y1); ++y)
+      for (int x = std::max(0, zones[z].x0); x < std::min(w, zones[z].x1); ++x)
         cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
@@ -253,7 +250,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
             }
           }
       }
-      line.box = {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
+      line.box = PixelRect{x0, y0, x1 + 1, y1 + 1};
       if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
       auto drop = [&](LineDrop why) {
         line.drop = why;
@@ -275,7 +272,7 @@ SalientRegions salient_regions(const FloatImage& luminance,
     }
   // Cluster: boxes closer than the gap merge until none do.
   // (With zones, only lines of one zone.)
-  std::vector<PixelRectI> boxes;
+  std::vector<PixelRect> boxes;
   std::vector<int> zone_of;
   for (const auto& l : out.lines) boxes.push_back(l.box), zone_of.push_back(l.zone);
   for (bool merged = true; merged;) {
@@ -290,24 +287,23 @@ SalientRegions salient_regions(const FloatImage& luminance,
         }
   }
   for (std::size_t k = 0; k < boxes.size(); ++k) {
-    const PixelRectI& b = boxes[k];
-    const int x0 = std::max(0, b.x - o.margin_px), y0 = std::max(0, b.y - o.margin_px);
-    const int x1 = std::min(w, b.x + b.width + o.margin_px),
-              y1 = std::min(h, b.y + b.height + o.margin_px);
+    const PixelRect& b = boxes[k];
+    const int x0 = std::max(0, b.x0 - o.margin_px), y0 = std::max(0, b.y0 - o.margin_px);
+    const int x1 = std::min(w, b.x1 + o.margin_px), y1 = std::min(h, b.y1 + o.margin_px);
     if (zones.empty()) {
-      out.regions.push_back({x0, y0, x1 - x0, y1 - y0});
+      out.regions.push_back(PixelRect{x0, y0, x1, y1});
       continue;
     }
     // The forehead's rows across its zone; a small zone whole.
     {
       const int zone = zone_of[k];
-      const PixelRectI& z = zones[static_cast<std::size_t>(zone)];
+      const PixelRect& z = zones[static_cast<std::size_t>(zone)];
       const bool across = zone == 0 && o.forehead_across, whole = zone > 0;
-      const int zx0 = across || whole ? z.x : std::max(x0, z.x - o.margin_px);
-      const int zy0 = whole ? z.y : std::max(y0, z.y - o.margin_px);
-      const int zx1 = across || whole ? z.x + z.width : std::min(x1, z.x + z.width + o.margin_px);
-      const int zy1 = whole ? z.y + z.height : std::min(y1, z.y + z.height + o.margin_px);
-      if (zx1 > zx0 && zy1 > zy0) out.regions.push_back({zx0, zy0, zx1 - zx0, zy1 - zy0});
+      const int zx0 = across || whole ? z.x0 : std::max(x0, z.x0 - o.margin_px);
+      const int zy0 = whole ? z.y0 : std::max(y0, z.y0 - o.margin_px);
+      const int zx1 = across || whole ? z.x1 : std::min(x1, z.x1 + o.margin_px);
+      const int zy1 = whole ? z.y1 : std::min(y1, z.y1 + o.margin_px);
+      if (zx1 > zx0 && zy1 > zy0) out.regions.push_back(PixelRect{zx0, zy0, zx1, zy1});
     }
   }
   return out;

@@ -13,16 +13,10 @@
 #include <Eigen/Core>
 
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/wrinkles/exemplar.hpp"
 
 namespace fb {
-
-struct PixelRectI {
-  int x = 0, y = 0, width = 0, height = 0;
-  bool contains(int px, int py) const {
-    return px >= x && py >= y && px < x + width && py < y + height;
-  }
-};
 
 struct SalientOptions {
   float gradient_threshold = 0.005f;  // luminance (0..1) per pixel on both sides of the line
@@ -88,10 +82,10 @@ enum class LineDrop { kKept, kShort, kFeature, kNoZone, kOutline, kEyelid };
 
 struct WrinkleLine {
   std::vector<Eigen::Vector2i> pixels;
-  PixelRectI box;
+  PixelRect box;
   int zone = -1;  // with SalientOptions::wrinkle_zones: the zone of its centroid
   LineDrop drop = LineDrop::kKept;
-  int length() const { return std::max(box.width, box.height); }
+  int length() const { return std::max(box.width(), box.height()); }
 };
 
 struct SalientRegions {
@@ -99,7 +93,7 @@ struct SalientRegions {
   std::vector<WrinkleLine> lines;  // kept lines
   // Lines at least min(min_line_px, min_crows_feet_px) long that a later test dropped (`drop`).
   std::vector<WrinkleLine> dropped;
-  std::vector<PixelRectI> regions;
+  std::vector<PixelRect> regions;
   Image<std::uint8_t> features;  // 1 on brows, eyes, nose and mouth (empty without landmarks)
 };
 
@@ -107,8 +101,8 @@ struct SalientRegions {
 // lying on a feature.
 // The wrinkle zones of SalientOptions::wrinkle_zones in the image: forehead, glabella, the
 // image-left and image-right crow's feet.
-std::vector<PixelRectI> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
-                                      const SalientOptions& options);
+std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
+                                     const SalientOptions& options);
 
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,

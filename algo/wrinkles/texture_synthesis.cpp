@@ -38,7 +38,7 @@ class Random {
 class Synthesizer {
  public:
   Synthesizer(const ImageGradient& input, const FloatImage& shading,
-              std::span<const PixelRectI> regions, std::span<const WrinkleExemplar> exemplars,
+              std::span<const PixelRect> regions, std::span<const WrinkleExemplar> exemplars,
               const SynthesisOptions& o, const Image<std::uint8_t>* excluded)
       : o_(o), r_(o.patch_radius), w_(input.gx.width), h_(input.gx.height) {
     // The input padded by the patch radius (edges clamped), so patches need no bounds checks.
@@ -59,8 +59,8 @@ class Synthesizer {
     domain_.resize(w_, h_);
     std::fill(domain_.pixels.begin(), domain_.pixels.end(), std::uint8_t{0});
     for (const auto& rect : regions)
-      for (int y = std::max(0, rect.y); y < std::min(h_, rect.y + rect.height); ++y)
-        for (int x = std::max(0, rect.x); x < std::min(w_, rect.x + rect.width); ++x)
+      for (int y = std::max(0, rect.y0); y < std::min(h_, rect.y1); ++y)
+        for (int x = std::max(0, rect.x0); x < std::min(w_, rect.x1); ++x)
           domain_.at(x, y) = excluded == nullptr || !excluded->at(x, y);
     for (int y = 0; y < h_; ++y)
       for (int x = 0; x < w_; ++x)
@@ -265,7 +265,7 @@ ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptio
 }
 
 Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
-                                             std::span<const PixelRectI> regions,
+                                             std::span<const PixelRect> regions,
                                              std::span<const WrinkleExemplar> exemplars,
                                              const SynthesisOptions& options,
                                              const Image<std::uint8_t>* excluded) {

@@ -75,7 +75,7 @@ ImageGradient wrinkle_features(const FloatImage& luminance, const SynthesisOptio
 // never synthesised (the features). Fails when no exemplar is larger than a
 // patch or the options are out of range.
 Result<WrinkleSynthesis> synthesize_wrinkles(const FloatImage& luminance,
-                                             std::span<const PixelRectI> regions,
+                                             std::span<const PixelRect> regions,
                                              std::span<const WrinkleExemplar> exemplars,
                                              const SynthesisOptions& options = {},
                                              const Image<std::uint8_t>* excluded = nullptr);

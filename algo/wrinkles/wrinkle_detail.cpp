@@ -22,7 +22,7 @@ std::vector<WrinkleExemplar> relit_exemplars(std::span<const WrinkleExemplar> ex
 // The synthesis region by region, each with the exemplars shaded for its mean normal; a pixel
 // in two regions belongs to the first.
 Result<WrinkleSynthesis> synthesize_per_region(const FloatImage& input,
-                                               std::span<const PixelRectI> regions,
+                                               std::span<const PixelRect> regions,
                                                std::span<const Eigen::Vector3f> normals,
                                                std::span<const WrinkleExemplar> exemplars,
                                                const WrinkleDetailOptions& o, double mm_per_px,
@@ -95,8 +95,8 @@ void fade_from_lines(WrinkleDetail& d, const WrinkleDetailOptions& o) {
       for (const auto& [dx, dy] : {std::pair{1, 0}, {1, 1}, {0, 1}, {-1, 1}}) relax(x, y, dx, dy);
   std::vector<std::uint8_t> given(dist.size(), 0);
   for (const auto& r : o.given_regions)
-    for (int y = std::max(0, r.y); y < std::min(h, r.y + r.height); ++y)
-      for (int x = std::max(0, r.x); x < std::min(w, r.x + r.width); ++x)
+    for (int y = std::max(0, r.y0); y < std::min(h, r.y1); ++y)
+      for (int x = std::max(0, r.x0); x < std::min(w, r.x1); ++x)
         given[static_cast<std::size_t>(y) * w + x] = 1;
   const float span = static_cast<float>(o.line_reach_px - o.line_core_px);
   for (std::size_t i = 0; i < dist.size(); ++i)

@@ -43,7 +43,7 @@ struct WrinkleDetailOptions {
   int line_core_px = 1, line_reach_px = 4;
   // Regions given by hand (the paper's user rectangles, margin included): used instead of the
   // detected ones (the features are still left out), or beside them with `given_alongside`.
-  std::vector<PixelRectI> given_regions;
+  std::vector<PixelRect> given_regions;
   bool given_alongside = false;
   // With a WrinkleFace (issue 40 round 5): the expression ratio image (the luminance divided by
   // the neutral warped through the meshes) before the regions and the features, and the

@@ -104,11 +104,11 @@ Result<std::vector<CaptureWrinkleReport>> wrinkle_session(
     const ColorImage& color = capture->frames.front().color;
     for (const auto& g : options.regions) {
       if (g.capture && *g.capture != index) continue;
-      const PixelRectI& r = g.rect;
-      if (r.x < 0 || r.y < 0 || r.width <= 0 || r.height <= 0 || r.x + r.width > color.width ||
-          r.y + r.height > color.height)
-        return fail(where + ": the region " + std::to_string(r.x) + "," + std::to_string(r.y) +
-                    "," + std::to_string(r.width) + "," + std::to_string(r.height) +
+      const PixelRect& r = g.rect;
+      if (r.x0 < 0 || r.y0 < 0 || r.width() <= 0 || r.height() <= 0 || r.x1 > color.width ||
+          r.y1 > color.height)
+        return fail(where + ": the region " + std::to_string(r.x0) + "," + std::to_string(r.y0) +
+                    "," + std::to_string(r.width()) + "," + std::to_string(r.height()) +
                     " is not inside its colour frame (" + std::to_string(color.width) + " x " +
                     std::to_string(color.height) + " pixels)");
       capture_options.color_regions.push_back(r);

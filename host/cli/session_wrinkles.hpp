@@ -36,7 +36,7 @@ struct WrinkleSessionOptions {
   // every capture; they replace the detected regions unless `also_detect`.
   struct GivenRegion {
     std::optional<int> capture;
-    PixelRectI rect;
+    PixelRect rect;
   };
   std::vector<GivenRegion> regions;
   bool also_detect = false;

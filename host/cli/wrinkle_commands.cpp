@@ -70,7 +70,7 @@ Result<WrinkleSessionOptions::GivenRegion> parse_region(const std::string& arg) 
     return fail(form);
   if (v[2] <= 0 || v[3] <= 0 || v[0] < 0 || v[1] < 0)
     return fail(form + ": x, y >= 0 and w, h > 0");
-  g.rect = {v[0], v[1], v[2], v[3]};
+  g.rect = PixelRect::from_size(v[0], v[1], v[2], v[3]);
   return g;
 }
 

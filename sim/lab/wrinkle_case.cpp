@@ -290,7 +290,8 @@ Result<WrinkleCase> make_wrinkle_case(const FaceModel& model, const WrinkleCaseO
       c.luminance.at(x, y) = (0.299f * ch[0] + 0.587f * ch[1] + 0.114f * ch[2]) / 255.0f;
     }
   for (const auto& b : boxes)
-    if (b[2] >= b[0]) c.true_regions.push_back({b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1});
+    if (b[2] >= b[0])
+      c.true_regions.push_back(PixelRect::from_size(b[0], b[1], b[2] - b[0] + 1, b[3] - b[1] + 1));
   return c;
 }
 
@@ -383,11 +384,9 @@ Result<RgbdFrame> wrinkle_case_frame(const WrinkleCase& c, const FaceModel& mode
 
 WrinkleScore score_wrinkles(const WrinkleCase& c, const WrinkleDetail& d, int margin) {
   const int w = c.luminance.width, h = c.luminance.height;
-  auto in_any = [](const std::vector<PixelRectI>& rs, int x, int y, int grow) {
+  auto in_any = [](const std::vector<PixelRect>& rs, int x, int y, int grow) {
     for (const auto& r : rs)
-      if (x >= r.x - grow && y >= r.y - grow && x < r.x + r.width + grow &&
-          y < r.y + r.height + grow)
-        return true;
+      if (x >= r.x0 - grow && y >= r.y0 - grow && x < r.x1 + grow && y < r.y1 + grow) return true;
     return false;
   };
   WrinkleScore s;

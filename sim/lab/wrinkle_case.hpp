@@ -48,7 +48,7 @@ struct WrinkleCase {
   ColorImage color;                           // 640 x 480, the booth's frame
   FloatImage luminance;                       // Rec. 601 luma of `color`, 0..1
   FloatImage true_height_mm;                  // the relief each pixel sees (mean of its samples)
-  std::vector<PixelRectI> true_regions;       // each relief window's pixels (bounding box)
+  std::vector<PixelRect> true_regions;        // each relief window's pixels (bounding box)
   std::array<Eigen::Vector2d, 68> landmarks;  // the true 68 points in this image
   PinholeIntrinsics intrinsics;
   double face_depth_mm = 0.0;  // depth of the landmarks' centroid

@@ -45,8 +45,8 @@ struct Pairs {
   double slope() const { return (sab - sa * sb / n) / std::max(1e-30, saa - sa * sa / n); }
 };
 
-bool in_any(const std::vector<PixelRectI>& rs, int x, int y) {
-  return std::any_of(rs.begin(), rs.end(), [&](const PixelRectI& r) { return r.contains(x, y); });
+bool in_any(const std::vector<PixelRect>& rs, int x, int y) {
+  return std::any_of(rs.begin(), rs.end(), [&](const PixelRect& r) { return r.contains(x, y); });
 }
 
 template <typename F>
@@ -202,7 +202,7 @@ int run_diag(const ParsedOptions& options) {
     WrinkleDetailOptions wo;
     wo.exemplar_mm_per_px = oracle ? 0.25 : set->mm_per_px;
     for (const auto& r : c->true_regions)
-      wo.given_regions.push_back({r.x - 5, r.y - 5, r.width + 10, r.height + 10});
+      wo.given_regions.push_back(PixelRect{r.x0 - 5, r.y0 - 5, r.x1 + 5, r.y1 + 5});
     auto d = wrinkle_detail(input, c->landmarks, c->face_depth_mm, c->intrinsics.fx, ex, wo);
     if (!d) return report_failure(d.error());
     score_synthesis(*c, d->synthesis.height_mm);

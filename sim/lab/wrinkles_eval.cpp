@@ -37,12 +37,12 @@ bool is_truth_crop(const std::string& name) {
 }
 
 // Height (mm) to grey: 128 + 150 levels per mm.
-cv::Mat height_picture(const FloatImage& h, const PixelRectI& r) {
-  cv::Mat m(r.height, r.width, CV_8UC3);
-  for (int y = 0; y < r.height; ++y)
-    for (int x = 0; x < r.width; ++x) {
+cv::Mat height_picture(const FloatImage& h, const PixelRect& r) {
+  cv::Mat m(r.height(), r.width(), CV_8UC3);
+  for (int y = 0; y < r.height(); ++y)
+    for (int x = 0; x < r.width(); ++x) {
       const auto v = static_cast<std::uint8_t>(
-          std::clamp(128.0f + 150.0f * h.at(r.x + x, r.y + y), 0.0f, 255.0f));
+          std::clamp(128.0f + 150.0f * h.at(r.x0 + x, r.y0 + y), 0.0f, 255.0f));
       m.at<cv::Vec3b>(y, x) = {v, v, v};
     }
   return m;
@@ -53,36 +53,36 @@ cv::Mat height_picture(const FloatImage& h, const PixelRectI& r) {
 Result<void> write_figure(const std::string& path, const WrinkleCase& c, const WrinkleDetail& d) {
   int x0 = c.luminance.width, y0 = c.luminance.height, x1 = 0, y1 = 0;
   for (const auto& r : c.true_regions)
-    x0 = std::min(x0, r.x), y0 = std::min(y0, r.y), x1 = std::max(x1, r.x + r.width),
-    y1 = std::max(y1, r.y + r.height);
-  const PixelRectI crop{std::max(0, x0 - 15), std::max(0, y0 - 15),
-                        std::min(c.luminance.width, x1 + 15) - std::max(0, x0 - 15),
-                        std::min(c.luminance.height, y1 + 15) - std::max(0, y0 - 15)};
-  cv::Mat frame(crop.height, crop.width, CV_8UC3);
-  for (int y = 0; y < crop.height; ++y)
-    for (int x = 0; x < crop.width; ++x) {
-      const Rgb8 p = c.color.at(crop.x + x, crop.y + y);
+    x0 = std::min(x0, r.x0), y0 = std::min(y0, r.y0), x1 = std::max(x1, r.x1),
+    y1 = std::max(y1, r.y1);
+  const PixelRect crop{std::max(0, x0 - 15), std::max(0, y0 - 15),
+                       std::min(c.luminance.width, x1 + 15), std::min(c.luminance.height, y1 + 15)};
+  cv::Mat frame(crop.height(), crop.width(), CV_8UC3);
+  for (int y = 0; y < crop.height(); ++y)
+    for (int x = 0; x < crop.width(); ++x) {
+      const Rgb8 p = c.color.at(crop.x0 + x, crop.y0 + y);
       frame.at<cv::Vec3b>(y, x) = {p.b, p.g, p.r};
     }
   cv::Mat regions = frame.clone();
-  auto draw = [&](const PixelRectI& r, cv::Scalar colour) {
-    cv::rectangle(regions, cv::Rect(r.x - crop.x, r.y - crop.y, r.width, r.height), colour, 1);
+  auto draw = [&](const PixelRect& r, cv::Scalar colour) {
+    cv::rectangle(regions, cv::Rect(r.x0 - crop.x0, r.y0 - crop.y0, r.width(), r.height()), colour,
+                  1);
   };
   for (const auto& r : c.true_regions) draw(r, {255, 80, 0});
   for (const auto& r : d.regions.regions) draw(r, {0, 220, 0});
   // The detector's view: its input (grey), marked pixels (red), kept lines (green).
-  cv::Mat detector(crop.height, crop.width, CV_8UC3);
-  for (int y = 0; y < crop.height; ++y)
-    for (int x = 0; x < crop.width; ++x) {
+  cv::Mat detector(crop.height(), crop.width(), CV_8UC3);
+  for (int y = 0; y < crop.height(); ++y)
+    for (int x = 0; x < crop.width(); ++x) {
       const auto v = static_cast<std::uint8_t>(
-          std::clamp(255.0f * d.input.at(crop.x + x, crop.y + y), 0.f, 255.f));
+          std::clamp(255.0f * d.input.at(crop.x0 + x, crop.y0 + y), 0.f, 255.f));
       detector.at<cv::Vec3b>(y, x) =
-          d.regions.marked.at(crop.x + x, crop.y + y) ? cv::Vec3b{0, 0, 255} : cv::Vec3b{v, v, v};
+          d.regions.marked.at(crop.x0 + x, crop.y0 + y) ? cv::Vec3b{0, 0, 255} : cv::Vec3b{v, v, v};
     }
   for (const auto& l : d.regions.lines)
     for (const auto& p : l.pixels)
       if (crop.contains(p.x(), p.y()))
-        detector.at<cv::Vec3b>(p.y() - crop.y, p.x() - crop.x) = {0, 220, 0};
+        detector.at<cv::Vec3b>(p.y() - crop.y0, p.x() - crop.x0) = {0, 220, 0};
   std::vector<cv::Mat> panels = {frame, regions, detector, height_picture(c.true_height_mm, crop),
                                  height_picture(d.synthesis.height_mm, crop)};
   for (auto& p : panels) cv::resize(p, p, {}, 2.0, 2.0, cv::INTER_NEAREST);
@@ -164,16 +164,15 @@ const char* drop_name(LineDrop d) {
 // kept and dropped (why); the pixels beyond T + margin above 0.05 mm and the regions they lie in.
 nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int margin) {
   nlohmann::json out, windows = nlohmann::json::array();
-  auto in_rect = [](const PixelRectI& r, int x, int y, int grow) {
-    return x >= r.x - grow && y >= r.y - grow && x < r.x + r.width + grow &&
-           y < r.y + r.height + grow;
+  auto in_rect = [](const PixelRect& r, int x, int y, int grow) {
+    return x >= r.x0 - grow && y >= r.y0 - grow && x < r.x1 + grow && y < r.y1 + grow;
   };
   const auto& regions = d.regions.regions;
   for (const auto& t : c.true_regions) {
     int n = 0, hit = 0, masked = 0, none = 0;
     int mx0 = 1 << 20, my0 = 1 << 20, mx1 = -1, my1 = -1;
-    for (int y = t.y; y < t.y + t.height; ++y)
-      for (int x = t.x; x < t.x + t.width; ++x) {
+    for (int y = t.y0; y < t.y1; ++y)
+      for (int x = t.x0; x < t.x1; ++x) {
         if (std::abs(c.true_height_mm.at(x, y)) < 0.1f) continue;
         ++n;
         if (d.synthesis.domain.at(x, y)) {
@@ -186,7 +185,7 @@ nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int ma
         mx0 = std::min(mx0, x), my0 = std::min(my0, y), mx1 = std::max(mx1, x),
         my1 = std::max(my1, y);
       }
-    windows.push_back({{"window", {t.x, t.y, t.width, t.height}},
+    windows.push_back({{"window", {t.x0, t.y0, t.width(), t.height()}},
                        {"wrinkle_px", n},
                        {"found", hit},
                        {"missed_feature_mask", masked},
@@ -199,7 +198,7 @@ nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int ma
     for (const auto& l : *set)
       lines.push_back({{"drop", drop_name(l.drop)},
                        {"zone", l.zone},
-                       {"box", {l.box.x, l.box.y, l.box.width, l.box.height}},
+                       {"box", {l.box.x0, l.box.y0, l.box.width(), l.box.height()}},
                        {"pixels", l.pixels.size()}});
   out["lines"] = lines;
   nlohmann::json outside = nlohmann::json::array();
@@ -211,8 +210,8 @@ nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int ma
       int dist = 1 << 20;
       for (const auto& t : c.true_regions) {
         near_truth = near_truth || in_rect(t, x, y, margin);
-        const int dx = std::max({t.x - x, 0, x - (t.x + t.width - 1)});
-        const int dy = std::max({t.y - y, 0, y - (t.y + t.height - 1)});
+        const int dx = std::max({t.x0 - x, 0, x - (t.x1 - 1)});
+        const int dy = std::max({t.y0 - y, 0, y - (t.y1 - 1)});
         dist = std::min(dist, std::max(dx, dy));
       }
       if (near_truth) continue;
@@ -293,7 +292,7 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       if (given) {
         wo.given_regions.clear();
         for (const auto& r : c->true_regions)
-          wo.given_regions.push_back({r.x - 5, r.y - 5, r.width + 10, r.height + 10});
+          wo.given_regions.push_back(PixelRect{r.x0 - 5, r.y0 - 5, r.x1 + 5, r.y1 + 5});
       }
       std::optional<WrinkleCase> neutral;
       if (meshes && wo.ratio_image) {
@@ -333,10 +332,10 @@ int run_eval_wrinkles(const ParsedOptions& options) {
       run["max_outside_at"] = {sc.max_outside_x, sc.max_outside_y};
       run["regions"] = nlohmann::json::array();
       for (const auto& r : d->regions.regions)
-        run["regions"].push_back({r.x, r.y, r.width, r.height});
+        run["regions"].push_back({r.x0, r.y0, r.width(), r.height()});
       run["true_windows"] = nlohmann::json::array();
       for (const auto& r : c->true_regions)
-        run["true_windows"].push_back({r.x, r.y, r.width, r.height});
+        run["true_windows"].push_back({r.x0, r.y0, r.width(), r.height()});
       run["mm_per_px"] = d->image_mm_per_px;
       if (options.flag("explain")) run["explain"] = explain_json(*c, *d, wo.regions.margin_px);
       run["seconds"] = seconds;

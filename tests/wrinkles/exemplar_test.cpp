@@ -93,10 +93,10 @@ TEST(SalientRegions, ForeheadLinesFoundMouthAndPoresLeftOut) {
   o.wrinkle_zones = false;     // the paper's detector (the zones need a face's landmarks)
   const SalientRegions r = salient_regions(lum, landmarks, o);
   ASSERT_EQ(r.regions.size(), 1u);
-  const PixelRectI& f = r.regions.front();
+  const PixelRect& f = r.regions.front();
   EXPECT_TRUE(f.contains(45, 40) && f.contains(155, 50));  // both lines, end to end
-  EXPECT_LE(f.y, 40 - 5);                                  // grown by the 5 px margin
-  EXPECT_LT(f.y + f.height, 70);                           // not down to the mouth
+  EXPECT_LE(f.y0, 40 - 5);                                 // grown by the 5 px margin
+  EXPECT_LT(f.y1, 70);                                     // not down to the mouth
   for (const auto& l : r.lines) EXPECT_GE(l.length(), 12);
   // Without landmarks the mouth's line is a region of its own.
   EXPECT_EQ(salient_regions(lum, std::nullopt, o).regions.size(), 2u);

@@ -152,7 +152,8 @@ TEST(ExpressionRatio, RegionNormalAndLocalLight) {
   RasterOptions ro;
   ro.cull_backfaces = false;
   ASSERT_TRUE(rasterize(camera(), s.vertices, s.triangles, ro, r));
-  const std::vector<PixelRectI> regions = {{300, 220, 40, 30}, {0, 0, 10, 10}};
+  const std::vector<PixelRect> regions = {PixelRect::from_size(300, 220, 40, 30),
+                                          PixelRect::from_size(0, 0, 10, 10)};
   const auto n = region_normals(r, {s.vertices, s.triangles}, regions);
   ASSERT_EQ(n.size(), 2u);
   // The plane's normal towards the camera: (0, -sin a, -cos a) with y down (its top recedes).

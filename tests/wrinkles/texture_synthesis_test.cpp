@@ -39,7 +39,7 @@ WrinkleExemplar exemplar(bool vertical) {
 
 struct Case {
   FloatImage height_mm, luminance;
-  std::vector<PixelRectI> regions;  // the wrinkles' rectangles grown by 5 px
+  std::vector<PixelRect> regions;  // the wrinkles' rectangles grown by 5 px
 };
 
 // Three horizontal grooves 0.3, 0.5, 0.8 mm deep and two vertical ones 0.4 and 0.7 mm, on skin
@@ -63,11 +63,11 @@ Case make_case() {
     const double g = std::sqrt(-2.0 * std::log(u + 1e-12)) * std::cos(2 * M_PI * v);
     c.luminance.pixels[i] += static_cast<float>(2.0 / 255.0 * g);
   }
-  c.regions = {{15, 17, 90, 36}, {125, 15, 35, 80}};
+  c.regions = {PixelRect::from_size(15, 17, 90, 36), PixelRect::from_size(125, 15, 35, 80)};
   return c;
 }
 
-double mae_inside(const FloatImage& a, const FloatImage& b, const std::vector<PixelRectI>& rs,
+double mae_inside(const FloatImage& a, const FloatImage& b, const std::vector<PixelRect>& rs,
                   double* zero_baseline = nullptr) {
   double e = 0.0, z = 0.0;
   int n = 0;
@@ -164,7 +164,7 @@ TEST(WrinkleDetail, HandGivenRegionsAreUsedAndABadDistanceIsRefused) {
   const std::vector<WrinkleExemplar> ex = {exemplar(false), exemplar(true)};
   WrinkleDetailOptions o;
   o.exemplar_mm_per_px = kMmPerPx;
-  o.given_regions = {{15, 17, 90, 36}};  // the horizontal grooves only
+  o.given_regions = {PixelRect::from_size(15, 17, 90, 36)};  // the horizontal grooves only
   // 700 mm at f 583.3 px: the exemplars' own 1.2 mm per pixel.
   const auto d = wrinkle_detail(c.luminance, std::nullopt, 700.0, 700.0 / kMmPerPx, ex, o);
   ASSERT_TRUE(d.ok()) << d.error().message;

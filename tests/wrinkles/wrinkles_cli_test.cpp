@@ -62,8 +62,7 @@ UvScore score_in_uv(const cli::WrinkleCase& c, const FaceModel& model, const Tex
     if (q.z() > c.face_depth_mm + 40.0) continue;  // the back of the head
     bool near = false;
     for (const auto& r : c.true_regions)
-      near =
-          near || (x >= r.x - 5 && y >= r.y - 5 && x < r.x + r.width + 5 && y < r.y + r.height + 5);
+      near = near || (x >= r.x0 - 5 && y >= r.y0 - 5 && x < r.x1 + 5 && y < r.y1 + 5);
     const float h = std::abs(disp[i]), truth = c.true_height_mm.at(x, y);
     if (std::abs(truth) >= 0.1f) {
       ++s.inside;

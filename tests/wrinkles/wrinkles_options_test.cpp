@@ -73,27 +73,28 @@ std::unique_ptr<FaceModel> WrinklesOptions::model_;
 std::unique_ptr<cli::WrinkleCase> WrinklesOptions::neutral_, WrinklesOptions::brows_;
 
 // The case's forehead window (its largest relief window, depth pixels) in the colour frame.
-PixelRectI forehead_in_color(const cli::WrinkleCase& c, const KinectRegistration& registration) {
-  PixelRectI best;
+PixelRect forehead_in_color(const cli::WrinkleCase& c, const KinectRegistration& registration) {
+  PixelRect best;
   for (const auto& r : c.true_regions)
-    if (r.width * r.height > best.width * best.height) best = r;
+    if (r.width() * r.height() > best.width() * best.height()) best = r;
   double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
   for (int k = 0; k < 4; ++k) {
     double cx = 0, cy = 0;
-    const double x = best.x + (k & 1 ? best.width : 0), y = best.y + (k & 2 ? best.height : 0);
+    const double x = best.x0 + (k & 1 ? best.width() : 0),
+                 y = best.y0 + (k & 2 ? best.height() : 0);
     EXPECT_TRUE(registration.depth_to_color_interpolated(x, y, c.face_depth_mm, cx, cy));
     lo[0] = std::min(lo[0], cx), lo[1] = std::min(lo[1], cy);
     hi[0] = std::max(hi[0], cx), hi[1] = std::max(hi[1], cy);
   }
-  return {static_cast<int>(lo[0]), static_cast<int>(lo[1]), static_cast<int>(hi[0] - lo[0]),
-          static_cast<int>(hi[1] - lo[1])};
+  return PixelRect::from_size(static_cast<int>(lo[0]), static_cast<int>(lo[1]),
+                              static_cast<int>(hi[0] - lo[0]), static_cast<int>(hi[1] - lo[1]));
 }
 
 TEST_F(WrinklesOptions, GivenRegionKeepsTheDetailInsideIt) {
   const KinectRegistration registration(KinectCalibration::defaults());
-  const PixelRectI rect = forehead_in_color(*brows_, registration);
-  const std::string region = std::to_string(rect.x) + "," + std::to_string(rect.y) + "," +
-                             std::to_string(rect.width) + "," + std::to_string(rect.height);
+  const PixelRect rect = forehead_in_color(*brows_, registration);
+  const std::string region = std::to_string(rect.x0) + "," + std::to_string(rect.y0) + "," +
+                             std::to_string(rect.width()) + "," + std::to_string(rect.height());
   std::printf("forehead window in the colour frame: %s\n", region.c_str());
   auto r = test::run_command(wrinkles("--region 1:" + region), test::Stderr::kToLog);
   ASSERT_EQ(r.exit_code, 0) << r.out;
@@ -129,10 +130,9 @@ TEST_F(WrinklesOptions, GivenRegionKeepsTheDetailInsideIt) {
     if (!registration.depth_to_color_interpolated(px.x(), px.y(), q.z(), cx, cy)) continue;
     const float h = std::abs(d->displacement_mm[i]);
     const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
-    const bool in_rect =
-        cx >= rect.x && cy >= rect.y && cx < rect.x + rect.width && cy < rect.y + rect.height;
-    const bool near_rect = cx >= rect.x - 10 && cy >= rect.y - 10 &&
-                           cx < rect.x + rect.width + 10 && cy < rect.y + rect.height + 10;
+    const bool in_rect = cx >= rect.x0 && cy >= rect.y0 && cx < rect.x1 && cy < rect.y1;
+    const bool near_rect =
+        cx >= rect.x0 - 10 && cy >= rect.y0 - 10 && cx < rect.x1 + 10 && cy < rect.y1 + 10;
     if (in_rect && x >= 0 && y >= 0 && x < c.intrinsics.width && y < c.intrinsics.height &&
         std::abs(c.true_height_mm.at(x, y)) >= 0.1f) {
       ++inside;
@@ -173,7 +173,7 @@ TEST_F(WrinklesOptions, GivenRegionKeepsTheDetailInsideIt) {
 // Regions scored as eval wrinkles does (T: the true windows; W: their pixels with >= 0.1 mm
 // relief): recall = W in regions / W, precision = region pixels in T + 5 px / region pixels.
 std::pair<double, double> region_scores(const cli::WrinkleCase& c,
-                                        const std::vector<PixelRectI>& regions) {
+                                        const std::vector<PixelRect>& regions) {
   long long w = 0, w_in = 0, d = 0, d_in = 0;
   for (int y = 0; y < c.luminance.height; ++y)
     for (int x = 0; x < c.luminance.width; ++x) {
@@ -181,8 +181,7 @@ std::pair<double, double> region_scores(const cli::WrinkleCase& c,
       for (const auto& r : regions) in_region = in_region || r.contains(x, y);
       for (const auto& t : c.true_regions) {
         in_truth = in_truth || t.contains(x, y);
-        near_truth =
-            near_truth || PixelRectI{t.x - 5, t.y - 5, t.width + 10, t.height + 10}.contains(x, y);
+        near_truth = near_truth || PixelRect{t.x0 - 5, t.y0 - 5, t.x1 + 5, t.y1 + 5}.contains(x, y);
       }
       if (in_truth && std::abs(c.true_height_mm.at(x, y)) >= 0.1f) ++w, w_in += in_region;
       if (in_region) ++d, d_in += near_truth;
@@ -214,9 +213,9 @@ TEST_F(WrinklesOptions, WrinkleZonesKeepRegionsWhereWrinklesForm) {
   for (const auto& r : b.regions) {
     bool inside = false;
     for (const auto& z : zones)
-      inside = inside || (r.x >= z.x - 5 && r.y >= z.y - 5 && r.x + r.width <= z.x + z.width + 5 &&
-                          r.y + r.height <= z.y + z.height + 5);
-    EXPECT_TRUE(inside) << r.x << "," << r.y << " " << r.width << "x" << r.height;
+      inside =
+          inside || (r.x0 >= z.x0 - 5 && r.y0 >= z.y0 - 5 && r.x1 <= z.x1 + 5 && r.y1 <= z.y1 + 5);
+    EXPECT_TRUE(inside) << r.x0 << "," << r.y0 << " " << r.width() << "x" << r.height();
   }
   EXPECT_GT(precision_b, precision_a + 0.15);
   EXPECT_GT(recall_b, 0.9);

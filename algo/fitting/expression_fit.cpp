@@ -2,6 +2,7 @@
 #include <vector>
 
 #include "algo/core/clock.hpp"
+#include "algo/fitting/expression_amplitude.hpp"
 #include "algo/fitting/expression_transfer.hpp"
 
 namespace fb {
@@ -23,12 +24,29 @@ std::vector<std::uint32_t> still_vertices(const FaceModel& model, std::span<cons
   return out;
 }
 
+// The parts' displacements on the subject: the transfer of G0 plus each part, less the
+// transfer of G0 itself (the transfer is nearly linear in the guide; its fourth vertices are
+// not).
+Result<std::vector<std::vector<float>>> transferred_parts(
+    const ExpressionTransfer& transfer, std::span<const std::vector<float>> guide_parts) {
+  const std::span<const float> rest = transfer.rest_transfer();
+  std::vector<std::vector<float>> out;
+  for (const auto& part : guide_parts) {
+    auto moved = transfer.transfer(part);
+    if (!moved) return moved.failure();
+    for (std::size_t i = 0; i < moved->size(); ++i) (*moved)[i] -= rest[i];
+    out.push_back(std::move(*moved));
+  }
+  return out;
+}
+
 }  // namespace
 
 Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfer& transfer,
                                  std::span<const float> guide_expression, const FitTarget& target,
                                  const ExpressionFitOptions& options,
-                                 const std::optional<RigidPose>& initial_pose) {
+                                 const std::optional<RigidPose>& initial_pose,
+                                 std::span<const std::vector<float>> guide_parts) {
   const auto t0 = Clock::now();
   auto start = transfer.transfer(guide_expression);
   if (!start) return start.failure();
@@ -37,12 +55,24 @@ Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfe
   auto pose = align_rigid(model, target, *start, options.rigid_iterations, initial_pose,
                           kRigidFaceLandmarks, still);
   if (!pose) return pose.failure();
+  std::vector<double> amplitudes;
+  if (options.scale_parts && !guide_parts.empty()) {
+    auto parts = transferred_parts(transfer, guide_parts);
+    if (!parts) return parts.failure();
+    auto a = fit_amplitudes(model, target, *start, *pose, *parts, options.amplitude_options);
+    if (!a) return a.failure();
+    amplitudes = std::move(*a);
+    for (std::size_t k = 0; k < parts->size(); ++k)
+      for (std::size_t i = 0; i < start->size(); ++i)
+        (*start)[i] += static_cast<float>(amplitudes[k] - 1.0) * (*parts)[k][i];
+  }
   const double initial_ms = ms_since(t0);
   RefineOptions refine = options.refine_options;
   if (!options.refine) refine.iterations = 0;
   auto result = refine_fit(model, target, *start, *pose, refine, &transfer.refine_system());
   if (!result) return result.failure();
   result->times.initial_ms = initial_ms;
+  result->part_amplitudes = std::move(amplitudes);
   return result;
 }
 

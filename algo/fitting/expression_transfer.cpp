@@ -37,6 +37,7 @@ struct ExpressionTransfer::State {
   Eigen::MatrixXd target_rest;                // S0, vertex_count x 3
   std::vector<std::uint32_t> fixed_vertices;  // where the translation is pinned
   std::optional<RefineSystem> refine_system;
+  std::vector<float> rest_transfer;  // transfer(G0): what a part's displacement is taken from
   double factor_ms = 0;
 };
 
@@ -44,6 +45,9 @@ ExpressionTransfer::ExpressionTransfer(std::unique_ptr<State> state) : state_(st
 
 std::span<const float> ExpressionTransfer::guide_neutral() const {
   return state_->guide_neutral;
+}
+std::span<const float> ExpressionTransfer::rest_transfer() const {
+  return state_->rest_transfer;
 }
 ExpressionTransfer::ExpressionTransfer(ExpressionTransfer&&) noexcept = default;
 ExpressionTransfer& ExpressionTransfer::operator=(ExpressionTransfer&&) noexcept = default;
@@ -115,8 +119,12 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
                                      refine_system_options(refine));
   if (!system) return system.failure();
   s->refine_system.emplace(std::move(*system));
-  s->factor_ms = ms_since(t0);
-  return ExpressionTransfer(std::move(s));
+  ExpressionTransfer out(std::move(s));
+  auto rest_transfer = out.transfer(guide_neutral);
+  if (!rest_transfer) return rest_transfer.failure();
+  out.state_->rest_transfer = std::move(*rest_transfer);
+  out.state_->factor_ms = ms_since(t0);
+  return out;
 }
 
 Result<std::vector<float>> ExpressionTransfer::transfer(

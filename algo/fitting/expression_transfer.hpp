@@ -37,6 +37,9 @@ class ExpressionTransfer {
 
   const RefineSystem& refine_system() const;
   std::span<const float> guide_neutral() const;  // G0
+  // transfer(G0): the fitted neutral as the transfer reproduces it; a guide part's displacement
+  // on the subject is its transfer minus this.
+  std::span<const float> rest_transfer() const;
   // Both factorizations of create(): the transfer's and the refinement's.
   double factorization_ms() const;
 
@@ -47,11 +50,14 @@ class ExpressionTransfer {
 };
 
 // Expression fit (3.2.2): transfer G0 -> Gi onto the neutral, align it rigidly to this
-// capture (landmarks + ICP on the rigid vertices), then refine with E2 and this capture's
-// landmarks. `initial_pose` (e.g. the neutral's pose) seeds the alignment when given.
+// capture (landmarks + ICP on the rigid vertices), scale each part of the guide's recipe to the
+// capture (expression_amplitude.hpp), then refine with E2 and this capture's landmarks.
+// `guide_parts` are G0 plus one recipe part each (algo/guide's guide_part_meshes); without them
+// the transfer is refined as it is. `initial_pose` (e.g. the neutral's pose) seeds the alignment.
 Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfer& transfer,
                                  std::span<const float> guide_expression, const FitTarget& target,
                                  const ExpressionFitOptions& options = {},
-                                 const std::optional<RigidPose>& initial_pose = std::nullopt);
+                                 const std::optional<RigidPose>& initial_pose = std::nullopt,
+                                 std::span<const std::vector<float>> guide_parts = {});
 
 }  // namespace fb

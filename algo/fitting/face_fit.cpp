@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 
+#include "algo/fitting/fit_correspondence.hpp"
 #include "algo/fitting/mesh_ops.hpp"
 #include "algo/render/rasterizer.hpp"
 
@@ -31,71 +32,6 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
   return m;
 }
 
-Points posed(const Points& v, const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
-  Points x = v * r.transpose();
-  x.rowwise() += t.transpose();
-  return x;
-}
-
-// Projective correspondence: the depth sample under the vertex's projection, its normal, and
-// gates on distance and on the angle between the vertex normal and the depth normal.
-struct Correspondence {
-  Eigen::Vector3d q;        // depth point
-  Eigen::Vector3d n;        // unit, towards the camera
-  double confidence = 1.0;  // the target's, at the sample
-  double skin = 1.0;        // the target's skin weight at the sample
-};
-
-bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vector3d& vn,
-                double gate_mm, double cos_min, Correspondence& c) {
-  if (x.z() <= 1.0) return false;
-  const Eigen::Vector2d uv = t.intrinsics.project(x);
-  const int px = static_cast<int>(std::lround(uv.x())), py = static_cast<int>(std::lround(uv.y()));
-  if (!t.depth_mm.contains(px, py)) return false;
-  const float d = t.depth_mm.at(px, py);
-  if (!(d > 0.0f)) return false;
-  const Eigen::Vector3f nf = t.normals.at(px, py);
-  if (nf.squaredNorm() < 0.5f) return false;
-  c.n = nf.cast<double>();
-  c.q = t.intrinsics.unproject(px, py, d);
-  c.confidence = t.confidence.empty() ? 1.0 : static_cast<double>(t.confidence.at(px, py));
-  c.skin = t.skin.empty() ? 1.0 : static_cast<double>(t.skin.at(px, py));
-  if (vn.squaredNorm() > 0.5 && vn.dot(c.n) < cos_min) return false;
-  const double plane = c.n.dot(x - c.q);
-  return std::abs(plane) <= gate_mm && (x - c.q).norm() <= 2.0 * gate_mm + 3.0;
-}
-
-// Hair and a beard are measured in front of the skin: their depth only says the face is not in
-// front of it. A vertex behind such a sample (or on it) takes nothing from it; one in front of
-// it is pushed back as by skin.
-bool behind_hair(const Correspondence& c, const Eigen::Vector3d& x) {
-  return c.skin < 0.5 && c.n.dot(x - c.q) <= 0.0;
-}
-
-// Vertices that the mesh itself does not hide from the camera: rasterise the posed mesh and
-// keep vertices within `slack_mm` of the z-buffer at their pixel. Hidden vertices (behind the
-// nose, under the jaw) would otherwise match the occluder's depth.
-std::vector<char> visible_vertices(const FitTarget& t, const Points& x,
-                                   std::span<const std::uint32_t> triangles,
-                                   double slack_mm = 2.0) {
-  std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(x.rows()));
-  for (Eigen::Index i = 0; i < x.rows(); ++i)
-    v[static_cast<std::size_t>(i)] = x.row(i).transpose().cast<float>();
-  RasterBuffers rb;
-  rb.reset(t.intrinsics.width, t.intrinsics.height);
-  std::vector<char> vis(static_cast<std::size_t>(x.rows()), 0);
-  if (!rasterize(t.intrinsics, v, triangles, RasterOptions{}, rb)) return vis;
-  for (Eigen::Index i = 0; i < x.rows(); ++i) {
-    if (x(i, 2) <= 1.0) continue;
-    const Eigen::Vector2d uv = t.intrinsics.project(x.row(i).transpose());
-    const int px = static_cast<int>(std::lround(uv.x())),
-              py = static_cast<int>(std::lround(uv.y()));
-    if (px < 0 || py < 0 || px >= rb.width || py >= rb.height) continue;
-    vis[static_cast<std::size_t>(i)] = x(i, 2) <= rb.depth[rb.index(px, py)] + slack_mm;
-  }
-  return vis;
-}
-
 // Rigid transform (Kabsch/Umeyama without scale) mapping src onto dst.
 bool procrustes(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
                 Eigen::Matrix3d& r, Eigen::Vector3d& t) {
@@ -109,50 +45,6 @@ bool procrustes(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen
   r = m.topLeftCorner<3, 3>();
   t = m.topRightCorner<3, 1>();
   return r.allFinite() && t.allFinite();
-}
-
-std::uint32_t marked_vertex(const FaceModel& model, const FitTarget& target, int landmark) {
-  const auto i = static_cast<std::size_t>(landmark);
-  return target.landmark_vertices ? (*target.landmark_vertices)[i] : model.landmark_vertices[i];
-}
-
-// Contour sliding (section 3.2.1, after Yang et al.): project the face vertices, take the 2D
-// convex hull, and give each contour landmark the nearest hull vertex; if none is within
-// `max_px`, the model's fixed landmark vertex stays.
-std::array<int, kFitLandmarkCount> landmark_vertices(const FaceModel& model,
-                                                     const FitTarget& target, const Points& x,
-                                                     double max_px = 12.0) {
-  std::array<int, kFitLandmarkCount> out{};
-  for (int i = 0; i < kFitLandmarkCount; ++i)
-    out[static_cast<std::size_t>(i)] = static_cast<int>(marked_vertex(model, target, i));
-  std::vector<Eigen::Vector2d> proj;
-  std::vector<int> ids;
-  proj.reserve(model.fitting_vertices.size());
-  for (std::uint32_t v : model.fitting_vertices) {
-    const Eigen::Vector3d p = x.row(v).transpose();
-    if (p.z() <= 1.0) continue;
-    proj.push_back(target.intrinsics.project(p));
-    ids.push_back(static_cast<int>(v));
-  }
-  const std::vector<int> hull = convex_hull(proj);
-  for (int k = 0; k <= 16; ++k) {
-    const FitLandmark& lm = target.landmarks[static_cast<std::size_t>(k)];
-    if (!lm.valid) continue;
-    double best = max_px * max_px;
-    for (int h : hull) {
-      const double d = (proj[static_cast<std::size_t>(h)] - lm.pixel).squaredNorm();
-      if (d < best) {
-        best = d;
-        out[static_cast<std::size_t>(k)] = ids[static_cast<std::size_t>(h)];
-      }
-    }
-  }
-  return out;
-}
-
-// Direction of the viewing ray through a pixel (z = 1).
-Eigen::Vector3d ray(const PinholeIntrinsics& k, const Eigen::Vector2d& px) {
-  return {(px.x() - k.cx) / k.fx, (px.y() - k.cy) / k.fy, 1.0};
 }
 
 // Per-vertex residuals against the depth, and their RMS over the fitting vertices.

@@ -127,10 +127,29 @@ struct NeutralFitOptions {
   RefineOptions refine_options;
 };
 
+// How strongly each part of a guide recipe was made (expression_amplitude.hpp).
+struct AmplitudeOptions {
+  int iterations = 6;
+  double max_distance_mm = 10.0;  // a transferred chin can start this far from the depth
+  double max_normal_angle_deg = 70;
+  double robust_scale_mm = 3.0;  // Cauchy scale of the depth residual
+  double w_fea = 0.1;            // a landmark's weight against one depth sample's
+  double landmark_huber_mm = 3.0;
+  // Against a part's amplitude moving from 1, in mm^2 per unit^2: a part the depth hardly sees
+  // (a 0.2 eye squint) stays as the recipe says; a jaw seen by a thousand samples follows them.
+  double prior = 100.0;
+  double min_amplitude = 0.0;
+  double max_amplitude = 2.0;
+  double moving_mm = 0.2;  // vertices every part moves less than this take no part
+};
+
 struct ExpressionFitOptions {
   // Point-to-plane ICP on the rigid vertices + landmarks: steps with a gate shrinking from 15 to
   // 4 mm, then up to 40 more at 4 mm until the pose settles (align_rigid).
   int rigid_iterations = 8;
+  // Scale each recipe part to the capture before refining (needs the guide's parts).
+  bool scale_parts = true;
+  AmplitudeOptions amplitude_options;
   bool refine = true;
   RefineOptions refine_options;
 };
@@ -148,7 +167,10 @@ struct FitResult {
   std::vector<float> initial_vertices;
   RigidPose camera_from_model;
   std::vector<float> identity_coeffs;  // sigma units (neutral fits; empty for expressions)
-  int rounds = 0;                      // least-squares rounds of the PCA step (neutral fits)
+  // Expressions: how strongly each part of the guide recipe was made (1 = as the recipe);
+  // empty without parts.
+  std::vector<double> part_amplitudes;
+  int rounds = 0;  // least-squares rounds of the PCA step (neutral fits)
   // Per-vertex point-to-plane distance to the depth map, mm (signed: + in front of the
   // surface); NaN where the vertex has no valid correspondence. For the final and the
   // initial mesh.

@@ -100,4 +100,20 @@ Result<std::vector<float>> guide_mesh(const GuideExpression& expression, const F
   return mesh;
 }
 
+Result<std::vector<std::vector<float>>> guide_part_meshes(const GuideExpression& expression,
+                                                          const FaceModel& model) {
+  auto all = guide_weights(expression, model);
+  if (!all) return all.failure();
+  std::vector<std::vector<float>> out;
+  std::vector<float> w(static_cast<std::size_t>(model.expression_count), 0.0f);
+  for (const auto& [name, weight] : expression.weights) {
+    const auto j = static_cast<std::size_t>(model.expression_index(name));
+    w[j] = weight;
+    out.emplace_back(static_cast<std::size_t>(model.vertex_count) * 3);
+    model.evaluate({}, w, out.back());
+    w[j] = 0.0f;
+  }
+  return out;
+}
+
 }  // namespace fb

@@ -44,4 +44,9 @@ Result<std::vector<float>> guide_weights(const GuideExpression& expression, cons
 // floats, model frame, mm).
 Result<std::vector<float>> guide_mesh(const GuideExpression& expression, const FaceModel& model);
 
+// One mesh per recipe part, in the recipe's order: the mean identity with that part's weight
+// alone (G0 plus the part). The expression fit scales each to how the person made it.
+Result<std::vector<std::vector<float>>> guide_part_meshes(const GuideExpression& expression,
+                                                          const FaceModel& model);
+
 }  // namespace fb

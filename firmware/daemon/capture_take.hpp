@@ -32,7 +32,7 @@ struct QaReport {
   std::string fit = "off";
   double landmark_score = 0;     // dlib detection margin
   int landmarks_3d = 0;          // interior points lifted with the fused depth
-  double landmark_error_mm = 0;  // mean landmark residual of the fit
+  double landmark_error_mm = 0;  // landmark_disagreement_mm() of the fit
   double fit_rms_mm = 0;         // RMS of the fitted mesh to the fused depth
   double fit_rms_initial_mm = 0;
   double fit_ms = 0;

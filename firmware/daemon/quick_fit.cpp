@@ -24,6 +24,8 @@ struct QuickFitter::State {
   // dlib's landmark convention on the model (beside the model file); unset = the model's own.
   std::optional<LandmarkEmbedding> embedding;
   std::vector<std::vector<float>> guide_meshes;  // G_i, model frame
+  // Per guide expression: G0 plus each part of its recipe (the expression fit's parts).
+  std::vector<std::vector<std::vector<float>>> guide_parts;
   std::vector<std::string> guide_names;
   double load_ms = 0;
 
@@ -127,7 +129,10 @@ Result<std::unique_ptr<QuickFitter>> QuickFitter::create(const QuickFitPaths& pa
     g.weights = guide[i].weights;
     auto mesh = guide_mesh(g, state->model);
     if (!mesh) return fail("guide expression '" + g.name + "': " + mesh.error().message);
+    auto parts = guide_part_meshes(g, state->model);
+    if (!parts) return fail("guide expression '" + g.name + "': " + parts.error().message);
     state->guide_meshes.push_back(std::move(*mesh));
+    state->guide_parts.push_back(std::move(*parts));
     state->guide_names.push_back(g.name);
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -212,11 +217,11 @@ Result<QuickFitResult> QuickFitter::fit_with_points(
     if (s.neutral_session == session) seed = s.neutral_pose;  // nullopt for a stored neutral
     auto fit =
         fit_expression(s.model, *s.transfer, s.guide_meshes[static_cast<std::size_t>(guide_index)],
-                       r.target, {}, seed);
+                       r.target, {}, seed, s.guide_parts[static_cast<std::size_t>(guide_index)]);
     if (!fit) return fit.failure();
     r.fit = std::move(*fit);
   }
-  r.landmark_error_mm = mean_landmark_residual_mm(r.fit, r.target);
+  r.landmark_error_mm = landmark_disagreement_mm(r.fit, r.target);
   return r;
 }
 
@@ -249,13 +254,13 @@ Result<void> QuickFitter::refit(std::int64_t session, int guide_index, const Cap
       return ok.failure();
   } else {
     if (auto mean_face = s.transfer_for(session); !mean_face) return mean_face.failure();
-    auto fit =
-        fit_expression(s.model, *s.transfer, s.guide_meshes[static_cast<std::size_t>(guide_index)],
-                       next.target, {}, result.fit.camera_from_model);
+    auto fit = fit_expression(
+        s.model, *s.transfer, s.guide_meshes[static_cast<std::size_t>(guide_index)], next.target,
+        {}, result.fit.camera_from_model, s.guide_parts[static_cast<std::size_t>(guide_index)]);
     if (!fit) return fit.failure();
     next.fit = std::move(*fit);
   }
-  next.landmark_error_mm = mean_landmark_residual_mm(next.fit, next.target);
+  next.landmark_error_mm = landmark_disagreement_mm(next.fit, next.target);
   result = std::move(next);
   return success();
 }

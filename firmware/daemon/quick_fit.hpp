@@ -56,7 +56,7 @@ struct QuickFitResult {
   double detection_score = 0;    // dlib HOG detector margin of the face box (> 0 = confident)
   int landmarks_valid = 0;       // points that landed inside the depth image
   int landmarks_3d = 0;          // interior points lifted to 3D with the fused depth
-  double landmark_error_mm = 0;  // mean landmark residual of the final fit
+  double landmark_error_mm = 0;  // landmark_disagreement_mm() of the final fit
   FitTarget target;
   FitResult fit;
 

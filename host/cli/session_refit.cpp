@@ -104,10 +104,13 @@ Result<RefitReport> refit_session(SessionStore& store, SessionId session, const 
     }
     auto gm = guide_mesh(guide.expressions[static_cast<std::size_t>(g)], model);
     if (!gm) return gm.failure();
+    auto parts = guide_part_meshes(guide.expressions[static_cast<std::size_t>(g)], model);
+    if (!parts) return parts.failure();
     const auto tf = Clock::now();
-    Result<FitResult> fit = c->index == 0 ? fit_neutral(model, *target, options.neutral)
-                                          : fit_expression(model, *transfer, *gm, *target,
-                                                           options.expression, neutral_pose);
+    Result<FitResult> fit = c->index == 0
+                                ? fit_neutral(model, *target, options.neutral)
+                                : fit_expression(model, *transfer, *gm, *target, options.expression,
+                                                 neutral_pose, *parts);
     if (!fit) {
       if (c->index == 0) return fail(where + ": the neutral refit failed: " + fit.error().message);
       report.skipped.push_back(label + ": " + fit.error().message);
@@ -127,7 +130,7 @@ Result<RefitReport> refit_session(SessionStore& store, SessionId session, const 
     rc.expression = c->expression;
     rc.previous_mesh = previous->count(c->index) ? previous->at(c->index) : 0;
     rc.rms_to_depth_mm = fit->rms_to_depth_mm;
-    rc.landmark_error_mm = mean_landmark_residual_mm(*fit, *target);
+    rc.landmark_error_mm = landmark_disagreement_mm(*fit, *target);
     rc.fit_ms = ms_since(tf);
     report.captures.push_back(rc);
     meshes.push_back(MeshInput{c->index, c->index == 0 ? MeshRole::kNeutral : MeshRole::kFitted,

@@ -82,6 +82,8 @@ int run_bench_fit(const ParsedOptions& options) {
   for (int e = 1; e < n_expr; ++e) {
     auto w = guide_weights(guide->expressions[static_cast<std::size_t>(e)], *model);
     auto gi = guide_mesh(guide->expressions[static_cast<std::size_t>(e)], *model);
+    auto parts = guide_part_meshes(guide->expressions[static_cast<std::size_t>(e)], *model);
+    if (!gi || !parts) return report_failure(gi ? parts.error() : gi.error());
     auto cap = capture(*model, identity, *w, 100 + e, 30, false);
     if (!cap) return report_failure(cap.error());
     auto t = make_fit_target(*cap, cap->truth_color_px, false);
@@ -91,7 +93,7 @@ int run_bench_fit(const ParsedOptions& options) {
       const auto t1 = Clock::now();
       auto s = transfer->transfer(*gi);
       dt.add(ms_since(t1));
-      auto fit = fit_expression(*model, *transfer, *gi, *t);
+      auto fit = fit_expression(*model, *transfer, *gi, *t, {}, std::nullopt, *parts);
       if (!fit) return report_failure(fit.error());
       best = std::min(best, fit->times.total_ms());
     }

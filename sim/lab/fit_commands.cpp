@@ -186,6 +186,7 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.robust_noise = *robust_noise;
   setup.noiseless_depth = noiseless_depth;
   setup.skin_map = options.get("skin-map") != "off";
+  setup.scale_parts = options.get("scale-parts") != "off";
   setup.dlib_fit = fit_landmarks == "dlib";
   if (const std::string e = options.get("landmark-embedding"); e != "model") {
     auto embedding = e == "dlib" ? load_landmark_embedding(*model)
@@ -255,6 +256,10 @@ std::vector<Command> fit_commands() {
          {"skin-map", "on|off",
           "weigh the depth by where frame 0's colour sees skin (hair and beard as bounds, "
           "contour points on them dropped), as the product does; off for an A/B",
+          "on"},
+         {"scale-parts", "on|off",
+          "scale each part of an expression's guide recipe to the capture before refining (how far "
+          "this person opened the jaw), as the product does; off for an A/B",
           "on"},
          {"landmark-embedding", "dlib|model|FILE",
           "the mesh vertices dlib's points mark in the fit: dlib = DATA_DIR/"

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <optional>
 #include <random>
+#include <tuple>
 
 #include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
@@ -112,15 +113,42 @@ void score_fused_capture(FitRun& run, const Capture& cap, const FitTarget& targe
   t.lift_err.add(n ? sum / n : NAN);
 }
 
+// The device's QA on this fit and the eye/mouth region's error, per capture: which capture
+// fails and where the region's tail comes from.
+void score_qa_and_region(FitRun& run, const FitResult& fit, const FitTarget& target,
+                         const Capture& cap, nlohmann::json& j) {
+  FitTally& t = run.tally;
+  const bool qa = fit_passes_qa(fit, target);
+  t.qa_passed += qa;
+  j["qa_passed"] = qa;
+  j["landmark_disagreement_mm"] = landmark_disagreement_mm(fit, target);
+  for (const auto& [name, first, last] :
+       {std::tuple{"contour", 0, 16}, std::tuple{"brows", 17, 26}, std::tuple{"nose", 27, 35},
+        std::tuple{"eyes", 36, 47}, std::tuple{"mouth", 48, 67}}) {
+    double sum = 0;
+    int n = 0;
+    for (int l = first; l <= last; ++l)
+      if (target.landmarks[static_cast<std::size_t>(l)].valid &&
+          std::isfinite(fit.landmark_residual_mm[static_cast<std::size_t>(l)])) {
+        sum += fit.landmark_residual_mm[static_cast<std::size_t>(l)];
+        ++n;
+      }
+    if (n > 0) j["landmark_residual_mm_by_group"][name] = sum / n;
+  }
+  std::vector<double> region;
+  append_vertex_distances(fit.vertices, fit.camera_from_model, cap.truth_mesh, cap.truth_pose,
+                          t.eye_mouth, region);
+  if (!region.empty()) j["eye_mouth_vertex_error_mm_p99"] = percentile(region, 0.99);
+  t.eye_mouth_err.insert(t.eye_mouth_err.end(), region.begin(), region.end());
+}
+
 // The neutral fit against the truth: vertex error (initial and refined), RMS to depth, where
 // the error lies.
 void score_neutral_fit(FitRun& run, const FitResult& neutral, const FitTarget& target,
                        const Capture& cap, nlohmann::json& j) {
   const FaceModel& model = *run.setup.model;
   FitTally& t = run.tally;
-  t.qa_passed += fit_passes_qa(neutral, target);
-  append_vertex_distances(neutral.vertices, neutral.camera_from_model, cap.truth_mesh,
-                          cap.truth_pose, t.eye_mouth, t.eye_mouth_err);
+  score_qa_and_region(run, neutral, target, cap, j);
   const double vi = mean_vertex_distance(neutral.initial_vertices, neutral.camera_from_model,
                                          cap.truth_mesh, cap.truth_pose, model.fitting_vertices);
   const double vr = mean_vertex_distance(neutral.vertices, neutral.camera_from_model,
@@ -235,15 +263,18 @@ Result<Next> expression_capture(FitRun& run, FitSubject& subject, int e, const C
   FitTally& t = run.tally;
   auto gi = guide_mesh(ge, model);
   if (!gi) return gi.failure();
-  auto fit = fit_expression(model, *subject.transfer, *gi, target);
+  auto parts = guide_part_meshes(ge, model);
+  if (!parts) return parts.failure();
+  ExpressionFitOptions fit_options;
+  fit_options.scale_parts = run.setup.scale_parts;
+  auto fit =
+      fit_expression(model, *subject.transfer, *gi, target, fit_options, std::nullopt, *parts);
   if (!fit) {
     auto stop = capture_failed(run, e, ge.name, "expression fit", fit.error(), j);
     if (!stop) return stop.failure();
     return Next::kCapture;
   }
-  t.qa_passed += fit_passes_qa(*fit, target);
-  append_vertex_distances(fit->vertices, fit->camera_from_model, cap.truth_mesh, cap.truth_pose,
-                          t.eye_mouth, t.eye_mouth_err);
+  score_qa_and_region(run, *fit, target, cap, j);
   const double vi = mean_vertex_distance(fit->initial_vertices, fit->camera_from_model,
                                          cap.truth_mesh, cap.truth_pose, model.fitting_vertices);
   const double vr = mean_vertex_distance(fit->vertices, fit->camera_from_model, cap.truth_mesh,
@@ -258,6 +289,8 @@ Result<Next> expression_capture(FitRun& run, FitSubject& subject, int e, const C
   j["vertex_error_mm_initial"] = vi;
   j["vertex_error_mm"] = vr;
   j["fit_ms"] = fit->times.total_ms();
+  for (std::size_t k = 0; k < fit->part_amplitudes.size() && k < ge.weights.size(); ++k)
+    j["part_amplitudes"][ge.weights[k].first] = fit->part_amplitudes[k];
   std::fprintf(stderr, "  %s: RMS to depth %s -> %s mm, vertex error %s -> %s mm, %.0f ms\n",
                ge.name.c_str(), figure_text(fit->rms_to_depth_mm_initial, 3).c_str(),
                figure_text(fit->rms_to_depth_mm, 3).c_str(), figure_text(vi, 3).c_str(),

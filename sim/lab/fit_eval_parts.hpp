@@ -42,8 +42,9 @@ struct FitEvalSetup {
   long long identities = 1, first_seed = 1, frames = 45;
   double noise = 1, robust_noise = 5;
   bool noiseless_depth = false;
-  bool skin_map = true;   // FitTarget::skin from frame 0's colour (--skin-map)
-  bool dlib_fit = false;  // fit dlib's points on frame 0's colour image instead of truth + noise
+  bool skin_map = true;     // FitTarget::skin from frame 0's colour (--skin-map)
+  bool scale_parts = true;  // ExpressionFitOptions::scale_parts (--scale-parts)
+  bool dlib_fit = false;    // fit dlib's points on frame 0's colour image instead of truth + noise
   // The mesh vertices dlib's points mark (with dlib_fit); unset = the model's landmark vertices.
   std::optional<LandmarkEmbedding> embedding;
   UnitCalibration unit_calibration = UnitCalibration::kSelfCalibrated;

@@ -258,7 +258,9 @@ Result<void> fit_examples(const FaceModel& model, const GuideSet& guide,
     } else {
       auto gi = guide_mesh(ge, model);
       if (!gi) return gi.failure();
-      auto fit = fit_expression(model, *transfer, *gi, *target);
+      auto parts = guide_part_meshes(ge, model);
+      if (!parts) return parts.failure();
+      auto fit = fit_expression(model, *transfer, *gi, *target, {}, std::nullopt, *parts);
       if (!fit) return fit.failure();
       // Model-frame vertices, as the session store keeps fitted meshes.
       meshes.push_back(fit->vertices);

@@ -8,6 +8,7 @@
 
 #include "algo/fitting/expression_transfer.hpp"
 #include "algo/fitting/face_fit.hpp"
+#include "algo/fitting/fit_qa.hpp"
 #include "algo/fitting/mesh_ops.hpp"
 #include "algo/render/rasterizer.hpp"
 #include "storage/asset_files.hpp"
@@ -197,6 +198,92 @@ TEST(Fitting, ExpressionFitFromTransfer) {
   EXPECT_LT(vr, vi);
   EXPECT_LT(fit->rms_to_depth_mm, fit->rms_to_depth_mm_initial);
   EXPECT_LT(fit->rms_to_depth_mm, 0.3);
+}
+
+// A person opens the jaw less than the guide's recipe says (jawOpen 0.24 for the recipe's 0.4,
+// brows as the recipe). The refinement keeps the start's shape and follows depth only within its
+// gate; scaling each recipe part to the capture first finds how far the jaw opened.
+TEST(Fitting, ExpressionPartsAreScaledToHowThePersonMadeThem) {
+  const FaceModel& model = test::face_model();
+  const int jaw = model.expression_index("jawOpen");
+  const int brow_l = model.expression_index("browInnerUp_L");
+  const int brow_r = model.expression_index("browInnerUp_R");
+  std::vector<float> recipe(static_cast<std::size_t>(model.expression_count), 0.0f);
+  recipe[jaw] = 0.4f;
+  recipe[brow_l] = recipe[brow_r] = 0.8f;
+  std::vector<std::vector<float>> parts;
+  for (const int k : {jaw, brow_l, brow_r}) {
+    std::vector<float> w(recipe.size(), 0.0f);
+    w[k] = recipe[k];
+    parts.push_back(face({}, w));
+  }
+  const auto id = random_identity(11);
+  const auto neutral_truth = face(id);
+  auto neutral = fit_neutral(model, render_target(neutral_truth, truth_pose(neutral_truth)));
+  ASSERT_TRUE(neutral.ok());
+  auto tr = ExpressionTransfer::create(model, neutral->vertices, face({}));
+  ASSERT_TRUE(tr.ok());
+  std::vector<float> made = recipe;
+  made[jaw] = 0.24f;
+  const auto truth = face(id, made);
+  const RigidPose pose = truth_pose(truth, 4.0);
+  const FitTarget target = render_target(truth, pose, 1.0);
+  ExpressionFitOptions as_recipe;
+  as_recipe.scale_parts = false;
+  auto plain = fit_expression(model, *tr, face({}, recipe), target, as_recipe, std::nullopt, parts);
+  auto scaled = fit_expression(model, *tr, face({}, recipe), target, {}, std::nullopt, parts);
+  ASSERT_TRUE(plain.ok() && scaled.ok());
+  const auto err = [&](const FitResult& f) {
+    return mean_vertex_distance(f.vertices, f.camera_from_model, truth, pose,
+                                model.fitting_vertices);
+  };
+  ASSERT_EQ(scaled->part_amplitudes.size(), 3u);
+  EXPECT_TRUE(plain->part_amplitudes.empty());
+  std::printf(
+      "jaw made at 0.6 of the recipe: amplitudes %.2f %.2f %.2f, error %.3f mm (as the "
+      "recipe %.3f mm)\n",
+      scaled->part_amplitudes[0], scaled->part_amplitudes[1], scaled->part_amplitudes[2],
+      err(*scaled), err(*plain));
+  EXPECT_NEAR(scaled->part_amplitudes[0], 0.6, 0.15);
+  EXPECT_NEAR(scaled->part_amplitudes[1], 1.0, 0.2);
+  EXPECT_NEAR(scaled->part_amplitudes[2], 1.0, 0.2);
+  EXPECT_LT(err(*scaled), 0.7 * err(*plain));
+}
+
+// The device's QA (fit_qa.hpp) on fits whose landmarks are right, have a few wild points, or are
+// all misplaced: only the last is flagged.
+TEST(FitQa, MisplacedLandmarksFailAFewWildPointsDoNot) {
+  const auto truth = face(random_identity(5));
+  const RigidPose pose = truth_pose(truth);
+  FitTarget good = render_target(truth, pose, 1.0);
+  auto fit = fit_neutral(test::face_model(), good);
+  ASSERT_TRUE(fit.ok());
+  const double right = landmark_disagreement_mm(*fit, good);
+  FitTarget wild = good;
+  for (int l : {48, 54, 57, 62, 66, 8}) {  // an open mouth dlib misreads, and the chin
+    wild.landmarks[l].pixel += Eigen::Vector2d(0, 20);
+    if (wild.landmarks[l].point)
+      wild.landmarks[l].point = lift_with_depth(wild, wild.landmarks[l].pixel, 1);
+  }
+  auto wild_fit = fit_neutral(test::face_model(), wild);
+  ASSERT_TRUE(wild_fit.ok());
+  FitTarget shifted = good;
+  for (auto& lm : shifted.landmarks) {
+    lm.pixel += Eigen::Vector2d(14, 0);
+    if (lm.point) lm.point = lift_with_depth(shifted, lm.pixel, 1);
+  }
+  auto shifted_fit = fit_neutral(test::face_model(), shifted);
+  ASSERT_TRUE(shifted_fit.ok());
+  const double few = landmark_disagreement_mm(*wild_fit, wild);
+  const double all = landmark_disagreement_mm(*shifted_fit, shifted);
+  std::printf(
+      "landmark disagreement: right %.2f mm, 6 wild points %.2f mm, all 14 px off %.2f mm\n", right,
+      few, all);
+  EXPECT_LT(right, 2.5);
+  EXPECT_TRUE(fit_passes_qa(*fit, good));
+  EXPECT_TRUE(fit_passes_qa(*wild_fit, wild));
+  EXPECT_GT(all, 8.0);
+  EXPECT_FALSE(fit_passes_qa(*shifted_fit, shifted));
 }
 
 TEST(Fitting, RigidAlignmentIgnoresTheNeck) {

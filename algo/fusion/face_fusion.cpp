@@ -48,9 +48,10 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
         "fusion needs camera intrinsics with a positive focal length and an image of at "
         "least 16 x 16 pixels");
   const FaceBox box = face_box.clipped(intrinsics.width, intrinsics.height);
-  if (box.width < 16 || box.height < 16)
-    return fail("the face box (" + std::to_string(face_box.x) + "," + std::to_string(face_box.y) +
-                " " + std::to_string(face_box.width) + "x" + std::to_string(face_box.height) +
+  if (box.rect.width() < 16 || box.rect.height() < 16)
+    return fail("the face box (" + std::to_string(face_box.rect.x0) + "," +
+                std::to_string(face_box.rect.y0) + " " + std::to_string(face_box.rect.width()) +
+                "x" + std::to_string(face_box.rect.height()) +
                 ") must cover at least 16 x 16 pixels of the " + std::to_string(intrinsics.width) +
                 "x" + std::to_string(intrinsics.height) + " image");
   if (!(options.truncation_mm > 0.0f)) return fail("truncation must be positive");
@@ -81,10 +82,10 @@ Result<void> FaceFusion::reset(const PinholeIntrinsics& intrinsics, const FaceBo
   tracker_.configure(options_);
   integrator_.configure(options_, volume_);
   ray_caster_.configure(options_);
-  pyramid_.allocate(intrinsics, box);
-  model_.allocate(intrinsics, box, options_.model_view_level);
+  pyramid_.allocate(intrinsics, box.rect);
+  model_.allocate(intrinsics, box.rect, options_.model_view_level);
   scratch_depths_.clear();
-  scratch_depths_.reserve(static_cast<std::size_t>(box.width) * box.height);
+  scratch_depths_.reserve(static_cast<std::size_t>(box.rect.width()) * box.rect.height());
   last_good_ = RigidPoseF{};
   started_ = false;
   lost_ = false;
@@ -104,8 +105,8 @@ void FaceFusion::place_volume(const RigidPoseF& world_from_camera) {
   float hi = detected ? b.face_depth_mm + options_.face_band_back_mm : options_.max_depth_mm;
   for (int pass = 0; pass < 2; ++pass) {
     scratch_depths_.clear();
-    for (int y = b.y; y < b.y + b.height; ++y)
-      for (int x = b.x; x < b.x + b.width; ++x)
+    for (int y = b.rect.y0; y < b.rect.y1; ++y)
+      for (int x = b.rect.x0; x < b.rect.x1; ++x)
         if (const float d = pyramid_.raw.at(x, y); d > 0.0f && d >= lo && d <= hi)
           scratch_depths_.push_back(d);
     if (!scratch_depths_.empty()) break;
@@ -120,8 +121,8 @@ void FaceFusion::place_volume(const RigidPoseF& world_from_camera) {
   const LevelIntrinsics k = LevelIntrinsics::from(intrinsics_);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   int count = 0;
-  for (int y = b.y; y < b.y + b.height; ++y)
-    for (int x = b.x; x < b.x + b.width; ++x) {
+  for (int y = b.rect.y0; y < b.rect.y1; ++y)
+    for (int x = b.rect.x0; x < b.rect.x1; ++x) {
       const float d = pyramid_.raw.at(x, y);
       if (d <= 0.0f || d < lo || d > near + face_depth_band) continue;
       sum += Eigen::Vector3d((x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d);
@@ -134,8 +135,8 @@ void FaceFusion::place_volume(const RigidPoseF& world_from_camera) {
   // What the box follows: the face surface behind the box's centre (the landmarks' depth, or
   // about the eyes' depth behind the nearest surface, the nose).
   const float z = detected ? b.face_depth_mm : near + 30.0f;
-  const float u = static_cast<float>(b.x) + 0.5f * static_cast<float>(b.width - 1);
-  const float v = static_cast<float>(b.y) + 0.5f * static_cast<float>(b.height - 1);
+  const float u = static_cast<float>(b.rect.x0) + 0.5f * static_cast<float>(b.rect.width() - 1);
+  const float v = static_cast<float>(b.rect.y0) + 0.5f * static_cast<float>(b.rect.height() - 1);
   anchor_world_ =
       world_from_camera.apply(Eigen::Vector3f((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z));
   anchor_depth_ = z;
@@ -165,21 +166,24 @@ FaceBox FaceFusion::box_at(const RigidPoseF& world_from_camera) const {
   if (!(p.z() > 1.0f)) return start_box_;
   const LevelIntrinsics k = LevelIntrinsics::from(intrinsics_);
   const float s = anchor_depth_ / p.z();  // nearer face, larger box
-  const float w = static_cast<float>(start_box_.width) * s;
-  const float h = static_cast<float>(start_box_.height) * s;
+  const float w = static_cast<float>(start_box_.rect.width()) * s;
+  const float h = static_cast<float>(start_box_.rect.height()) * s;
   const float u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  FaceBox out{static_cast<int>(std::lround(u - 0.5f * (w - 1.0f))),
-              static_cast<int>(std::lround(v - 0.5f * (h - 1.0f))),
-              static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h)),
-              start_box_.face_depth_mm > 0.0f ? p.z() : 0.0f};
-  out = out.clipped(intrinsics_.width, intrinsics_.height);
+  // The chin cut is not carried along: it entered the world frame with the first frame.
+  FaceBox out;
+  out.rect =
+      PixelRect::from_size(static_cast<int>(std::lround(u - 0.5f * (w - 1.0f))),
+                           static_cast<int>(std::lround(v - 0.5f * (h - 1.0f))),
+                           static_cast<int>(std::lround(w)), static_cast<int>(std::lround(h)))
+          .clipped(intrinsics_.width, intrinsics_.height);
+  out.face_depth_mm = start_box_.face_depth_mm > 0.0f ? p.z() : 0.0f;
   // A face leaving the image keeps the last box that still holds a useful part of it.
-  return out.width < 16 || out.height < 16 ? box_ : out;
+  return out.rect.width() < 16 || out.rect.height() < 16 ? box_ : out;
 }
 
 void FaceFusion::cast_model(const RigidPoseF& pose) {
   // The model view covers the box the next frame will be read in (predicted from this pose).
-  if (options_.box_follows_face) model_.move_box(box_at(pose));
+  if (options_.box_follows_face) model_.move_box(box_at(pose).rect);
   // The frame just fused is the hint: raw depth at full resolution, the pyramid level otherwise.
   const Image<float>& hint = model_.first_level > 0 ? pyramid_.levels[model_.first_level].depth
                              : options_.integrate_filtered_depth ? pyramid_.levels[0].depth
@@ -213,9 +217,8 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
     // This frame's box: where the face is at the last good pose (the motion of one frame is
     // small against the box's margins; a lost face is looked for where it was last).
     const FaceBox next = box_at(last_good_);
-    if (next.x != box_.x || next.y != box_.y || next.width != box_.width ||
-        next.height != box_.height) {
-      pyramid_.move_box(next);
+    if (next.rect != box_.rect) {
+      pyramid_.move_box(next.rect);
       box_ = next;
     }
   }
@@ -238,7 +241,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
     last_good_ = known_pose ? RigidPoseF::from(*known_pose) : RigidPoseF{};
     place_volume(last_good_);
     report.integrated_bricks =
-        integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
+        integrator_.integrate(fuse_depth, k0, box_.rect, last_good_, volume_, *runner_);
     t.lap(report.times.integrate_ms, report.cpu_times.integrate_ms);
     cast_model(last_good_);
     t.lap(report.times.raycast_ms, report.cpu_times.raycast_ms);
@@ -297,7 +300,7 @@ FrameReport FaceFusion::process(const DepthImage& depth_mm, const RigidPose* kno
   last_good_ = icp.world_from_camera;
   t.restart();
   report.integrated_bricks =
-      integrator_.integrate(fuse_depth, k0, box_, last_good_, volume_, *runner_);
+      integrator_.integrate(fuse_depth, k0, box_.rect, last_good_, volume_, *runner_);
   t.lap(report.times.integrate_ms, report.cpu_times.integrate_ms);
   t.restart();
   cast_model(last_good_);
@@ -313,9 +316,9 @@ void FaceFusion::render(const RigidPose& world_from_camera, SurfaceView& out) {
   const FaceBox box = box_for(world_from_camera);
   if (render_level_.depth.width != intrinsics_.width ||
       render_level_.depth.height != intrinsics_.height)
-    render_level_.allocate(LevelIntrinsics::from(intrinsics_), box);
+    render_level_.allocate(LevelIntrinsics::from(intrinsics_), box.rect);
   else
-    render_level_.move_box(box);
+    render_level_.move_box(box.rect);
   std::fill(render_level_.depth.pixels.begin(), render_level_.depth.pixels.end(), 0.0f);
   ray_caster_.cast(volume_, RigidPoseF::from(world_from_camera), nullptr, false, true,
                    render_level_, *runner_);

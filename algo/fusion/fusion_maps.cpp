@@ -4,32 +4,11 @@
 
 namespace fb {
 
-FaceBox FaceBox::clipped(int w, int h) const {
-  const int x0 = std::clamp(x, 0, w), y0 = std::clamp(y, 0, h);
-  const int x1 = std::clamp(x + width, 0, w), y1 = std::clamp(y + height, 0, h);
-  FaceBox out = *this;
-  out.x = x0;
-  out.y = y0;
-  out.width = std::max(0, x1 - x0);
-  out.height = std::max(0, y1 - y0);
-  return out;
-}
-
-FaceBox FaceBox::at_level(int level) const {
-  const int x0 = x >> level, y0 = y >> level;
-  const int x1 = (x + width + (1 << level) - 1) >> level;
-  const int y1 = (y + height + (1 << level) - 1) >> level;
-  FaceBox out = *this;
-  out.x = x0;
-  out.y = y0;
-  out.width = x1 - x0;
-  out.height = y1 - y0;
-  return out;
-}
-
 FaceBox default_face_box(int width, int height) {
   const int w = width * 200 / 640, h = height * 240 / 480;
-  return {(width - w) / 2, (height - h) / 2, w, h};
+  FaceBox box;
+  box.rect = PixelRect::from_size((width - w) / 2, (height - h) / 2, w, h);
+  return box;
 }
 
 const char* to_string(TrackingState state) {
@@ -50,9 +29,9 @@ const char* to_string(TrackingState state) {
   return "unknown";
 }
 
-void MapLevel::allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_box) {
+void MapLevel::allocate(const LevelIntrinsics& intrinsics, const PixelRect& face_rect) {
   k = intrinsics;
-  box = face_box.clipped(k.width, k.height);
+  box = face_rect.clipped(k.width, k.height);
   depth.resize(k.width, k.height);
   std::fill(depth.pixels.begin(), depth.pixels.end(), 0.0f);
   vertices.resize(k.width, k.height);
@@ -65,50 +44,50 @@ namespace {
 
 // Zeroes `image` over `box` grown by one pixel (clipped to the image).
 template <typename T>
-void clear_box(Image<T>& image, const FaceBox& box, const T& zero) {
+void clear_box(Image<T>& image, const PixelRect& box, const T& zero) {
   if (image.empty()) return;
-  const FaceBox b = FaceBox{box.x - 1, box.y - 1, box.width + 2, box.height + 2}.clipped(
-      image.width, image.height);
-  for (int y = b.y; y < b.y + b.height; ++y) std::fill_n(&image.at(b.x, y), b.width, zero);
+  const PixelRect b = box.grown(1).clipped(image.width, image.height);
+  for (int y = b.y0; y < b.y1; ++y) std::fill_n(&image.at(b.x0, y), b.width(), zero);
 }
 
 }  // namespace
 
-void MapLevel::move_box(const FaceBox& face_box) {
+void MapLevel::move_box(const PixelRect& face_rect) {
   clear_box(depth, box, 0.0f);
   clear_box(vertices, box, Eigen::Vector3f(Eigen::Vector3f::Zero()));
   clear_box(normals, box, Eigen::Vector3f(Eigen::Vector3f::Zero()));
-  box = face_box.clipped(k.width, k.height);
+  box = face_rect.clipped(k.width, k.height);
 }
 
-void DepthPyramid::move_box(const FaceBox& face_box) {
+void DepthPyramid::move_box(const PixelRect& face_rect) {
   clear_box(raw, levels[0].box, 0.0f);
   clear_box(fused, levels[0].box, 0.0f);
-  for (int l = 0; l < kPyramidLevels; ++l) levels[l].move_box(face_box.at_level(l));
+  for (int l = 0; l < kPyramidLevels; ++l) levels[l].move_box(face_rect.at_level(l));
 }
 
-void ModelView::move_box(const FaceBox& face_box) {
-  for (int j = 0; j < kPyramidLevels; ++j) levels[j].move_box(face_box.at_level(first_level + j));
+void ModelView::move_box(const PixelRect& face_rect) {
+  for (int j = 0; j < kPyramidLevels; ++j) levels[j].move_box(face_rect.at_level(first_level + j));
 }
 
-void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box) {
+void DepthPyramid::allocate(const PinholeIntrinsics& intrinsics, const PixelRect& face_rect) {
   raw.resize(intrinsics.width, intrinsics.height);
   std::fill(raw.pixels.begin(), raw.pixels.end(), 0.0f);
   fused = raw;
   LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
   for (int l = 0; l < kPyramidLevels; ++l) {
-    levels[l].allocate(k, face_box.at_level(l));
+    levels[l].allocate(k, face_rect.at_level(l));
     k = k.averaged_half();
   }
   valid_pixels = 0;
 }
 
-void ModelView::allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first) {
+void ModelView::allocate(const PinholeIntrinsics& intrinsics, const PixelRect& face_rect,
+                         int first) {
   first_level = std::clamp(first, 0, kPyramidLevels - 1);
   LevelIntrinsics k = LevelIntrinsics::from(intrinsics);
   for (int l = 0; l < first_level; ++l) k = k.subsampled_half();
   for (int j = 0; j < kPyramidLevels; ++j) {
-    levels[j].allocate(k, face_box.at_level(first_level + j));
+    levels[j].allocate(k, face_rect.at_level(first_level + j));
     k = k.subsampled_half();
   }
   valid = false;

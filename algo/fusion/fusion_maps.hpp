@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/core/rigid_pose.hpp"
 #include "algo/fusion/fusion_types.hpp"
 
@@ -41,15 +42,15 @@ struct LevelIntrinsics {
 
 struct MapLevel {
   LevelIntrinsics k;
-  FaceBox box;                      // the face box on this level
+  PixelRect box;                    // the face box's rectangle on this level
   Image<float> depth;               // mm, 0 = invalid
   Image<Eigen::Vector3f> vertices;  // camera frame; z == 0 marks invalid
   Image<Eigen::Vector3f> normals;   // camera frame, unit; zero where invalid
 
-  void allocate(const LevelIntrinsics& intrinsics, const FaceBox& face_box);
+  void allocate(const LevelIntrinsics& intrinsics, const PixelRect& face_rect);
   // Moves the box without reallocating: what the old box held (and a 1 px rim, which filters
   // and normals read) is cleared, so nothing stale is read from outside the new box.
-  void move_box(const FaceBox& face_box);
+  void move_box(const PixelRect& face_rect);
 };
 
 // The preprocessed input frame: raw depth (gated, float) plus 3 filtered levels.
@@ -59,8 +60,8 @@ struct DepthPyramid {
   std::array<MapLevel, kPyramidLevels> levels;
   int valid_pixels = 0;  // valid raw pixels inside the face box
 
-  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box);
-  void move_box(const FaceBox& face_box);  // level-0 box; every level and raw/fused follow
+  void allocate(const PinholeIntrinsics& intrinsics, const PixelRect& face_rect);
+  void move_box(const PixelRect& face_rect);  // level-0 box; every level and raw/fused follow
 };
 
 // The ray-cast model view (vertices and normals in the frame of the camera it was cast from).
@@ -72,8 +73,8 @@ struct ModelView {
   RigidPoseF world_from_camera;  // the pose it was cast from
   bool valid = false;
 
-  void allocate(const PinholeIntrinsics& intrinsics, const FaceBox& face_box, int first);
-  void move_box(const FaceBox& face_box);  // level-0 box, as DepthPyramid::move_box
+  void allocate(const PinholeIntrinsics& intrinsics, const PixelRect& face_rect, int first);
+  void move_box(const PixelRect& face_rect);  // level-0 box, as DepthPyramid::move_box
   const MapLevel& for_input_level(int l) const {
     return levels[l > first_level ? l - first_level : 0];
   }

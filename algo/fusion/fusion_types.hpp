@@ -12,15 +12,14 @@
 
 #include "algo/core/camera_model.hpp"
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 
 namespace fb {
 
-// An image rectangle where the face is (the kiosk's on-screen rectangle or a detection).
+// Where the face is in an image (the kiosk's on-screen rectangle or a detection), and what is
+// known about its depth.
 struct FaceBox {
-  int x = 0;
-  int y = 0;
-  int width = 0;
-  int height = 0;
+  PixelRect rect;
   // Depth of the detected face in this box (median of its landmarks' depths), 0 = unknown. With
   // it the volume is placed on the face, not on the nearest surface (a hand, the chest, a desk).
   float face_depth_mm = 0.0f;
@@ -31,14 +30,12 @@ struct FaceBox {
   Eigen::Vector3f chin_mm = Eigen::Vector3f::Zero();
   Eigen::Vector3f down = Eigen::Vector3f::Zero();
 
-  bool empty() const { return width <= 0 || height <= 0; }
-  bool contains(int px, int py) const {
-    return px >= x && py >= y && px < x + width && py < y + height;
+  // The same box with its rectangle clipped to a w x h image.
+  FaceBox clipped(int w, int h) const {
+    FaceBox out = *this;
+    out.rect = rect.clipped(w, h);
+    return out;
   }
-  // The same rectangle clipped to a w x h image.
-  FaceBox clipped(int w, int h) const;
-  // The rectangle on a pyramid level that is 2^level times smaller (rounded outwards).
-  FaceBox at_level(int level) const;
 };
 
 // The default configured rectangle of the kiosk: 200 x 240 px in the middle of a 640 x 480 view,

@@ -67,8 +67,8 @@ FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const 
     // Coarse levels tolerate larger misalignment.
     const float gate = options_.icp_distance_mm * (1.0f + 0.5f * static_cast<float>(level));
     const float gate2 = gate * gate;
-    const FaceBox& box = in.box;
-    const FaceBox& mbox = mv.box;
+    const PixelRect& box = in.box;
+    const PixelRect& mbox = mv.box;
     for (int iter = 0; iter < options_.icp_iterations[level]; ++iter) {
       const Eigen::Matrix3f r = t_rel.r;
       const Eigen::Vector3f t = t_rel.t;
@@ -78,7 +78,7 @@ FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const 
       auto body = [&](int part, int parts) FB_INLINE {
         if (part >= 2) return;
         int y0, y1;
-        ParallelRunner::split(box.y, box.y + box.height, part, std::min(parts, 2), y0, y1);
+        ParallelRunner::split(box.y0, box.y1, part, std::min(parts, 2), y0, y1);
         Normal6& acc = parts_acc[part];
         int cand = 0;
         for (int y = y0; y < y1; ++y) {
@@ -88,8 +88,8 @@ FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const 
           // Full resolution: a checkerboard (every other pixel, alternating per row) halves the
           // cost; the half-resolution level already holds the coarse structure.
           const int x_step = level == 0 ? options_.icp_level0_step : 1;
-          const int x_start = box.x + (x_step > 1 ? (y & 1) : 0);
-          for (int x = x_start; x < box.x + box.width; x += x_step) {
+          const int x_start = box.x0 + (x_step > 1 ? (y & 1) : 0);
+          for (int x = x_start; x < box.x1; x += x_step) {
             const Eigen::Vector3f& v = vrow[x];
             if (v.z() <= 0.0f) continue;
             const Eigen::Vector3f& nin = nrow[x];
@@ -99,8 +99,7 @@ FB_CLONE_X86_64_V3 IcpResult IcpTracker::track(const DepthPyramid& input, const 
             const float iz = 1.0f / p.z();
             const int u = static_cast<int>(mk.fx * p.x() * iz + mk.cx + 0.5f);
             const int w = static_cast<int>(mk.fy * p.y() * iz + mk.cy + 0.5f);
-            if (u < mbox.x || w < mbox.y || u >= mbox.x + mbox.width || w >= mbox.y + mbox.height)
-              continue;
+            if (!mbox.contains(u, w)) continue;
             const Eigen::Vector3f& m = mv.vertices.at(u, w);
             if (m.z() <= 0.0f) continue;
             // Candidates: points that land on the model. Background outside the volume (a wall

@@ -34,7 +34,7 @@ struct BrickUpdate {
   const float* depth_hi = nullptr;
   const Image<float>* depth = nullptr;
   LevelIntrinsics k;
-  FaceBox box;
+  PixelRect box;
   Eigen::Vector3f step_x, step_y, step_z;  // one voxel along the volume's axes
   Eigen::Vector3f origin_c;                // centre of voxel (0, 0, 0)
   float mu = 8.0f;
@@ -60,7 +60,7 @@ FB_INLINE inline void update_bricks_impl(const BrickUpdate& a, int i0, int i1) {
   const float mu = a.mu;
   const float inv_mu = 1.0f / mu;
   const int max_w = a.max_weight;
-  const int bx0 = a.box.x, bx1 = a.box.x + a.box.width, by0 = a.box.y, by1 = a.box.y + a.box.height;
+  const int bx0 = a.box.x0, bx1 = a.box.x1, by0 = a.box.y0, by1 = a.box.y1;
   const int stride = a.depth->width;
   const float* dpix = a.depth->pixels.data();
   const float part_dz = static_cast<float>(kLanes - 1) * step_x.z();
@@ -163,9 +163,9 @@ void TsdfIntegrator::configure(const FusionOptions& options, const TsdfVolume& v
 }
 
 FB_CLONE_X86_64_V3 int TsdfIntegrator::integrate(const Image<float>& depth,
-                                                 const LevelIntrinsics& k, const FaceBox& box,
-                                                 const RigidPoseF& world_from_camera, TsdfVolume& volume,
-                                                 ParallelRunner& runner) {
+                                                 const LevelIntrinsics& k, const PixelRect& box,
+                                                 const RigidPoseF& world_from_camera,
+                                                 TsdfVolume& volume, ParallelRunner& runner) {
   const float vs = volume.voxel_size();
   const float inv_vs = 1.0f / vs;
   const int nb = volume.bricks_per_side();
@@ -208,12 +208,12 @@ FB_CLONE_X86_64_V3 int TsdfIntegrator::integrate(const Image<float>& depth,
     }
   };
   bricks_.clear();
-  const int x_end = box.x + box.width, y_end = box.y + box.height;
-  for (int y = box.y; y < y_end; y += 2) {
+  const int x_end = box.x1, y_end = box.y1;
+  for (int y = box.y0; y < y_end; y += 2) {
     const float* row = &depth.at(0, y);
     const float* next_row = y + 1 < y_end ? &depth.at(0, y + 1) : row;
     const float ry = (static_cast<float>(y) + 0.5f - k.cy) * ify;
-    for (int x = box.x; x < x_end; x += 2) {
+    for (int x = box.x0; x < x_end; x += 2) {
       const int x1 = x + 1 < x_end ? x + 1 : x;
       float lo = 1e30f, hi = 0.0f, first = 0.0f;
       for (const float d : {row[x], row[x1], next_row[x], next_row[x1]}) {

@@ -19,7 +19,7 @@ class TsdfIntegrator {
 
   // depth: level-0 depth (mm, 0 = invalid), only pixels inside `box` are used.
   // Returns the number of bricks updated.
-  int integrate(const Image<float>& depth, const LevelIntrinsics& k, const FaceBox& box,
+  int integrate(const Image<float>& depth, const LevelIntrinsics& k, const PixelRect& box,
                 const RigidPoseF& world_from_camera, TsdfVolume& volume, ParallelRunner& runner);
 
   // The widest voxel-update vector this CPU runs (8 or 4 lanes), and whether `lanes` (0 = that

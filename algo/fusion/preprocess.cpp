@@ -35,9 +35,9 @@ inline bool valid_vertex(const Eigen::Vector3f& v) {
 // Edge-aware 2x2 block average: pixels further than `jump` from the block's first valid pixel
 // are left out, so silhouettes do not produce phantom depths between face and background.
 void downsample_level(const MapLevel& fine, MapLevel& coarse, float jump, int y0, int y1) {
-  const FaceBox& b = coarse.box;
+  const PixelRect& b = coarse.box;
   for (int y = y0; y < y1; ++y) {
-    for (int x = b.x; x < b.x + b.width; ++x) {
+    for (int x = b.x0; x < b.x1; ++x) {
       const int fx = 2 * x, fy = 2 * y;
       float ref = 0.0f, sum = 0.0f;
       int count = 0;
@@ -60,12 +60,12 @@ void downsample_level(const MapLevel& fine, MapLevel& coarse, float jump, int y0
 
 void compute_vertex_map(MapLevel& level, int y0, int y1) {
   const LevelIntrinsics& k = level.k;
-  const FaceBox& b = level.box;
+  const PixelRect& b = level.box;
   const float ifx = 1.0f / k.fx, ify = 1.0f / k.fy;
   for (int y = y0; y < y1; ++y) {
     const float* d = &level.depth.at(0, y);
     Eigen::Vector3f* v = &level.vertices.at(0, y);
-    for (int x = b.x; x < b.x + b.width; ++x) {
+    for (int x = b.x0; x < b.x1; ++x) {
       const float z = d[x];
       v[x] = z > 0.0f ? Eigen::Vector3f((static_cast<float>(x) - k.cx) * ifx * z,
                                         (static_cast<float>(y) - k.cy) * ify * z, z)
@@ -75,10 +75,10 @@ void compute_vertex_map(MapLevel& level, int y0, int y1) {
 }
 
 void compute_normals_from_vertices(MapLevel& level, float max_jump_mm, int y0, int y1) {
-  const FaceBox& b = level.box;
+  const PixelRect& b = level.box;
   const int w = level.vertices.width, h = level.vertices.height;
   for (int y = y0; y < y1; ++y) {
-    for (int x = b.x; x < b.x + b.width; ++x) {
+    for (int x = b.x0; x < b.x1; ++x) {
       Eigen::Vector3f& n = level.normals.at(x, y);
       n.setZero();
       const Eigen::Vector3f& c = level.vertices.at(x, y);
@@ -108,7 +108,7 @@ void compute_normals_from_vertices(MapLevel& level, float max_jump_mm, int y0, i
 void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
                             ParallelRunner& runner) const {
   MapLevel& l0 = pyramid.levels[0];
-  const FaceBox box = l0.box;
+  const PixelRect box = l0.box;
   const float dmin = gate_min_, dmax = gate_max_;
   // Gate the raw depth into float (inside the box only; outside stays 0 from allocate()).
   // The plane gate on the ray through (x, y) at depth d: d * (n . ray) <= offset, with
@@ -119,11 +119,11 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
   const float c0 = plane_gate_ ? plane_normal_.z() - ax * k.cx - ay * k.cy : 0.0f;
   const float offset = plane_gate_ ? plane_offset_ : 1.0f;
   int valid = 0;
-  for (int y = box.y; y < box.y + box.height; ++y) {
+  for (int y = box.y0; y < box.y1; ++y) {
     const std::uint16_t* src = &depth.pixels[static_cast<std::size_t>(y) * depth.width];
     float* dst = &pyramid.raw.at(0, y);
     const float row = ay * static_cast<float>(y) + c0;
-    for (int x = box.x; x < box.x + box.width; ++x) {
+    for (int x = box.x0; x < box.x1; ++x) {
       const float d = static_cast<float>(src[x]);
       const bool ok = d >= dmin && d <= dmax && d * (ax * static_cast<float>(x) + row) <= offset;
       dst[x] = ok ? d : 0.0f;
@@ -138,22 +138,22 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
   const float jump = options_.normal_max_depth_jump_mm;
   runner.run([&](int part, int parts) {
     int y0, y1;
-    ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
+    ParallelRunner::split(box.y0, box.y1, part, parts, y0, y1);
     const Image<float>& raw = pyramid.raw;
     for (int y = y0; y < y1; ++y) {
-      for (int x = box.x; x < box.x + box.width; ++x) {
+      for (int x = box.x0; x < box.x1; ++x) {
         const float c = raw.at(x, y);
         float out = 0.0f;
         if (c > 0.0f) {
           float sw = 0.0f, s = 0.0f;
           for (int dy = -r; dy <= r; ++dy) {
             const int yy = y + dy;
-            if (yy < box.y || yy >= box.y + box.height) continue;
+            if (yy < box.y0 || yy >= box.y1) continue;
             const float* row = &raw.at(0, yy);
             const float* ws = &spatial_weights_[(dy + r) * (2 * r + 1) + r];
             for (int dx = -r; dx <= r; ++dx) {
               const int xx = x + dx;
-              if (xx < box.x || xx >= box.x + box.width) continue;
+              if (xx < box.x0 || xx >= box.x1) continue;
               const float d = row[xx];
               if (d <= 0.0f) continue;
               const int ri = static_cast<int>(std::abs(d - c) * inv_step);
@@ -172,14 +172,14 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
   for (int level = 1; level < kPyramidLevels; ++level) {
     const MapLevel& fine = pyramid.levels[level - 1];
     MapLevel& coarse = pyramid.levels[level];
-    downsample_level(fine, coarse, 3.0f * options_.bilateral_sigma_depth_mm, coarse.box.y,
-                     coarse.box.y + coarse.box.height);
+    downsample_level(fine, coarse, 3.0f * options_.bilateral_sigma_depth_mm, coarse.box.y0,
+                     coarse.box.y1);
   }
   runner.run([&](int part, int parts) {
     for (int level = 0; level < kPyramidLevels; ++level) {
       MapLevel& m = pyramid.levels[level];
       int y0, y1;
-      ParallelRunner::split(m.box.y, m.box.y + m.box.height, part, parts, y0, y1);
+      ParallelRunner::split(m.box.y0, m.box.y1, part, parts, y0, y1);
       compute_vertex_map(m, y0, y1);
     }
   });
@@ -191,15 +191,15 @@ void DepthPreprocessor::run(const DepthImage& depth, DepthPyramid& pyramid,
     for (int level = 0; level < kPyramidLevels; ++level) {
       MapLevel& m = pyramid.levels[level];
       int y0, y1;
-      ParallelRunner::split(m.box.y, m.box.y + m.box.height, part, parts, y0, y1);
+      ParallelRunner::split(m.box.y0, m.box.y1, part, parts, y0, y1);
       compute_normals_from_vertices(m, jump * static_cast<float>(1 << level), y0, y1);
     }
     int y0, y1;
-    ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
+    ParallelRunner::split(box.y0, box.y1, part, parts, y0, y1);
     const MapLevel& m0 = pyramid.levels[0];
     const Image<float>& source = options_.integrate_filtered_depth ? m0.depth : pyramid.raw;
     for (int y = y0; y < y1; ++y) {
-      for (int x = box.x; x < box.x + box.width; ++x) {
+      for (int x = box.x0; x < box.x1; ++x) {
         const float d = source.at(x, y);
         float out = d;
         if (gate_angle && d > 0.0f) {

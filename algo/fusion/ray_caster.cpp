@@ -54,7 +54,7 @@ FB_CLONE_X86_64_V3 void RayCaster::cast(const TsdfVolume& volume, const RigidPos
                                         bool full_search, MapLevel& out,
                                         ParallelRunner& runner) const {
   const LevelIntrinsics& k = out.k;
-  const FaceBox& box = out.box;
+  const PixelRect& box = out.box;
   const float vs = volume.voxel_size();
   const float inv_vs = 1.0f / vs;
   const float mu = options_.truncation_mm;
@@ -127,10 +127,10 @@ FB_CLONE_X86_64_V3 void RayCaster::cast(const TsdfVolume& volume, const RigidPos
   // Called directly on one thread, so that it is part of this function's x86-64-v3 build.
   auto cast_rows = [&](int part, int parts) FB_INLINE {
     int y0, y1;
-    ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
+    ParallelRunner::split(box.y0, box.y1, part, parts, y0, y1);
     for (int y = y0; y < y1; ++y) {
       const float ry = (static_cast<float>(y) - k.cy) * ify;
-      for (int x = box.x; x < box.x + box.width; ++x) {
+      for (int x = box.x0; x < box.x1; ++x) {
         const Eigen::Vector3f ray((static_cast<float>(x) - k.cx) * ifx, ry, 1.0f);
         const Eigen::Vector3f gd = gr * ray;
         Eigen::Vector3f& vertex = out.vertices.at(x, y);
@@ -180,7 +180,7 @@ FB_CLONE_X86_64_V3 void RayCaster::cast(const TsdfVolume& volume, const RigidPos
   }
   runner.run([&](int part, int parts) {
     int y0, y1;
-    ParallelRunner::split(box.y, box.y + box.height, part, parts, y0, y1);
+    ParallelRunner::split(box.y0, box.y1, part, parts, y0, y1);
     compute_normals_from_vertices(out, options_.normal_max_depth_jump_mm, y0, y1);
   });
 }
@@ -189,9 +189,9 @@ void subsample_model_levels(ModelView& view) {
   for (int l = 1; l < kPyramidLevels; ++l) {
     const MapLevel& fine = view.levels[l - 1];
     MapLevel& coarse = view.levels[l];
-    const FaceBox& b = coarse.box;
-    for (int y = b.y; y < b.y + b.height; ++y) {
-      for (int x = b.x; x < b.x + b.width; ++x) {
+    const PixelRect& b = coarse.box;
+    for (int y = b.y0; y < b.y1; ++y) {
+      for (int x = b.x0; x < b.x1; ++x) {
         const int fx = std::min(2 * x, fine.vertices.width - 1);
         const int fy = std::min(2 * y, fine.vertices.height - 1);
         coarse.vertices.at(x, y) = fine.vertices.at(fx, fy);

@@ -42,22 +42,20 @@ float sample_model(const Image<float>& m, int scale, int x, int y) {
 }  // namespace
 
 void ViewConsistency::add(const DepthImage& depth_mm, const Image<float>& model_depth,
-                          const RigidPose& reference_from_camera, const FaceBox& box) {
+                          const RigidPose& reference_from_camera, const PixelRect& box) {
   if (cells_.empty() || depth_mm.width <= 0 || depth_mm.height <= 0 || model_depth.width <= 0)
     return;
   const int scale = std::max(1, depth_mm.width / model_depth.width);
   ++frames_;
   const Eigen::Matrix3f r = reference_from_camera.rotation.toRotationMatrix().cast<float>();
   const Eigen::Vector3f t = reference_from_camera.translation.cast<float>();
-  const int x0 = box.empty() ? 0 : std::max(0, box.x);
-  const int y0 = box.empty() ? 0 : std::max(0, box.y);
-  const int x1 = box.empty() ? depth_mm.width : std::min(depth_mm.width, box.x + box.width);
-  const int y1 = box.empty() ? depth_mm.height : std::min(depth_mm.height, box.y + box.height);
+  const PixelRect frame_rect{0, 0, depth_mm.width, depth_mm.height};
+  const PixelRect area = box.empty() ? frame_rect : box.clipped(depth_mm.width, depth_mm.height);
   // The frame's own camera is the reference's (one sensor).
   const float fx = static_cast<float>(k_.fx), fy = static_cast<float>(k_.fy);
   const float cx = static_cast<float>(k_.cx), cy = static_cast<float>(k_.cy);
-  for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) {
+  for (int y = area.y0; y < area.y1; ++y)
+    for (int x = area.x0; x < area.x1; ++x) {
       const float z = depth_mm.at(x, y);
       if (z <= 0.0f) continue;
       const float zm = sample_model(model_depth, scale, x, y);

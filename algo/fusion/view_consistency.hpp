@@ -15,6 +15,7 @@
 
 #include "algo/core/camera_model.hpp"
 #include "algo/core/image.hpp"
+#include "algo/core/pixel_rect.hpp"
 #include "algo/core/result.hpp"
 #include "algo/fusion/fusion_types.hpp"
 
@@ -40,7 +41,7 @@ class ViewConsistency {
   // view after process(): any pyramid level, sampled bilinearly), and its pose relative to the
   // reference camera, over `box` of the frame (empty = the whole frame).
   void add(const DepthImage& depth_mm, const Image<float>& model_depth,
-           const RigidPose& reference_from_camera, const FaceBox& box);
+           const RigidPose& reference_from_camera, const PixelRect& box);
 
   int frames() const { return frames_; }
 

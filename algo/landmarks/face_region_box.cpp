@@ -88,16 +88,16 @@ Result<FaceBox> face_box_from_landmarks(std::span<const FitLandmark> landmarks,
   x1 += options.side_margin * w;
   y0 -= options.top_margin * h;
   y1 += options.bottom_margin * h;
-  FaceBox box{static_cast<int>(std::floor(x0)), static_cast<int>(std::floor(y0)),
-              static_cast<int>(std::ceil(x1) - std::floor(x0)) + 1,
-              static_cast<int>(std::ceil(y1) - std::floor(y0)) + 1};
+  FaceBox box;
+  box.rect = {static_cast<int>(std::floor(x0)), static_cast<int>(std::floor(y0)),
+              static_cast<int>(std::ceil(x1)) + 1, static_cast<int>(std::ceil(y1)) + 1};
   if (!depths.empty()) {
     const auto mid = depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2);
     std::nth_element(depths.begin(), mid, depths.end());
     box.face_depth_mm = static_cast<float>(*mid);
   }
   box = box.clipped(width, height);
-  if (box.width < 16 || box.height < 16)
+  if (box.rect.width() < 16 || box.rect.height() < 16)
     return fail("the detected face covers too little of the depth image to fuse");
   return box;
 }

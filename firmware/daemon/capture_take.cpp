@@ -113,8 +113,8 @@ void CaptureTake::assess(const TakeTally& tally, const CameraInfo& info) {
   out.intrinsics = info.depth_intrinsics;
   out.calibration = info.calibration;
   long long covered = 0;
-  const FaceBox clipped =
-      fusion_.box_for(tally.frontal_pose).clipped(view.depth_mm.width, view.depth_mm.height);
+  const PixelRect clipped =
+      fusion_.box_for(tally.frontal_pose).rect.clipped(view.depth_mm.width, view.depth_mm.height);
   commit.fused_depth.resize(view.depth_mm.width, view.depth_mm.height);
   for (int y = 0; y < view.depth_mm.height; ++y)
     for (int x = 0; x < view.depth_mm.width; ++x) {
@@ -124,7 +124,7 @@ void CaptureTake::assess(const TakeTally& tally, const CameraInfo& info) {
     }
   qa.coverage = clipped.empty() ? 0.0
                                 : static_cast<double>(covered) /
-                                      (static_cast<double>(clipped.width) * clipped.height);
+                                      (static_cast<double>(clipped.width()) * clipped.height());
   qa.residual_mm = tally.fused > 0 ? tally.rms_sum / tally.fused : 0.0;
   qa.fused_fraction = static_cast<double>(tally.fused) / tally.recorded;
   const TakeSettings& th = settings_;
@@ -157,7 +157,7 @@ void CaptureTake::assess(const TakeTally& tally, const CameraInfo& info) {
                "the face), %d not fused (arrived while looking for the face), %lld missed (read "
                "too late); face box %d,%d %dx%d %s%s\n",
                tally.fused, tally.recorded, tally.fusion_dropped, tally.not_held, tally.missed,
-               clipped.x, clipped.y, clipped.width, clipped.height,
+               clipped.x0, clipped.y0, clipped.width(), clipped.height(),
                tally.box_detected ? "from dlib" : "fixed (no face found: ",
                tally.box_detected ? "" : (tally.box_note + ")").c_str());
 }

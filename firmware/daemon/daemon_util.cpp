@@ -186,12 +186,12 @@ Result<std::string> Daemon::Impl::guide_picture(int index) {
   if (!got) return got.failure();
   if (*got != FrameStatus::kFrame) return fail("the guide renderer produced no frame");
   // Crop the face box out of the colour image.
-  const FaceBox box = default_face_box(frame.color.width, frame.color.height)
-                          .clipped(frame.color.width, frame.color.height);
+  const PixelRect box = default_face_box(frame.color.width, frame.color.height)
+                            .rect.clipped(frame.color.width, frame.color.height);
   ColorImage crop;
-  crop.resize(box.width, box.height);
-  for (int y = 0; y < box.height; ++y)
-    for (int x = 0; x < box.width; ++x) crop.at(x, y) = frame.color.at(box.x + x, box.y + y);
+  crop.resize(box.width(), box.height());
+  for (int y = 0; y < box.height(); ++y)
+    for (int x = 0; x < box.width(); ++x) crop.at(x, y) = frame.color.at(box.x0 + x, box.y0 + y);
   auto bmp = encode_bmp(crop);
   guide_bmp_cache[index] = bmp;
   return bmp;

@@ -20,8 +20,8 @@ void LivePreview::show(const RgbdFrame& frame, const FaceBox& box) {
   ColorImage& out = picture_;
   downsample(frame, out);
   const Rgb8 green{40, 220, 90};
-  const int x0 = box.x / 2, y0 = box.y / 2, x1 = (box.x + box.width) / 2 - 1,
-            y1 = (box.y + box.height) / 2 - 1;
+  const int x0 = box.rect.x0 / 2, y0 = box.rect.y0 / 2, x1 = box.rect.x1 / 2 - 1,
+            y1 = box.rect.y1 / 2 - 1;
   for (int x = x0; x <= x1; ++x)
     for (int y : {y0, y1})
       if (out.contains(x, y)) out.at(x, y) = green;

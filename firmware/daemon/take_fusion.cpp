@@ -35,7 +35,7 @@ FrameReport TakeFusion::integrate(const DepthImage& depth, const RigidPose* fron
   if (report.fused)
     consistency_.add(depth, fusion_.model_view().levels[0].depth,
                      frontal ? relative_pose(*frontal, report.world_from_camera) : RigidPose{},
-                     fusion_.face_box());
+                     fusion_.face_box().rect);
   return report;
 }
 

@@ -18,8 +18,8 @@ namespace fb::cli::fit_eval {
 namespace {
 
 cv::Mat error_panel(const FaceModel& model, std::span<const float> mesh, const RigidPose& pose,
-                    const Capture& c, const FaceBox& box, double scale_mm, const std::string& title,
-                    double rms) {
+                    const Capture& c, const PixelRect& box, double scale_mm,
+                    const std::string& title, double rms) {
   std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(model.vertex_count));
   for (int i = 0; i < model.vertex_count; ++i)
     v[static_cast<std::size_t>(i)] =
@@ -34,10 +34,10 @@ cv::Mat error_panel(const FaceModel& model, std::span<const float> mesh, const R
   RasterBuffers rb;
   rb.reset(c.intrinsics.width, c.intrinsics.height);
   (void)rasterize(c.intrinsics, v, tris, RasterOptions{}, rb);
-  cv::Mat out(box.height, box.width, CV_8UC3, cv::Scalar(0, 0, 0));
-  for (int y = 0; y < box.height; ++y)
-    for (int x = 0; x < box.width; ++x) {
-      const int px = box.x + x, py = box.y + y;
+  cv::Mat out(box.height(), box.width(), CV_8UC3, cv::Scalar(0, 0, 0));
+  for (int y = 0; y < box.height(); ++y)
+    for (int x = 0; x < box.width(); ++x) {
+      const int px = box.x0 + x, py = box.y0 + y;
       if (!rb.covered(px, py)) continue;
       const float f = c.fused.depth_mm.at(px, py);
       if (!(f > 0)) {
@@ -81,9 +81,9 @@ Result<void> write_fit_pngs(const ParsedOptions& options, const FaceModel& model
   }
   if (!png.empty()) {
     cv::Mat a = error_panel(model, neutral.initial_vertices, neutral.camera_from_model, cap,
-                            cap.box, scale, "initial (PCA)", neutral.rms_to_depth_mm_initial);
-    cv::Mat b = error_panel(model, neutral.vertices, neutral.camera_from_model, cap, cap.box, scale,
-                            "refined", neutral.rms_to_depth_mm);
+                            cap.box.rect, scale, "initial (PCA)", neutral.rms_to_depth_mm_initial);
+    cv::Mat b = error_panel(model, neutral.vertices, neutral.camera_from_model, cap, cap.box.rect,
+                            scale, "refined", neutral.rms_to_depth_mm);
     cv::Mat row;
     cv::hconcat(std::vector<cv::Mat>{a, cv::Mat(a.rows, 10, CV_8UC3, cv::Scalar(255, 255, 255)), b},
                 row);

@@ -92,10 +92,10 @@ void score_fused_capture(FitRun& run, const Capture& cap, const FitTarget& targe
   j["fused_frames"] = cap.fused_frames;
   j["dropped_frames"] = cap.dropped_frames;
   j["face_box"] = {{"source", cap.box_source},
-                   {"x", cap.box.x},
-                   {"y", cap.box.y},
-                   {"width", cap.box.width},
-                   {"height", cap.box.height}};
+                   {"x", cap.box.rect.x0},
+                   {"y", cap.box.rect.y0},
+                   {"width", cap.box.rect.width()},
+                   {"height", cap.box.rect.height()}};
   if (!cap.box_note.empty()) j["face_box"]["note"] = cap.box_note;
   t.frames_fused += cap.fused_frames;
   t.frames_dropped += cap.dropped_frames;

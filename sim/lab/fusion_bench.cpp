@@ -101,9 +101,10 @@ Result<void> write_frames_file(const std::filesystem::path& path, const Sequence
   // is outside the volume for us, so it must not be integrated by Open3D either).
   const double far = fusion.volume().origin().z() + fusion.volume().size_mm();
   out << "FBDEPTH1 " << k.width << ' ' << k.height << ' ' << seq.depth.size() << ' ' << k.fx << ' '
-      << k.fy << ' ' << k.cx << ' ' << k.cy << ' ' << box.x << ' ' << box.y << ' ' << box.width
-      << ' ' << box.height << ' ' << o.min_depth_mm << ' ' << std::min<double>(far, o.max_depth_mm)
-      << ' ' << fusion.volume().voxel_size() << ' ' << o.truncation_mm << '\n';
+      << k.fy << ' ' << k.cx << ' ' << k.cy << ' ' << box.rect.x0 << ' ' << box.rect.y0 << ' '
+      << box.rect.width() << ' ' << box.rect.height() << ' ' << o.min_depth_mm << ' '
+      << std::min<double>(far, o.max_depth_mm) << ' ' << fusion.volume().voxel_size() << ' '
+      << o.truncation_mm << '\n';
   for (const auto& d : seq.depth)
     out.write(reinterpret_cast<const char*>(d.pixels.data()),
               static_cast<std::streamsize>(d.pixels.size() * 2));
@@ -238,7 +239,7 @@ int run_bench_fusion(const ParsedOptions& options) {
   nlohmann::json result;
   result["source"] = uri;
   result["frames"] = seq->depth.size();
-  result["box"] = {box->x, box->y, box->width, box->height};
+  result["box"] = {box->rect.x0, box->rect.y0, box->rect.width(), box->rect.height()};
   result["face_box"] = box_json(*choice);
   result["volume_mm"] = fusion_options->volume_size_mm;
   result["resolution"] = fusion_options->volume_resolution;

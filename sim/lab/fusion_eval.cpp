@@ -23,7 +23,7 @@ namespace {
 
 // Face region of the frontal frame: inside the convex hull of the 68 landmarks (brows to chin),
 // where the noiseless rendering has surface, inside the face box.
-cv::Mat face_region(const Sequence& seq, const FaceBox& box) {
+cv::Mat face_region(const Sequence& seq, const PixelRect& box) {
   const PinholeIntrinsics& k = seq.intrinsics;
   cv::Mat mask = cv::Mat::zeros(k.height, k.width, CV_8U);
   std::vector<cv::Point> points;
@@ -90,13 +90,13 @@ DepthErrors depth_errors(const Sequence& seq, const SurfaceView& fused, const cv
 // Paper Fig. 2 style error map: |depth - truth| over the face, raw frame beside fused, with a
 // shared mm colour bar. Pixels without a value are dark grey; outside the face, black.
 Result<void> write_error_map(const std::filesystem::path& path, const DepthErrors& e,
-                             const FaceBox& box, double scale_mm) {
+                             const PixelRect& box, double scale_mm) {
   const int pad = 10;
   auto panel = [&](const cv::Mat& err, const std::string& title, double mae) {
-    cv::Mat roi = err(cv::Rect(box.x, box.y, box.width, box.height));
-    cv::Mat out(box.height, box.width, CV_8UC3, cv::Scalar(0, 0, 0));
-    cv::Mat abs8(box.height, box.width, CV_8U, cv::Scalar(0));
-    cv::Mat has(box.height, box.width, CV_8U, cv::Scalar(0));
+    cv::Mat roi = err(cv::Rect(box.x0, box.y0, box.width(), box.height()));
+    cv::Mat out(box.height(), box.width(), CV_8UC3, cv::Scalar(0, 0, 0));
+    cv::Mat abs8(box.height(), box.width(), CV_8U, cv::Scalar(0));
+    cv::Mat has(box.height(), box.width(), CV_8U, cv::Scalar(0));
     for (int y = 0; y < roi.rows; ++y)
       for (int x = 0; x < roi.cols; ++x) {
         const float v = roi.at<float>(y, x);
@@ -217,7 +217,7 @@ Result<SeedRun> eval_seed(const ParsedOptions& options, const std::string& world
   const SurfaceView view = fusion.render(frontal_pose);
   // Scored inside the box the frontal frame was fused in (the landmark hull within it).
   const FaceBox frontal_box = fusion.box_for(frontal_pose);
-  const cv::Mat region = face_region(*seq, frontal_box);
+  const cv::Mat region = face_region(*seq, frontal_box.rect);
   const int dropped = static_cast<int>(seq->depth.size()) - run->fused;
   const DepthErrors de = depth_errors(*seq, view, region);
   nlohmann::json j;
@@ -243,7 +243,8 @@ Result<SeedRun> eval_seed(const ParsedOptions& options, const std::string& world
   j["raw_depth_max_mm"] = de.raw_max_mm;
   j["fill_fraction"] = de.fill;
   j["face_pixels"] = de.face_pixels;
-  j["box"] = {frontal_box.x, frontal_box.y, frontal_box.width, frontal_box.height};
+  j["box"] = {frontal_box.rect.x0, frontal_box.rect.y0, frontal_box.rect.width(),
+              frontal_box.rect.height()};
   j["face_box"] = box_json(*choice);
   std::cerr << "  box " << j["face_box"].dump() << "\n";
   std::cerr << "  pose max " << pe.max_mm << " mm " << pe.max_deg << " deg; fused "
@@ -254,7 +255,7 @@ Result<SeedRun> eval_seed(const ParsedOptions& options, const std::string& world
   if (first) {
     const std::filesystem::path png = options.get("png");
     if (!png.empty()) {
-      if (auto ok = write_error_map(png, de, frontal_box, scale); !ok) return ok.failure();
+      if (auto ok = write_error_map(png, de, frontal_box.rect, scale); !ok) return ok.failure();
       result["error_map_png"] = std::filesystem::absolute(png).string();
       std::cerr << "  error map: " << png.string() << "\n";
     }
@@ -294,7 +295,8 @@ Result<nlohmann::json> eval_real_dump(const ParsedOptions& options, const std::s
   j["lost_frames"] = run->lost;
   j["lost_frame_indices"] = run->lost_frames;
   j["dropped_frames"] = static_cast<int>(seq->depth.size()) - run->fused;
-  j["box"] = {choice->box.x, choice->box.y, choice->box.width, choice->box.height};
+  j["box"] = {choice->box.rect.x0, choice->box.rect.y0, choice->box.rect.width(),
+              choice->box.rect.height()};
   j["face_box"] = box_json(*choice);
   double max_step_mm = 0, max_step_deg = 0;
   for (std::size_t i = 1; i < run->reports.size(); ++i) {

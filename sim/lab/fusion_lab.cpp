@@ -16,13 +16,15 @@ namespace {
 
 Result<FaceBox> parse_box(const std::string& text, const PinholeIntrinsics& k) {
   if (text.empty() || text == "kiosk") return default_face_box(k.width, k.height);
-  FaceBox box;
+  int x = 0, y = 0, width = 0, height = 0;
   char c1 = 0, c2 = 0, c3 = 0;
   std::istringstream in(text);
-  if (!(in >> box.x >> c1 >> box.y >> c2 >> box.width >> c3 >> box.height) || c1 != ',' ||
-      c2 != ',' || c3 != ',' || box.width <= 0 || box.height <= 0)
+  if (!(in >> x >> c1 >> y >> c2 >> width >> c3 >> height) || c1 != ',' || c2 != ',' || c3 != ',' ||
+      width <= 0 || height <= 0)
     return fail("--box must be X,Y,W,H in depth-image pixels, e.g. 220,120,200,240 (got '" + text +
                 "')");
+  FaceBox box;
+  box.rect = PixelRect::from_size(x, y, width, height);
   return box;
 }
 
@@ -130,10 +132,10 @@ Result<BoxChoice> choose_box(const std::string& text, const Sequence& seq,
 
 nlohmann::json box_json(const BoxChoice& c) {
   nlohmann::json j = {{"source", c.source},
-                      {"x", c.box.x},
-                      {"y", c.box.y},
-                      {"width", c.box.width},
-                      {"height", c.box.height}};
+                      {"x", c.box.rect.x0},
+                      {"y", c.box.rect.y0},
+                      {"width", c.box.rect.width()},
+                      {"height", c.box.rect.height()}};
   if (c.box.face_depth_mm > 0.0f) j["face_depth_mm"] = c.box.face_depth_mm;
   if (c.box.down.squaredNorm() > 0.0f) {
     j["chin_mm"] = {c.box.chin_mm.x(), c.box.chin_mm.y(), c.box.chin_mm.z()};

@@ -92,7 +92,7 @@ Result<Capture> capture(const FaceModel& model, const std::vector<float>& identi
     }
     if (r.fused)
       consistency.add(frame.depth_mm, fusion.model_view().levels[0].depth,
-                      relative_pose(first, r.world_from_camera), fusion.face_box());
+                      relative_pose(first, r.world_from_camera), fusion.face_box().rect);
     if (keep_colors) c.colors.push_back(frame.color);
     if (keep_frames) c.frames.push_back(frame);
   }

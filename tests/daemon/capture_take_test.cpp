@@ -117,10 +117,7 @@ TEST(LivePreview, HalfSizePictureWithTheFaceBoxOutlined) {
   LivePreview preview;
   EXPECT_TRUE(preview.picture().empty());
   FaceBox box;
-  box.x = 8;
-  box.y = 8;
-  box.width = 20;
-  box.height = 16;
+  box.rect = PixelRect::from_size(8, 8, 20, 16);
   preview.show(frame, box);
   ColorImage p = preview.picture();
   ASSERT_EQ(p.width, 32);

@@ -45,8 +45,8 @@ TEST(TakeStart, RunsBesideTheLoopOnTheFrameItWasOffered) {
         released.wait();
         StartedTake s;
         s.frame_index = index;
-        s.box.width = static_cast<int>(color.at(0, 0).r) + 16;
-        s.box.height = static_cast<int>(depth.at(1, 1));
+        s.box.rect = PixelRect::from_size(0, 0, static_cast<int>(color.at(0, 0).r) + 16,
+                                          static_cast<int>(depth.at(1, 1)));
         return s;
       },
       "no detector");
@@ -61,8 +61,8 @@ TEST(TakeStart, RunsBesideTheLoopOnTheFrameItWasOffered) {
   EXPECT_EQ(calls.load(), 1);
   ASSERT_TRUE(start.started().has_value());
   EXPECT_EQ(start.started()->frame_index, 0u);
-  EXPECT_EQ(start.started()->box.width, 16);    // frame 0's colour
-  EXPECT_EQ(start.started()->box.height, 500);  // frame 0's depth
+  EXPECT_EQ(start.started()->box.rect.width(), 16);    // frame 0's colour
+  EXPECT_EQ(start.started()->box.rect.height(), 500);  // frame 0's depth
   const ColorImage color = start.release_start_color();
   ASSERT_EQ(color.width, 4);
   EXPECT_EQ(color.at(0, 0).r, 0);

@@ -22,7 +22,7 @@ using test::kinect_intrinsics;
 
 // Box around the head at the start pose (the kiosk rectangle).
 FaceBox head_box() {
-  return {220, 110, 200, 260};
+  return {PixelRect::from_size(220, 110, 200, 260)};
 }
 
 struct SequenceStats {
@@ -90,9 +90,9 @@ SequenceStats run_head_turn(unsigned seed, int frames, bool noise = true,
   float near = 1e9f;
   for (float z : first_truth.pixels)
     if (z > 0) near = std::min(near, z);
-  const FaceBox b = head_box();
-  for (int y = b.y; y < b.y + b.height; ++y)
-    for (int x = b.x; x < b.x + b.width; ++x) {
+  const PixelRect b = head_box().rect;
+  for (int y = b.y0; y < b.y1; ++y)
+    for (int x = b.x0; x < b.x1; ++x) {
       const float z = first_truth.at(x, y);
       if (z <= 0 || z > near + 60) continue;
       ++n_face;
@@ -174,9 +174,9 @@ TEST(Fusion, TwoFrameModelIsUnbiased) {
       if (z > 0) near = std::min(near, z);
     double sum = 0.0;
     int n = 0;
-    const FaceBox b = head_box();
-    for (int y = b.y; y < b.y + b.height; ++y)
-      for (int x = b.x; x < b.x + b.width; ++x) {
+    const PixelRect b = head_box().rect;
+    for (int y = b.y0; y < b.y1; ++y)
+      for (int x = b.x0; x < b.x1; ++x) {
         const float z = truth.at(x, y), d = view.depth_mm.at(x, y);
         if (z <= 0 || z > near + 60 || d <= 0) continue;
         sum += d - z;
@@ -277,16 +277,16 @@ TEST(Fusion, FaceBoxFollowsAHeadMovingAcrossTheImage) {
     // The head's centre at the last frame projects inside the box the last frame was read in.
     const Eigen::Vector3d c = pose_at(kFrames - 1).translation;
     const int u = static_cast<int>(k.fx * c.x() / c.z() + k.cx);
-    const FaceBox last = fusion.face_box();
+    const PixelRect last = fusion.face_box().rect;
     std::printf(
         "box follows %s: %d of %d fused, worst camera error %.2f mm, last box x %d-%d, "
         "head at x %d\n",
-        follow ? "on" : "off", fused, kFrames, worst_mm, last.x, last.x + last.width, u);
+        follow ? "on" : "off", fused, kFrames, worst_mm, last.x0, last.x1, u);
     if (follow) {
       EXPECT_EQ(fused, kFrames);
       EXPECT_LE(worst_mm, 5.0);
-      EXPECT_TRUE(last.contains(u, last.y + last.height / 2));
-      EXPECT_GT(last.x, head_box().x + 80);  // it moved with the head
+      EXPECT_TRUE(last.contains(u, last.y0 + last.height() / 2));
+      EXPECT_GT(last.x0, head_box().rect.x0 + 80);  // it moved with the head
     } else {
       EXPECT_LT(fused, kFrames - 5);
     }
@@ -322,9 +322,9 @@ TEST(Fusion, TurnFusionCannotFollowDropsThoseFramesAndKeepsTheFused) {
   float near = 1e9f;
   for (float z : first_truth.pixels)
     if (z > 0) near = std::min(near, z);
-  const FaceBox b = head_box();
-  for (int y = b.y; y < b.y + b.height; ++y)
-    for (int x = b.x; x < b.x + b.width; ++x) {
+  const PixelRect b = head_box().rect;
+  for (int y = b.y0; y < b.y1; ++y)
+    for (int x = b.x0; x < b.x1; ++x) {
       const float z = first_truth.at(x, y);
       if (z <= 0 || z > near + 60) continue;
       ++face;
@@ -491,7 +491,7 @@ TEST(Fusion, InvalidConfigurationIsAClearError) {
   auto r = fusion.reset(k, head_box(), options);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().message.find("multiple of 8"), std::string::npos);
-  EXPECT_FALSE(fusion.reset(k, FaceBox{700, 0, 50, 50}).ok());
+  EXPECT_FALSE(fusion.reset(k, FaceBox{PixelRect::from_size(700, 0, 50, 50)}).ok());
   k.fx = 0;
   EXPECT_FALSE(fusion.reset(k, head_box()).ok());
   EXPECT_EQ(fusion.process(DepthImage{}).state, TrackingState::kBadInput);
@@ -540,7 +540,7 @@ TEST(Fusion, DepthBelowTheChinIsLeftOut) {
   wall.height = k.height;
   wall.pixels.assign(static_cast<std::size_t>(k.width) * k.height, 700);
   FaceBox box = head_box();
-  const int all = box.width * box.height;
+  const int all = box.rect.width() * box.rect.height();
   FaceFusion fusion;
   ASSERT_TRUE(fusion.reset(k, box).ok());
   EXPECT_EQ(fusion.process(wall).valid_pixels, all);
@@ -552,8 +552,8 @@ TEST(Fusion, DepthBelowTheChinIsLeftOut) {
   ASSERT_TRUE(fusion.reset(k, box, options).ok());
   // Kept: camera y <= 20 mm at 700 mm, i.e. rows up to cy + 20 fy / 700.
   const int last_row = static_cast<int>(std::floor(k.cy + 20.0 * k.fy / 700.0));
-  const int kept = (last_row - box.y + 1) * box.width;
-  EXPECT_NEAR(fusion.process(wall).valid_pixels, kept, box.width);
+  const int kept = (last_row - box.rect.y0 + 1) * box.rect.width();
+  EXPECT_NEAR(fusion.process(wall).valid_pixels, kept, box.rect.width());
   EXPECT_LT(kept, all * 2 / 3);
 
   options.below_chin_mm = 0.0f;  // 0: no cut

@@ -59,7 +59,7 @@ TEST(ViewConsistency, ScatterAndDropoutsReadLowAndAgreeingSkinHigh) {
   for (int i = 0; i < 20; ++i) {
     RigidPose reference_from_camera;
     reference_from_camera.translation = Eigen::Vector3d(0, 0, 2.0 * i);
-    vc.add(frame(i, rng), model_view(i), reference_from_camera, FaceBox{});
+    vc.add(frame(i, rng), model_view(i), reference_from_camera, PixelRect{});
   }
   EXPECT_EQ(vc.frames(), 20);
   Image<float> c;
@@ -95,7 +95,7 @@ TEST(ViewConsistency, AFrameOffTheFusedSurfaceDisagrees) {
     reference_from_camera.translation = Eigen::Vector3d(0, 0, 2.0 * i);
     // Half the frames compared with the surface where it is, half 4-8 mm off.
     vc.add(frame(i, rng), model_view(i < 10 ? i : i + 2 + (i % 3)), reference_from_camera,
-           FaceBox{});
+           PixelRect{});
   }
   Image<float> c;
   vc.confidence(c);

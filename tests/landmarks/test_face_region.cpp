@@ -65,7 +65,8 @@ std::vector<Eigen::Vector2d> face_region_pixels(SyntheticCamera& camera, const F
 double fraction_inside(const FaceBox& box, const std::vector<Eigen::Vector2d>& px) {
   int in = 0;
   for (const auto& p : px)
-    in += box.contains(static_cast<int>(std::floor(p.x())), static_cast<int>(std::floor(p.y())));
+    in +=
+        box.rect.contains(static_cast<int>(std::floor(p.x())), static_cast<int>(std::floor(p.y())));
   return px.empty() ? 0.0 : static_cast<double>(in) / static_cast<double>(px.size());
 }
 
@@ -129,12 +130,13 @@ TEST(FaceRegion, HighOffCentreFaceFusesEveryFrameInItsDetectedBox) {
   std::printf(
       "detected box %d,%d %dx%d (face depth %.0f mm): %.1f %% of the face region inside "
       "(the kiosk rectangle: %.1f %%)\n",
-      box.x, box.y, box.width, box.height, box.face_depth_mm, 100 * inside, 100 * kiosk_inside);
+      box.rect.x0, box.rect.y0, box.rect.width(), box.rect.height(), box.face_depth_mm,
+      100 * inside, 100 * kiosk_inside);
   EXPECT_GT(inside, 0.97);
   EXPECT_LT(kiosk_inside, 0.8) << "the scene no longer puts the face outside the kiosk box";
   for (int l : {8, 19, 24}) {
     const Eigen::Vector2d& p = first_truth.landmarks_depth_px[static_cast<std::size_t>(l)];
-    EXPECT_TRUE(box.contains(static_cast<int>(p.x()), static_cast<int>(p.y()))) << l;
+    EXPECT_TRUE(box.rect.contains(static_cast<int>(p.x()), static_cast<int>(p.y()))) << l;
   }
   double z = 0;
   for (const auto& p : first_truth.landmarks_3d) z += p.z() / 68.0;
@@ -151,8 +153,9 @@ TEST(FaceRegion, HighOffCentreFaceFusesEveryFrameInItsDetectedBox) {
       fused += r.fused;
       if (std::getenv("FB_FUSION_VERBOSE"))
         std::printf("%s %s inliers %d rms %.2f box %d,%d %dx%d\n", to_string(r.state),
-                    r.loss_reason, r.inliers, r.rms_mm, fusion.face_box().x, fusion.face_box().y,
-                    fusion.face_box().width, fusion.face_box().height);
+                    r.loss_reason, r.inliers, r.rms_mm, fusion.face_box().rect.x0,
+                    fusion.face_box().rect.y0, fusion.face_box().rect.width(),
+                    fusion.face_box().rect.height());
     }
     return fused;
   };

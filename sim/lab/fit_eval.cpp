@@ -142,6 +142,46 @@ void score_qa_and_region(FitRun& run, const FitResult& fit, const FitTarget& tar
   t.eye_mouth_err.insert(t.eye_mouth_err.end(), region.begin(), region.end());
 }
 
+// Where a neutral's error is: on skin or under hair and a beard (the skin map's split at the
+// true vertex), and how far the fused depth on skin is from the noiseless rendering.
+void score_cover(const FitResult& neutral, const FitTarget& target, const Capture& cap,
+                 const FaceModel& model, nlohmann::json& j) {
+  std::vector<std::uint32_t> skin, covered;
+  for (std::uint32_t v : model.fitting_vertices) {
+    const std::size_t i = 3 * std::size_t{v};
+    const Eigen::Vector3d p =
+        cap.truth_pose.apply({cap.truth_mesh[i], cap.truth_mesh[i + 1], cap.truth_mesh[i + 2]});
+    const Eigen::Vector2d uv = target.intrinsics.project(p);
+    const int px = static_cast<int>(std::lround(uv.x())),
+              py = static_cast<int>(std::lround(uv.y()));
+    if (!target.skin.contains(px, py)) continue;
+    (target.skin.at(px, py) < 0.5f ? covered : skin).push_back(v);
+  }
+  auto err = [&](const std::vector<std::uint32_t>& set) {
+    return set.empty()
+               ? nlohmann::json(nullptr)
+               : nlohmann::json(mean_vertex_distance(neutral.vertices, neutral.camera_from_model,
+                                                     cap.truth_mesh, cap.truth_pose, set));
+  };
+  double sum = 0, sum_abs = 0;
+  int n = 0;
+  for (int y = 0; y < target.depth_mm.height; ++y)
+    for (int x = 0; x < target.depth_mm.width; ++x) {
+      const float f = target.depth_mm.at(x, y), t0 = cap.noiseless.at(x, y);
+      if (f > 0 && t0 > 0 && target.skin.at(x, y) >= 0.5f && std::abs(f - t0) < 20) {
+        sum += f - t0;
+        sum_abs += std::abs(f - t0);
+        ++n;
+      }
+    }
+  j["fused_minus_noiseless_on_skin_mm"] = {
+      {"mean", n ? sum / n : 0.0}, {"mae", n ? sum_abs / n : 0.0}, {"pixels", n}};
+  j["vertex_error_by_cover"] = {{"skin_mm", err(skin)},
+                                {"skin_vertices", skin.size()},
+                                {"hair_or_beard_mm", err(covered)},
+                                {"hair_or_beard_vertices", covered.size()}};
+}
+
 // The neutral fit against the truth: vertex error (initial and refined), RMS to depth, where
 // the error lies.
 void score_neutral_fit(FitRun& run, const FitResult& neutral, const FitTarget& target,
@@ -166,6 +206,7 @@ void score_neutral_fit(FitRun& run, const FitResult& neutral, const FitTarget& t
       vertex_error_parts(neutral.vertices, neutral.camera_from_model, cap.truth_mesh,
                          cap.truth_pose, model.fitting_vertices, model.triangles);
   j["vertex_error_parts"] = vertex_error_json(parts);
+  if (!target.skin.empty()) score_cover(neutral, target, cap, model, j);
   std::fprintf(stderr,
                "  neutral: offset %.2f %.2f %.2f mm; error less the offset %.2f mm, less "
                "a rigid motion %.2f mm (%.2f deg); along the normal %.2f, across %.2f mm\n",

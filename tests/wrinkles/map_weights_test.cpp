@@ -8,6 +8,7 @@
 
 #include "algo/wrinkles/detail_blend.hpp"
 #include "algo/wrinkles/map_weights.hpp"
+#include "tests/common/allocation_counter.hpp"
 
 namespace fb {
 namespace {
@@ -44,6 +45,14 @@ TEST(MapWeights, RecipeGivesOneOnItsCaptureAndZeroOnTheOthers) {
   longer.push_back(5.0f);
   m->apply(longer, c);
   EXPECT_NEAR(c[1], 1.0f, 1e-5);
+  // A frame's weights allocate nothing (the booth's tracking loop calls this per frame).
+  long allocations = 0;
+  {
+    test::CountThreadAllocations counter;
+    for (int f = 0; f < 100; ++f) m->apply(kRecipes[static_cast<std::size_t>(f % 3)], c);
+    allocations = counter.count();
+  }
+  if (test::allocation_counting_available()) EXPECT_EQ(allocations, 0);
 }
 
 TEST(MapWeights, DependentRecipesStayFiniteAndBadInputIsRefused) {

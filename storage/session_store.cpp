@@ -73,6 +73,24 @@ std::vector<std::string> names_from_json(const std::string& text) {
   return out;
 }
 
+std::string detail_captures_to_json(const std::vector<RigDetailCapture>& captures) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& c : captures)
+    j.push_back({{"capture", c.capture_index}, {"expression", c.expression}});
+  return j.dump();
+}
+
+std::vector<RigDetailCapture> detail_captures_from_json(const std::string& text) {
+  auto j = nlohmann::json::parse(text, nullptr, false);
+  std::vector<RigDetailCapture> out;
+  if (!j.is_array()) return out;
+  for (const auto& e : j)
+    if (e.is_object() && e.value("capture", nlohmann::json()).is_number_integer() &&
+        e.value("expression", nlohmann::json()).is_string())
+      out.push_back({e["capture"].get<int>(), e["expression"].get<std::string>()});
+  return out;
+}
+
 CaptureState capture_state_from(const std::string& s) {
   if (s == "capturing") return CaptureState::kCapturing;
   if (s == "rejected") return CaptureState::kRejected;

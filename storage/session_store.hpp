@@ -28,7 +28,7 @@
 
 namespace fb {
 
-inline constexpr int kSessionStoreSchemaVersion = 6;
+inline constexpr int kSessionStoreSchemaVersion = 7;
 inline constexpr const char* kSessionStoreDatabaseName = "facebooth.db";
 
 using SubjectId = std::int64_t;
@@ -191,6 +191,7 @@ struct RigInfo {
   int vertex_count = 0;
   int triangle_count = 0;
   std::string created_at;
+  std::vector<RigDetailCapture> detail_captures;  // RigData::detail_captures
 };
 
 struct ModelInfo {

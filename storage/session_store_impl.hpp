@@ -97,6 +97,8 @@ std::string scores_to_json(const std::map<std::string, double>& scores);
 std::map<std::string, double> scores_from_json(const std::string& text);
 std::string names_to_json(const std::vector<std::string>& names);
 std::vector<std::string> names_from_json(const std::string& text);
+std::string detail_captures_to_json(const std::vector<RigDetailCapture>& captures);
+std::vector<RigDetailCapture> detail_captures_from_json(const std::string& text);
 CaptureState capture_state_from(const std::string& s);
 MeshRole mesh_role_from(const std::string& s);
 // Why a file is not an SQLite database (empty when it is one or is empty).

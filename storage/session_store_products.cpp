@@ -123,6 +123,19 @@ Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> 
   for (const auto& s : rig.shapes) {
     if (s.size() != rig.neutral.size()) return fail("a rig shape differs in vertex count");
   }
+  for (std::size_t i = 0; i < rig.detail_captures.size(); ++i) {
+    const auto& c = rig.detail_captures[i];
+    if (c.capture_index < 0 || c.expression.empty())
+      return fail("a rig's detail capture needs a capture index >= 0 and its expression");
+    for (std::size_t k = 0; k < i; ++k)
+      if (rig.detail_captures[k].capture_index == c.capture_index)
+        return fail("the rig lists capture " + std::to_string(c.capture_index) +
+                    " twice among its detail captures");
+  }
+  // Before schema v7 (a store opened with an older migrate_to) only a rig without detail fits.
+  if (!rig.detail_captures.empty() && impl_->schema_version < 7)
+    return fail("this store's schema v" + std::to_string(impl_->schema_version) +
+                " cannot keep a rig's detail captures; open it as the writer to migrate it");
   if (auto r = impl_->ensure_subject(subject); !r) return r.failure();
   ByteWriter w;
   w.put_magic(kRigMagic);
@@ -135,20 +148,33 @@ Result<RigId> SessionStore::add_rig(SubjectId subject, std::optional<SessionId> 
   const std::string folder = "subjects/" + std::to_string(subject);
   auto file = impl_->write_data_file(folder, "rig.fbrig", w.bytes);
   if (!file) return file.failure();
+  if (rig.detail_captures.empty())
+    return impl_->insert_with_files(
+        {*file},
+        "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
+        "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)",
+        [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
+          stmt.bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
+                        static_cast<int>(rig.triangles.size() / 3), ids[0]);
+        });
   return impl_->insert_with_files(
       {*file},
       "INSERT INTO rigs(subject_id, session_id, shape_names_json, "
-      "vertex_count, triangle_count, file_id) VALUES(?,?,?,?,?,?)",
+      "vertex_count, triangle_count, file_id, detail_json) VALUES(?,?,?,?,?,?,?)",
       [&](sql::Statement& stmt, const std::vector<std::int64_t>& ids) {
         stmt.bind_all(subject, session, names_to_json(rig.shape_names), rig.vertex_count(),
-                      static_cast<int>(rig.triangles.size() / 3), ids[0]);
+                      static_cast<int>(rig.triangles.size() / 3), ids[0],
+                      detail_captures_to_json(rig.detail_captures));
       });
 }
 
 Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
+  // detail_json is schema v7's; an older store (migrate_to) lists no detail.
+  const std::string detail = impl_->schema_version >= 7 ? "detail_json" : "'[]'";
   return impl_->rows<RigInfo>(
       "SELECT id, subject_id, session_id, shape_names_json, vertex_count, triangle_count, "
-      "created_at FROM rigs WHERE subject_id=? ORDER BY id DESC",
+      "created_at, " +
+          detail + " FROM rigs WHERE subject_id=? ORDER BY id DESC",
       subject, [](sql::Statement& stmt) {
         RigInfo info;
         info.id = stmt.int64(0);
@@ -158,6 +184,7 @@ Result<std::vector<RigInfo>> SessionStore::rigs(SubjectId subject) const {
         info.vertex_count = stmt.int32(4);
         info.triangle_count = stmt.int32(5);
         info.created_at = stmt.text(6);
+        info.detail_captures = detail_captures_from_json(stmt.text(7));
         return info;
       });
 }
@@ -181,8 +208,10 @@ Result<std::optional<RigInfo>> SessionStore::rig_for(SessionId session) const {
 }
 
 Result<RigData> SessionStore::read_rig(RigId id, bool verify_sha256) const {
-  auto stmt =
-      sql::prepare(impl_->db.get(), "SELECT file_id, shape_names_json FROM rigs WHERE id=?");
+  auto stmt = sql::prepare(
+      impl_->db.get(), impl_->schema_version >= 7
+                           ? "SELECT file_id, shape_names_json, detail_json FROM rigs WHERE id=?"
+                           : "SELECT file_id, shape_names_json, '[]' FROM rigs WHERE id=?");
   if (!stmt) return stmt.failure();
   stmt->bind(1, id);
   auto row = stmt->step();
@@ -190,6 +219,7 @@ Result<RigData> SessionStore::read_rig(RigId id, bool verify_sha256) const {
   if (!*row) return fail("there is no rig " + std::to_string(id) + " in this store");
   RigData rig;
   rig.shape_names = names_from_json(stmt->text(1));
+  rig.detail_captures = detail_captures_from_json(stmt->text(2));
   auto bytes = impl_->load_file(stmt->int64(0), verify_sha256);
   if (!bytes) return bytes.failure();
   if (!decode_rig(*bytes, rig))

@@ -35,6 +35,12 @@ CREATE TABLE wrinkle_details(
 CREATE INDEX wrinkle_details_by_session ON wrinkle_details(session_id);
 )sql";
 
+// v7: a rig says which captures of its session have wrinkle detail (issue 40 item 5: the
+// booth's tracking streams one map weight per such capture), as [{"capture":I,"expression":E}].
+constexpr const char* kV7RigDetailCaptures = R"sql(
+ALTER TABLE rigs ADD COLUMN detail_json TEXT NOT NULL DEFAULT '[]';
+)sql";
+
 // Each migration moves the schema from version (index) to version (index + 1). Never edit a
 // released migration: add a new one, so every store upgrades along the same path.
 const std::vector<std::string>& migrations() {
@@ -159,6 +165,7 @@ CREATE INDEX textures_by_session ON textures(session_id);
 )sql",
       kV5ImportedFromBooths,
       kV6WrinkleDetail,
+      kV7RigDetailCaptures,
   };
   return list;
 }

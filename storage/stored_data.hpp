@@ -19,11 +19,21 @@ struct MeshData {
 
 // A personal blendshape rig: the neutral face and one full shape (not a delta) per blendshape,
 // all with the same topology. This is what FaceWarehouse's shape.bs holds.
+// A capture of the rig's session that has wrinkle detail maps (issue 40 item 5): a tracked
+// frame's map weights have one weight per such capture, from its guide expression's recipe.
+struct RigDetailCapture {
+  int capture_index = 0;
+  std::string expression;  // the capture's guide expression
+  bool operator==(const RigDetailCapture&) const = default;
+};
+
 struct RigData {
   std::vector<float> neutral;              // 3 * vertex_count
   std::vector<std::vector<float>> shapes;  // one 3 * vertex_count block per blendshape
   std::vector<std::string> shape_names;    // one per shape, e.g. "jawOpen"
   std::vector<std::uint32_t> triangles;    // shared topology
+  // Captures with wrinkle detail, for the map weights (schema v7; empty: none).
+  std::vector<RigDetailCapture> detail_captures;
 
   int vertex_count() const { return static_cast<int>(neutral.size() / 3); }
   int shape_count() const { return static_cast<int>(shapes.size()); }

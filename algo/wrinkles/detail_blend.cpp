@@ -4,8 +4,6 @@
 #include <cmath>
 #include <string>
 
-#include <Eigen/Dense>
-
 namespace fb {
 
 namespace {
@@ -117,21 +115,9 @@ Result<DetailBlend> DetailBlend::build(DetailLayerView neutral,
     }
     b.deltas_.push_back(std::move(q));
   }
-  b.coeff_.assign(static_cast<std::size_t>(shape_count) * expressions.size(), 0.0f);
-  if (expressions.empty()) return b;
-  // P = pinv(W), shapes x captures.
-  const auto ne = static_cast<Eigen::Index>(expressions.size());
-  Eigen::MatrixXd w(ne, shape_count);
-  for (Eigen::Index e = 0; e < ne; ++e)
-    for (int s = 0; s < shape_count; ++s)
-      w(e, s) = expression_weights[static_cast<std::size_t>(e)][static_cast<std::size_t>(s)];
-  const Eigen::MatrixXd pinv = w.completeOrthogonalDecomposition().pseudoInverse();
-  for (int s = 0; s < shape_count; ++s)
-    for (Eigen::Index e = 0; e < ne; ++e) {
-      const double p = std::abs(pinv(s, e)) < 1e-9 ? 0.0 : pinv(s, e);
-      b.coeff_[static_cast<std::size_t>(s) * expressions.size() + static_cast<std::size_t>(e)] =
-          static_cast<float>(p);
-    }
+  auto weights = MapWeights::build(expression_weights, shape_count);
+  if (!weights) return weights.failure();
+  b.weights_ = std::move(*weights);
   return b;
 }
 
@@ -153,18 +139,6 @@ void DetailBlend::prepare(BlendedDetail& out) const {
   out.channels.resize(neutral_.size());
   out.capture_weights.resize(deltas_.size());
   out.bytes.resize(neutral_.size());
-}
-
-void DetailBlend::map_weights(std::span<const float> weights, std::span<float> out) const {
-  const std::size_t ne = std::min(deltas_.size(), out.size());
-  std::fill(out.begin(), out.end(), 0.0f);
-  const std::size_t ns = std::min(weights.size(), static_cast<std::size_t>(shape_count_));
-  for (std::size_t s = 0; s < ns; ++s) {
-    const float a = weights[s];
-    if (a == 0.0f) continue;
-    const float* row = coeff_.data() + s * deltas_.size();
-    for (std::size_t e = 0; e < ne; ++e) out[e] += a * row[e];
-  }
 }
 
 void DetailBlend::apply(std::span<const float> weights, BlendedDetail& out) const {

@@ -27,6 +27,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "algo/wrinkles/exemplar.hpp"
+#include "algo/wrinkles/map_weights.hpp"
 
 namespace fb {
 
@@ -61,8 +62,10 @@ class DetailBlend {
   // beyond shape_count() are ignored, missing ones are 0.
   void apply(std::span<const float> weights, BlendedDetail& out) const;
   // Only the frame's map weights c = P^T a (`out`: capture_count() floats): what a renderer
-  // that holds the captures' maps needs per frame to blend them itself.
-  void map_weights(std::span<const float> weights, std::span<float> out) const;
+  // that holds the captures' maps needs per frame to blend them itself (MapWeights::apply).
+  void map_weights(std::span<const float> weights, std::span<float> out) const {
+    weights_.apply(weights, out);
+  }
 
   int width() const { return width_; }
   int height() const { return height_; }
@@ -72,9 +75,7 @@ class DetailBlend {
   int detailed_shapes() const;
   const std::vector<std::uint32_t>& support() const { return support_; }
   // P (shape s, capture e).
-  float coefficient(int s, int e) const {
-    return coeff_[static_cast<std::size_t>(s) * deltas_.size() + static_cast<std::size_t>(e)];
-  }
+  float coefficient(int s, int e) const { return weights_.coefficient(s, e); }
 
   // One texel's three channels from a layer's maps, and back to a normal map's bytes.
   static void channels_of(DetailLayerView layer, std::size_t texel, float* out);
@@ -86,7 +87,7 @@ class DetailBlend {
   std::vector<float> neutral_;                    // 3 planes of support texels
   std::vector<std::vector<std::int8_t>> deltas_;  // per capture, 3 planes, quantised
   std::vector<float> scales_;                     // per capture and plane: mm or slope a step
-  std::vector<float> coeff_;                      // P, shapes x captures, row-major
+  MapWeights weights_;                            // c = P^T a
 };
 
 }  // namespace fb

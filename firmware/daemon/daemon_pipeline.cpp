@@ -448,6 +448,7 @@ Result<void> Daemon::Impl::start_tracking() {
   ::malloc_trim(0);
   std::int64_t take_session = machine.session;
   TrackingIdentity identity;
+  identity.guide = &guide;  // immutable after create()
   {
     std::lock_guard lock(records_mutex);
     if (take_session == 0) {

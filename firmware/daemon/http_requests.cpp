@@ -1,6 +1,7 @@
 #include "firmware/daemon/http_requests.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -151,6 +152,41 @@ Result<void> check_rig_upload(RigData& rig, int vertex_count,
                                                                 : "shape" + std::to_string(k));
   }
   return success();
+}
+
+Result<std::vector<RigDetailCapture>> parse_rig_detail_param(std::string_view detail) {
+  constexpr const char* kForm =
+      " (detail= lists the captures with wrinkle detail as CAPTURE:EXPRESSION, comma-separated, "
+      "e.g. detail=1:smile,2:jaw_open)";
+  std::vector<RigDetailCapture> out;
+  if (detail.empty()) return out;
+  std::size_t start = 0;
+  while (start <= detail.size()) {
+    const auto comma = std::min(detail.find(',', start), detail.size());
+    const auto item = detail.substr(start, comma - start);
+    start = comma + 1;
+    const auto colon = item.find(':');
+    const auto digits = item.substr(0, colon);
+    if (colon == std::string_view::npos || digits.empty() || digits.size() > 4 ||
+        !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      return fail("detail= entry '" + std::string(item.substr(0, 80)) +
+                  "' is not CAPTURE:EXPRESSION" + kForm);
+    const auto expression = item.substr(colon + 1);
+    if (expression.empty() || expression.size() > 64 ||
+        !std::all_of(expression.begin(), expression.end(), [](char c) {
+          return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-';
+        }))
+      return fail("detail= entry '" + std::string(item.substr(0, 80)) +
+                  "' has no usable expression name (letters, digits, _ and -, 1..64)" + kForm);
+    RigDetailCapture c{std::stoi(std::string(digits)), std::string(expression)};
+    for (const auto& seen : out)
+      if (seen.capture_index == c.capture_index)
+        return fail("detail= lists capture " + std::to_string(c.capture_index) +
+                    " twice; list each capture with wrinkle detail once");
+    out.push_back(std::move(c));
+    if (out.size() > 64) return fail("detail= lists more than 64 captures");
+  }
+  return out;
 }
 
 }  // namespace fb

@@ -51,4 +51,10 @@ Result<void> check_rig_upload(RigData& rig, int vertex_count,
                               const std::optional<std::string>& names,
                               const std::vector<std::string>& model_expression_names);
 
+// The rig upload's detail= value (issue 40 item 5): the captures of the session whose wrinkle
+// detail the host built, "CAPTURE:EXPRESSION" comma-separated ("1:smile,2:jaw_open"), at most
+// 64, each index listed once. Only the syntax: the handler checks them against the session and
+// the guide.
+Result<std::vector<RigDetailCapture>> parse_rig_detail_param(std::string_view detail);
+
 }  // namespace fb

@@ -46,6 +46,13 @@ json session_json(const RecordSession& s) {
           {"folder", s.folder.string()}};
 }
 
+json detail_captures_json(const std::vector<RigDetailCapture>& detail) {
+  json list = json::array();
+  for (const auto& c : detail)
+    list.push_back({{"capture", c.capture_index}, {"expression", c.expression}});
+  return list;
+}
+
 json capture_json(const RecordCapture& c) {
   return {{"index", c.index},
           {"expression", c.expression},
@@ -108,6 +115,9 @@ void get_offload_ready(Daemon::Impl& d, const Request&, Response& res) {
     j["fitted_captures"] = info->fitted_captures;
     j["ready_for_rigging"] = info->fitted_captures == s.capture_count;
     j["rigs"] = info->rigs;
+    // The newest rig from this session's detail captures: the host uploads again when it has
+    // built wrinkle detail since.
+    j["rig_detail_captures"] = detail_captures_json(info->rig_detail_captures);
     j["bundle"] = "/api/offload/sessions/" + std::to_string(s.id) + "/bundle.tar";
     j["rig_upload"] = "/api/offload/sessions/" + std::to_string(s.id) + "/rig";
     list.push_back(j);
@@ -145,9 +155,38 @@ void get_session_bundle(Daemon::Impl& d, const Request& req, Response& res) {
                            });
 }
 
+// The rig's detail captures against the session's captures and the booth's guide: each a
+// capture of the session, with the expression the booth recorded, a guide expression with a
+// recipe, not the neutral. The message says what is wrong and what to list instead.
+Result<void> check_detail_captures(Daemon::Impl& d, std::int64_t session,
+                                   const std::vector<RigDetailCapture>& detail) {
+  if (detail.empty()) return success();
+  auto caps = d.records->captures(session);
+  if (!caps) return caps.failure();
+  for (const auto& c : detail) {
+    const auto cap = std::find_if(caps->begin(), caps->end(), [&](const RecordCapture& r) {
+      return r.index == c.capture_index;
+    });
+    if (cap == caps->end())
+      return fail("detail= names capture " + std::to_string(c.capture_index) + ", but session " +
+                  std::to_string(session) + " has captures 0.." +
+                  std::to_string(static_cast<int>(caps->size()) - 1) +
+                  "; list the booth's capture indices of the captures with wrinkle detail");
+    if (cap->expression != c.expression)
+      return fail("detail= names capture " + std::to_string(c.capture_index) + " '" + c.expression +
+                  "', but this booth recorded it as '" + cap->expression +
+                  "'; list each capture with the expression the booth recorded");
+  }
+  auto recipes = detail_capture_recipes(detail, d.guide, d.fitter->model());
+  if (!recipes) return fail("detail=: " + recipes.error().message);
+  return success();
+}
+
 // A rig from the host: FaceWarehouse's shape.bs (int32 shapes, vertices, faces; float32
 // xyz of the neutral then of each shape) in the face model's topology. Optional query
-// `names=a,b,...` names the shapes (default: the model's expression names in order).
+// `names=a,b,...` names the shapes (default: the model's expression names in order); optional
+// `detail=CAPTURE:EXPRESSION,...` lists the session's captures with wrinkle detail (the
+// tracking mode streams their map weights).
 void post_rig_upload(Daemon::Impl& d, const Request& req, Response& res) {
   auto id = id_param(req, 1);
   if (!id) return send_error(res, 400, id.error().message);
@@ -162,18 +201,26 @@ void post_rig_upload(Daemon::Impl& d, const Request& req, Response& res) {
   if (auto ok = check_rig_upload(*rig, model.vertex_count, names, model.expression_names); !ok)
     return send_error(res, 422, ok.error().message);
   rig->triangles = model.triangles;
+  if (req.has_param("detail")) {
+    auto detail = parse_rig_detail_param(req.get_param_value("detail"));
+    if (!detail) return send_error(res, 400, detail.error().message);
+    rig->detail_captures = std::move(*detail);
+  }
   std::lock_guard lock(d.records_mutex);
   auto s = d.records->session(*id);
   if (!s) return send_error(res, 404, s.error().message);
   if (!s->complete)
     return send_error(res, 409, "session " + std::to_string(*id) + " is not complete");
+  if (auto ok = check_detail_captures(d, *id, rig->detail_captures); !ok)
+    return send_error(res, 422, ok.error().message);
   auto rid = d.records->add_rig(*id, *rig);
   if (!rid) return send_error(res, 500, rid.error().message);
   send_json(res,
             {{"session", *id},
              {"rig", *rid},
              {"shapes", rig->shape_count()},
-             {"vertices", rig->vertex_count()}},
+             {"vertices", rig->vertex_count()},
+             {"detail_captures", detail_captures_json(rig->detail_captures)}},
             201);
 }
 

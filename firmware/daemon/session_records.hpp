@@ -73,6 +73,7 @@ struct TakeRecord {
 struct OffloadInfo {
   int fitted_captures = 0;  // done captures with a fitted mesh
   int rigs = 0;             // rigs stored for the session's subject from this session
+  std::vector<RigDetailCapture> rig_detail_captures;  // the newest of them's (RigData)
 };
 
 // A rig stored for a subject (uploaded by the host after rigging one of their sessions).

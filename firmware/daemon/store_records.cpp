@@ -129,7 +129,10 @@ class StoreRecords : public SessionRecords {
     info.fitted_captures = static_cast<int>(fitted.size());
     auto rigs = store_.rigs(s->subject);
     if (!rigs) return rigs.failure();
-    for (const auto& r : *rigs) info.rigs += r.session == session;
+    for (const auto& r : *rigs) {  // newest first
+      if (r.session != session) continue;
+      if (info.rigs++ == 0) info.rig_detail_captures = r.detail_captures;
+    }
     return info;
   }
   Result<std::int64_t> add_rig(std::int64_t session, const RigData& rig) override {

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "algo/guide/guide_expressions.hpp"
 #include "algo/tracking/rig_view.hpp"
-#include "firmware/streaming/live_json.hpp"
 
 namespace fb {
 namespace {
@@ -23,6 +23,27 @@ Result<std::string> track_with_rig(FaceTracker& tracker, const StoredRig& rig,
          std::to_string(rig.data.shape_count()) + " shapes tracked)";
 }
 
+// The map weights of the rig's detail captures: their recipes from the guide, the live JSON's
+// keys. Returns the status note's part ("" when the rig has none), or why there are none.
+Result<std::string> build_map_weights(const StoredRig& rig, const std::vector<GuideStep>* guide,
+                                      const FaceModel& model, std::optional<MapWeights>& weights,
+                                      std::vector<std::string>& keys) {
+  const auto& captures = rig.data.detail_captures;
+  if (captures.empty()) return std::string();
+  if (guide == nullptr) return fail("the booth's guide is not loaded");
+  auto recipes = detail_capture_recipes(captures, *guide, model);
+  if (!recipes) return recipes.failure();
+  auto built = MapWeights::build(*recipes, model.fitting_expression_count);
+  if (!built) return built.failure();
+  weights = std::move(*built);
+  std::string list;
+  for (const auto& c : captures) {
+    keys.push_back(c.expression + "@" + std::to_string(c.capture_index));
+    list += (list.empty() ? "" : ", ") + keys.back();
+  }
+  return "; wrinkle map weights of " + std::to_string(captures.size()) + " captures (" + list + ")";
+}
+
 // The q-quantile of the first n values (a copy: the ring keeps its order).
 template <std::size_t N>
 double percentile_of(std::array<float, N> values, int n, double q) {
@@ -34,10 +55,39 @@ double percentile_of(std::array<float, N> values, int n, double q) {
 
 }  // namespace
 
-void LiveWeights::publish(const ArkitFrame& frame) {
+Result<std::vector<std::vector<float>>> detail_capture_recipes(
+    std::span<const RigDetailCapture> captures, const std::vector<GuideStep>& guide,
+    const FaceModel& model) {
+  std::vector<std::vector<float>> out;
+  for (const auto& c : captures) {
+    const auto step = std::find_if(guide.begin(), guide.end(),
+                                   [&](const GuideStep& g) { return g.name == c.expression; });
+    const std::string which =
+        "capture " + std::to_string(c.capture_index) + " ('" + c.expression + "')";
+    if (step == guide.end())
+      return fail(which +
+                  " is not an expression of this booth's guide, so its recipe (the "
+                  "weights its map weight inverts) is unknown; list only the guide's "
+                  "expressions");
+    if (step == guide.begin() || c.capture_index == 0)
+      return fail(which +
+                  " is the neutral: its maps are the base every frame adds to, not a "
+                  "weighted capture; list only the expressions beside the neutral");
+    GuideExpression g;
+    g.name = step->name;
+    g.weights = step->weights;
+    auto w = guide_weights(g, model);
+    if (!w) return w.failure();
+    w->resize(static_cast<std::size_t>(model.fitting_expression_count));
+    out.push_back(std::move(*w));
+  }
+  return out;
+}
+
+void LiveWeights::publish(const ArkitFrame& frame, const LiveDetailWeights& detail) {
   {
     std::lock_guard lock(mutex_);
-    format_frame_json(frame, json_);  // into the same string: no allocation per frame
+    format_frame_json(frame, json_, detail);  // into the same string: no allocation per frame
     ++version_;
   }
   cv_.notify_all();
@@ -95,6 +145,23 @@ Result<std::string> TrackingMode::start(const FaceModel& model, const CameraInfo
       identity.rig.reset();
     }
   }
+  map_weights_.reset();
+  detail_keys_.clear();
+  if (identity.rig) {
+    auto detail =
+        build_map_weights(*identity.rig, identity.guide, model, map_weights_, detail_keys_);
+    if (detail) {
+      note += *detail;
+    } else {
+      // The rig still tracks; only the wrinkle weights are off.
+      std::fprintf(stderr, "faceboothd: stored rig %lld: no wrinkle map weights: %s\n",
+                   static_cast<long long>(identity.rig->id), detail.error().message.c_str());
+      note += "; no wrinkle map weights (" + detail.error().message + ")";
+      map_weights_.reset();
+      detail_keys_.clear();
+    }
+  }
+  detail_values_.assign(detail_keys_.size(), 0.0f);
   if (!identity.rig) {
     if (!identity.neutral.empty()) {
       note = "neutral fit of session " + std::to_string(identity.neutral_session);
@@ -152,7 +219,12 @@ TrackingMode::Tick TrackingMode::track(const RgbdFrame& frame, Clock::time_point
     // 52 weights for 52 names: cannot fail.
     (void)take_->add_frame(frame_.time_s, frame_.camera_from_model, frame_.weights);
   }
-  live_.publish(frame_);
+  if (map_weights_) {
+    map_weights_->apply(std::span<const float>(report_.weights.data(),
+                                               static_cast<std::size_t>(report_.shape_count)),
+                        detail_values_);
+  }
+  live_.publish(frame_, {detail_keys_, detail_values_});
   return tick;
 }
 
@@ -180,6 +252,7 @@ void TrackingMode::stop() {
   reacquire_source_.reset();
   vmc_.reset();
   take_.reset();
+  map_weights_.reset();
 }
 
 }  // namespace fb

@@ -21,8 +21,11 @@
 #include "algo/tracking/detected_landmarks.hpp"
 #include "algo/tracking/face_tracker.hpp"
 #include "algo/tracking/occlusion_report.hpp"
+#include "algo/wrinkles/map_weights.hpp"
 #include "drivers/camera/depth_camera.hpp"
+#include "firmware/daemon/guide_steps.hpp"
 #include "firmware/daemon/session_records.hpp"
+#include "firmware/streaming/live_json.hpp"
 #include "firmware/streaming/vmc_sender.hpp"
 #include "storage/take_writer.hpp"
 
@@ -32,7 +35,8 @@ namespace fb {
 // written by the worker, read by any thread.
 class LiveWeights {
  public:
-  void publish(const ArkitFrame& frame);
+  // `detail`: the frame's wrinkle map weights (none when the rig has no detail captures).
+  void publish(const ArkitFrame& frame, const LiveDetailWeights& detail = {});
   // The latest frame's JSON ("" before the first).
   std::string latest() const;
   // Waits up to `timeout` for a frame newer than `seen` (or for `stopping`): its JSON, with
@@ -53,9 +57,19 @@ class LiveWeights {
 // fit's identity; neither = the mean face, calibrated on the first frames.
 struct TrackingIdentity {
   std::optional<StoredRig> rig;
+  // The booth's guide: the recipes of the rig's detail captures (their map weights). Must
+  // outlive start(); null = no map weights.
+  const std::vector<GuideStep>* guide = nullptr;
   std::vector<float> neutral;  // identity coefficients of the neutral fit
   std::int64_t neutral_session = 0;
 };
+
+// The recipes (one weight per fitting shape of `model`) of a rig's detail captures, in order,
+// from the booth's guide: what the map weights c = P^T a invert. Fails naming the capture whose
+// expression the guide has no recipe for (or the neutral, which is no weighted capture).
+Result<std::vector<std::vector<float>>> detail_capture_recipes(
+    std::span<const RigDetailCapture> captures, const std::vector<GuideStep>& guide,
+    const FaceModel& model);
 
 class TrackingMode {
  public:
@@ -121,6 +135,12 @@ class TrackingMode {
   long long latency_count_ = 0;
   TrackReport report_;
   ArkitFrame frame_;
+  // The rig's wrinkle map weights (issue 40 item 5): c = P^T a per frame, one per detail
+  // capture, keyed "EXPRESSION@CAPTURE" in the live JSON. Sized at start: no allocation per
+  // frame. Empty when the rig has no detail captures.
+  std::optional<MapWeights> map_weights_;
+  std::vector<float> detail_values_;
+  std::vector<std::string> detail_keys_;
   LiveWeights live_;
 };
 

@@ -1,5 +1,6 @@
 #include "firmware/streaming/live_json.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <numbers>
@@ -21,7 +22,7 @@ void append_int(std::string& out, unsigned long long value) {
   out.append(buffer, end);
 }
 
-void append_frame_json(const ArkitFrame& frame, std::string& out) {
+void append_frame_json(const ArkitFrame& frame, const LiveDetailWeights& detail, std::string& out) {
   constexpr double kDeg = 180.0 / std::numbers::pi;
   const HeadAngles a = head_angles(head_rotation(frame.camera_from_model));
   const Eigen::Vector3d& t = frame.camera_from_model.translation;
@@ -52,17 +53,31 @@ void append_frame_json(const ArkitFrame& frame, std::string& out) {
     out += "\":";
     append_fixed(out, frame.weights[static_cast<std::size_t>(i)], 3);
   }
-  out += "}}";
+  out += '}';
+  const std::size_t n = std::min(detail.keys.size(), detail.weights.size());
+  if (n > 0) {
+    out += ",\"detail_weights\":{";
+    for (std::size_t e = 0; e < n; ++e) {
+      if (e) out += ',';
+      out += '"';
+      out += detail.keys[e];
+      out += "\":";
+      append_fixed(out, detail.weights[e], 4);
+    }
+    out += '}';
+  }
+  out += '}';
 }
 
 }  // namespace
 
-void format_frame_json(const ArkitFrame& frame, std::string& out) {
+void format_frame_json(const ArkitFrame& frame, std::string& out, const LiveDetailWeights& detail) {
   out.clear();
-  append_frame_json(frame, out);
+  append_frame_json(frame, detail, out);
 }
 
-void format_sse_event(const ArkitFrame& frame, std::string& out, std::string_view event) {
+void format_sse_event(const ArkitFrame& frame, std::string& out, std::string_view event,
+                      const LiveDetailWeights& detail) {
   // SSE: fields end with '\n' and an empty line ends the event; the JSON has no newlines.
   out.clear();
   out += "event: ";
@@ -70,7 +85,7 @@ void format_sse_event(const ArkitFrame& frame, std::string& out, std::string_vie
   out += "\nid: ";
   append_int(out, frame.index);
   out += "\ndata: ";
-  append_frame_json(frame, out);
+  append_frame_json(frame, detail, out);
   out += "\n\n";
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
 
 #include "algo/tracking/arkit.hpp"
 #include "host/cli/take_columns.hpp"
@@ -41,6 +42,34 @@ std::string column_name(const SessionDetailBlend& b, std::size_t e) {
 
 }  // namespace
 
+Result<std::vector<RigDetailCapture>> session_detail_captures(const SessionStore& store,
+                                                              SessionId session,
+                                                              const GuideSet& guide,
+                                                              std::vector<std::string>* skipped) {
+  auto details = store.wrinkle_details(session);
+  if (!details) return details.failure();
+  std::set<int> with_detail;
+  for (const auto& d : *details) with_detail.insert(d.capture_index);
+  std::vector<RigDetailCapture> out;
+  if (!with_detail.contains(0)) return out;  // no neutral maps: nothing to blend
+  auto captures = store.captures(session);
+  if (!captures) return captures.failure();
+  for (const int index : with_detail) {
+    if (index == 0) continue;
+    std::string expression;
+    for (const auto& c : *captures)
+      if (c.index == index) expression = c.expression;
+    if (guide.find(expression) <= 0) {
+      if (skipped != nullptr)
+        skipped->push_back("capture " + std::to_string(index) + " ('" + expression +
+                           "'): not a guide expression, so its blendshape weights are unknown");
+      continue;
+    }
+    out.push_back({index, expression});
+  }
+  return out;
+}
+
 Result<SessionDetailBlend> load_session_detail_blend(const SessionStore& store, SessionId session,
                                                      const FaceModel& model,
                                                      const GuideSet& guide) {
@@ -55,29 +84,22 @@ Result<SessionDetailBlend> load_session_detail_blend(const SessionStore& store, 
                 " has no wrinkle detail on its neutral (capture 0), so there are no map weights "
                 "to compute; run `" +
                 run + "` first");
-  auto captures = store.captures(session);
-  if (!captures) return captures.failure();
   SessionDetailBlend out;
+  auto with_detail = session_detail_captures(store, session, guide, &out.skipped);
+  if (!with_detail) return with_detail.failure();
   std::vector<DecodedMaps> decoded;
   std::vector<std::vector<float>> recipes;
-  for (const auto& [index, id] : newest) {
-    std::string expression;
-    for (const auto& c : *captures)
-      if (c.index == index) expression = c.expression;
-    std::vector<float> recipe;
+  std::vector<RigDetailCapture> all{{0, ""}};
+  all.insert(all.end(), with_detail->begin(), with_detail->end());
+  for (const auto& [index, expression] : all) {
     if (index != 0) {
       const int g = guide.find(expression);
-      if (g <= 0) {
-        out.skipped.push_back("capture " + std::to_string(index) + " ('" + expression +
-                              "'): not a guide expression, so its blendshape weights are unknown");
-        continue;
-      }
       auto w = guide_weights(guide.expressions[static_cast<std::size_t>(g)], model);
       if (!w) return w.failure();
       w->resize(static_cast<std::size_t>(model.fitting_expression_count));
-      recipe = std::move(*w);
+      recipes.push_back(std::move(*w));
     }
-    auto data = store.read_wrinkle_detail(id);
+    auto data = store.read_wrinkle_detail(newest.at(index));
     if (!data) return data.failure();
     auto maps = decode(*data);
     if (!maps) return maps.failure();
@@ -92,7 +114,6 @@ Result<SessionDetailBlend> load_session_detail_blend(const SessionStore& store, 
     if (index == 0) continue;
     out.captures.push_back(index);
     out.expressions.push_back(expression);
-    recipes.push_back(std::move(recipe));
   }
   if (out.captures.empty())
     return fail("session " + std::to_string(session) +

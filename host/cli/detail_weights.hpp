@@ -31,6 +31,14 @@ struct SessionDetailBlend {
   std::vector<std::string> skipped;      // captures with detail left out, and why
 };
 
+// The captures of `session` whose wrinkle detail is a layer of the blend, in capture order:
+// every capture beside the neutral (capture 0) with detail whose expression is a guide recipe
+// (the others go to `skipped`, with why). Empty when the neutral has no detail (nothing to
+// blend). What load_session_detail_blend blends and `facebooth sync` sends with the rig.
+Result<std::vector<RigDetailCapture>> session_detail_captures(
+    const SessionStore& store, SessionId session, const GuideSet& guide,
+    std::vector<std::string>* skipped = nullptr);
+
 // The newest detail of each capture of `session`: the neutral's (capture 0) is N, every other
 // capture whose expression is a guide recipe is a layer. Fails with what to do when the session
 // has no detail (`facebooth wrinkles`) or none beyond the neutral.

@@ -22,6 +22,7 @@
 #include "algo/core/clock.hpp"
 #include "host/cli/booth_client.hpp"
 #include "host/cli/commands.hpp"
+#include "host/cli/detail_weights.hpp"
 #include "host/cli/guide_files.hpp"
 #include "host/cli/progress.hpp"
 #include "host/cli/rig_session.hpp"
@@ -109,14 +110,18 @@ class BoothSync {
       if (!s["id"].is_number_integer() || !s.value("ready_for_rigging", false)) continue;
       ++counts_.ready;
       json entry = {{"booth_session", s["id"]}, {"subject", s.value("subject_name", "")}};
-      auto ok = sync_session(s["id"].get<std::int64_t>(), s.value("rigs", 0), entry);
+      auto ok = sync_session(s["id"].get<std::int64_t>(), s.value("rigs", 0),
+                             s.value("rig_detail_captures", json()), entry);
       sessions_.push_back(entry);
       if (!ok) return ok;
     }
     return success();
   }
 
-  Result<void> sync_session(std::int64_t booth_session, int booth_rigs, json& entry) {
+  // `booth_detail`: the detail captures of the booth's newest rig from the session (null from a
+  // booth too old to say).
+  Result<void> sync_session(std::int64_t booth_session, int booth_rigs, const json& booth_detail,
+                            json& entry) {
     std::optional<SessionId> local;
     {
       std::lock_guard lock(host_.mutex);
@@ -135,11 +140,34 @@ class BoothSync {
     if (!settings_.rig) return success();
     auto rig = rig_session(*local, entry);
     if (!rig) return rig.failure();
-    if (!settings_.upload || booth_rigs > 0) {
+    if (!settings_.upload) {
       entry["uploaded"] = false;
       return success();
     }
-    return upload(booth_session, *rig, entry);
+    std::vector<RigDetailCapture> detail;
+    {
+      std::lock_guard lock(host_.mutex);
+      auto found = session_detail_captures(host_.store, *local, *settings_.guide);
+      if (!found) return found.failure();
+      detail = std::move(*found);
+    }
+    // A booth with a rig from the session gets it again only when the host has built wrinkle
+    // detail since (`facebooth wrinkles` runs after the first rig): its live stream then has
+    // the map weights.
+    if (booth_rigs > 0 && (!booth_detail.is_array() || same_detail(booth_detail, detail))) {
+      entry["uploaded"] = false;
+      return success();
+    }
+    return upload(booth_session, *rig, detail, entry);
+  }
+
+  static bool same_detail(const json& booth, const std::vector<RigDetailCapture>& host) {
+    if (booth.size() != host.size()) return false;
+    for (std::size_t i = 0; i < host.size(); ++i)
+      if (booth[i].value("capture", -1) != host[i].capture_index ||
+          booth[i].value("expression", std::string()) != host[i].expression)
+        return false;
+    return true;
   }
 
   // Downloads, checks and imports one session; a refused bundle leaves nothing behind.
@@ -213,18 +241,26 @@ class BoothSync {
     return std::move(rigged->data);
   }
 
-  Result<void> upload(std::int64_t booth_session, const RigData& rig, json& entry) {
+  Result<void> upload(std::int64_t booth_session, const RigData& rig,
+                      const std::vector<RigDetailCapture>& detail, json& entry) {
     std::string names;
     for (const auto& n : rig.shape_names) names += (names.empty() ? "" : ",") + n;
+    // The captures with wrinkle detail (guide names: letters, digits and _), for the booth's
+    // live map weights.
+    std::string query = "?names=" + names;
+    for (std::size_t i = 0; i < detail.size(); ++i)
+      query += (i ? "," : "&detail=") + std::to_string(detail[i].capture_index) + ":" +
+               detail[i].expression;
     const auto bs = encode_shape_bs(rig);
-    auto answer = client_.post(
-        "/api/offload/sessions/" + std::to_string(booth_session) + "/rig?names=" + names,
-        std::string(reinterpret_cast<const char*>(bs.data()), bs.size()),
-        "application/octet-stream");
+    auto answer =
+        client_.post("/api/offload/sessions/" + std::to_string(booth_session) + "/rig" + query,
+                     std::string(reinterpret_cast<const char*>(bs.data()), bs.size()),
+                     "application/octet-stream");
     if (!answer) return answer.failure();
     ++counts_.uploaded;
     entry["uploaded"] = true;
     entry["booth_rig"] = (*answer).value("rig", std::int64_t{0});
+    entry["detail_captures"] = static_cast<int>(detail.size());
     return success();
   }
 

@@ -531,6 +531,53 @@ TEST(SessionStore, WrinkleDetailRoundTripsAndFailsWhole) {
   EXPECT_TRUE(report->ok());
 }
 
+// Schema v7: a rig keeps which captures of its session have wrinkle detail (the booth's live map
+// weights); a v6 store's rigs list none after the migration, and a v6 store refuses the list
+// until a writer migrates it.
+TEST(SessionStore, RigDetailCapturesRoundTripAndMigrate) {
+  test::ScratchDir dir;
+  RigData rig;
+  rig.neutral = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  rig.triangles = {0, 1, 2};
+  SubjectId subject = 0;
+  SessionId session = 0;
+  RigId old_rig = 0;
+  RigData detailed = rig;
+  detailed.detail_captures = {{2, "jaw_open"}, {1, "smile"}};
+  {
+    StoreOptions v6;
+    v6.migrate_to = 6;
+    auto store = SessionStore::open(dir.path(), v6);
+    ASSERT_TRUE(store);
+    subject = *store->add_subject("d");
+    session = *store->create_session(subject, guide(3));
+    old_rig = *store->add_rig(subject, session, rig);
+    EXPECT_TRUE(store->read_rig(old_rig)->detail_captures.empty());
+    auto refused = store->add_rig(subject, session, detailed);
+    ASSERT_FALSE(refused);
+    EXPECT_NE(refused.error().message.find("migrate"), std::string::npos);
+  }
+  auto store = SessionStore::open(dir.path());
+  ASSERT_TRUE(store) << store.error().message;
+  EXPECT_EQ(store->schema_version(), kSessionStoreSchemaVersion);
+  EXPECT_TRUE(store->read_rig(old_rig)->detail_captures.empty());
+  auto id = store->add_rig(subject, session, detailed);
+  ASSERT_TRUE(id) << id.error().message;
+  EXPECT_EQ(store->read_rig(*id)->detail_captures, detailed.detail_captures);
+  auto serving = store->rig_for(session);
+  ASSERT_TRUE(serving && *serving);
+  EXPECT_EQ((*serving)->id, *id);
+  EXPECT_EQ((*serving)->detail_captures, detailed.detail_captures);
+  RigData twice = rig;
+  twice.detail_captures = {{1, "smile"}, {1, "smile"}};
+  EXPECT_FALSE(store->add_rig(subject, session, twice));
+  twice.detail_captures = {{-1, "smile"}};
+  EXPECT_FALSE(store->add_rig(subject, session, twice));
+  auto report = store->verify();
+  ASSERT_TRUE(report);
+  EXPECT_TRUE(report->ok());
+}
+
 TEST(SessionStore, RigForPrefersTheSessionsOwnRig) {
   test::ScratchDir dir;
   auto store = SessionStore::open(dir.path());

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/common/allocation_counter.hpp"
+
 namespace fb {
 namespace {
 
@@ -32,6 +34,38 @@ TEST(LiveJson, SseEventCarriesTheFrameAsJson) {
   EXPECT_EQ(json["weights"].size(), 52u);
   EXPECT_NEAR(json["head"]["yaw"].get<double>(), 0.1 * 180 / M_PI, 0.01);
   EXPECT_NEAR(json["head"]["z"].get<double>(), 700.0, 1e-9);
+}
+
+// With a rig's detail captures the frame ends with its wrinkle map weights, keyed
+// EXPRESSION@CAPTURE; without them the field is absent. The string is reused: a second frame of
+// the same size allocates nothing.
+TEST(LiveJson, DetailWeightsFollowTheBlendshapeWeights) {
+  ArkitFrame frame;
+  frame.index = 7;
+  frame.face_found = true;
+  const std::vector<std::string> keys = {"smile@1", "jaw_open@2"};
+  const std::vector<float> weights = {0.01234f, -0.5f};
+  std::string out;
+  format_frame_json(frame, out, {keys, weights});
+  auto json = nlohmann::json::parse(out);
+  ASSERT_TRUE(json.contains("detail_weights")) << out;
+  EXPECT_NEAR(json["detail_weights"]["smile@1"].get<double>(), 0.0123, 1e-9);
+  EXPECT_NEAR(json["detail_weights"]["jaw_open@2"].get<double>(), -0.5, 1e-9);
+  EXPECT_EQ(json["weights"].size(), 52u);
+  long allocations = 0;
+  {
+    test::CountThreadAllocations counter;
+    format_frame_json(frame, out, {keys, weights});
+    allocations = counter.count();
+  }
+  if (test::allocation_counting_available()) EXPECT_EQ(allocations, 0);
+  std::string event;
+  format_sse_event(frame, event, "face", {keys, weights});
+  EXPECT_NE(event.find(R"("detail_weights":{"smile@1":0.0123,"jaw_open@2":-0.5000}})"),
+            std::string::npos)
+      << event;
+  format_frame_json(frame, out);
+  EXPECT_FALSE(nlohmann::json::parse(out).contains("detail_weights")) << out;
 }
 
 }  // namespace

@@ -211,6 +211,72 @@ TEST_F(SyncTest, TwoBoothsImportRigAndTrackWithTheUploadedRigs) {
   EXPECT_EQ(open_host().sessions()->size(), 2u);
 }
 
+// Issue 40 item 5 end to end: sync sends the rig; `facebooth wrinkles` then builds the session's
+// detail on the host; the next sync sends the rig again with its detail captures (the booth's
+// ready list said its rig has none), and the booth's live tracking JSON carries one map weight
+// per capture; a third sync sends nothing.
+TEST_F(SyncTest, WrinkleDetailBuiltAfterTheRigReachesTheBoothsLiveStream) {
+  Booth a(dir_ / "booth-a", "synthetic:seed=4", kToken);
+  const json sa = a.capture("Wren");
+  ASSERT_TRUE(sa.is_object()) << "a headless session failed (see the log)";
+  ASSERT_TRUE(a.start());
+  const std::string args = "--booth " + a.url() + " --token-file " + token_file().string();
+  auto first = sync(args);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_EQ(first.report["rigs_uploaded"], 1) << first.report.dump(1);
+  const json entry = first.report["booths"][0]["sessions"][0];
+  EXPECT_EQ(entry["detail_captures"], 0) << entry.dump();
+  const auto host_session = entry["host_session"].get<std::int64_t>();
+
+  auto wrinkles =
+      test::run_command(std::string(FB_CLI_PATH) + " wrinkles --size 256 --store " +
+                            host().string() + " --session " + std::to_string(host_session),
+                        test::Stderr::kToLog);
+  ASSERT_EQ(wrinkles.exit_code, 0) << wrinkles.out;
+  std::vector<RigDetailCapture> want;
+  {
+    SessionStore host_store = open_host();
+    auto captures = host_store.captures(host_session);
+    ASSERT_TRUE(captures);
+    for (const auto& c : *captures)
+      if (c.index > 0) want.push_back({c.index, c.expression});
+  }
+  ASSERT_EQ(want.size(), 2u);
+
+  auto second = sync(args);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_EQ(second.report["rigged"], 0);
+  ASSERT_EQ(second.report["rigs_uploaded"], 1) << second.report.dump(1);
+  EXPECT_EQ(second.report["booths"][0]["sessions"][0]["detail_captures"], 2);
+  {
+    StoreOptions ro;
+    ro.read_only = true;
+    auto booth_store = SessionStore::open(a.store(), ro);
+    ASSERT_TRUE(booth_store);
+    auto rig = booth_store->rig_for(sa["session"].get<std::int64_t>());
+    ASSERT_TRUE(rig && *rig);
+    EXPECT_EQ((*rig)->detail_captures, want);
+  }
+  const std::string keys = want[0].expression + "@1, " + want[1].expression + "@2";
+  EXPECT_NE(tracked_identity(a, "stored rig").find("wrinkle map weights of 2 captures (" + keys),
+            std::string::npos);
+  httplib::Client http("127.0.0.1", a.port());
+  json live;
+  for (int i = 0; i < 100 && !live.is_object(); ++i) {
+    if (auto r = http.Get("/api/tracking/live"); r && r->status == 200)
+      live = json::parse(r->body, nullptr, false);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(live.is_object());
+  ASSERT_TRUE(live.contains("detail_weights")) << live.dump();
+  EXPECT_EQ(live["detail_weights"].size(), 2u);
+  EXPECT_TRUE(live["detail_weights"].contains(want[1].expression + "@2")) << live.dump();
+
+  auto third = sync(args);
+  ASSERT_EQ(third.exit_code, 0) << third.err;
+  EXPECT_EQ(third.report["rigs_uploaded"], 0) << third.report.dump(1);
+}
+
 // A non-loopback address of this machine (empty when it has none).
 std::string outside_address() {
   ifaddrs* list = nullptr;

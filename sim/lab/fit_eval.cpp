@@ -8,7 +8,6 @@
 #include <iostream>
 #include <optional>
 #include <random>
-#include <tuple>
 
 #include "algo/core/clock.hpp"
 #include "algo/core/figure_text.hpp"
@@ -122,9 +121,7 @@ void score_qa_and_region(FitRun& run, const FitResult& fit, const FitTarget& tar
   t.qa_passed += qa;
   j["qa_passed"] = qa;
   j["landmark_disagreement_mm"] = landmark_disagreement_mm(fit, target);
-  for (const auto& [name, first, last] :
-       {std::tuple{"contour", 0, 16}, std::tuple{"brows", 17, 26}, std::tuple{"nose", 27, 35},
-        std::tuple{"eyes", 36, 47}, std::tuple{"mouth", 48, 67}}) {
+  for (const auto& [name, first, last] : kLandmarkGroups) {
     double sum = 0;
     int n = 0;
     for (int l = first; l <= last; ++l)

@@ -24,6 +24,14 @@
 
 namespace fb::cli::fit_eval {
 
+// The iBUG 68 points' groups (first and last index) the figures are split by.
+struct LandmarkGroup {
+  const char* name;
+  int first, last;
+};
+inline constexpr std::array<LandmarkGroup, 5> kLandmarkGroups{
+    {{"contour", 0, 16}, {"brows", 17, 26}, {"nose", 27, 35}, {"eyes", 36, 47}, {"mouth", 48, 67}}};
+
 inline constexpr const char* kShapePredictorDefault =
     "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
 

@@ -14,19 +14,14 @@ namespace {
 nlohmann::json landmark_group_errors(const std::array<Eigen::Vector2d, 68>& bias_sum,
                                      const std::array<double, 68>& len_sum, int n) {
   if (n == 0) return nullptr;
-  const std::array<std::pair<const char*, std::pair<int, int>>, 5> groups{{{"contour", {0, 16}},
-                                                                           {"brows", {17, 26}},
-                                                                           {"nose", {27, 35}},
-                                                                           {"eyes", {36, 47}},
-                                                                           {"mouth", {48, 67}}}};
   nlohmann::json out = nlohmann::json::object();
-  for (const auto& [name, range] : groups) {
+  for (const auto& [name, first, last] : kLandmarkGroups) {
     double len = 0, bias = 0;
-    for (int l = range.first; l <= range.second; ++l) {
+    for (int l = first; l <= last; ++l) {
       len += len_sum[static_cast<std::size_t>(l)] / n;
       bias += (bias_sum[static_cast<std::size_t>(l)] / n).norm();
     }
-    const int count = range.second - range.first + 1;
+    const int count = last - first + 1;
     out[name] = {{"error_px", len / count}, {"bias_px", bias / count}};
   }
   return out;

@@ -497,8 +497,9 @@ static Result<Eigen::VectorXd> neutral_step(
     const int vtx = corr_v[k];
     const Eigen::Vector3d& n = corr[k].n;
     const Eigen::Vector3d a = r * v.row(vtx).transpose();
-    const double sw =
-        behind_hair(corr[k], x.row(vtx).transpose()) ? sp * std::sqrt(o.hair_weight) : sp;
+    const double sw = !behind_hair(corr[k], x.row(vtx).transpose()) ? sp
+                      : corr[k].along_face                          ? sp * std::sqrt(o.hair_weight)
+                                                                    : 0.0;
     const Eigen::Vector3d rn = sw * (r.transpose() * n);
     j.row(row).head<3>() = sw * a.cross(n).transpose();
     j.row(row).segment<3>(3) = sw * n.transpose();

@@ -121,7 +121,8 @@ struct NeutralFitOptions {
   double final_distance_mm = 6.0;  // this by the last round
   double max_normal_angle_deg = 70;
   // Depth on hair or a beard (FitTarget::skin) pushes a face in front of it back at full
-  // weight and pulls one behind it at this weight: how thick the hair is is not known.
+  // weight and pulls one behind it at this weight where it lies along the face
+  // (fit_correspondence.hpp): how thick the hair is is not known.
   double hair_weight = 0.5;
   bool refine = true;  // run step 2
   RefineOptions refine_options;

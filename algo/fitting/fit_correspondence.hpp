@@ -23,6 +23,11 @@ inline Points posed(const Points& v, const Eigen::Matrix3d& r, const Eigen::Vect
   return x;
 }
 
+// A hair or beard sample whose depth normal is within 30 deg of the face's lies along the face
+// (hair on a forehead). Elsewhere it is a bound only: the hairline's ramp, or a collar in front
+// of the neck, would pull the face down along itself (docs/tuning.md).
+inline constexpr double kAlongFaceCos = 0.866;
+
 // Projective correspondence: the depth sample under the vertex's projection, its normal, and
 // gates on distance and on the angle between the vertex normal and the depth normal.
 struct Correspondence {
@@ -30,6 +35,9 @@ struct Correspondence {
   Eigen::Vector3d n;        // unit, towards the camera
   double confidence = 1.0;  // the target's, at the sample
   double skin = 1.0;        // the target's skin weight at the sample
+  // Hair and beard samples: whether the depth's surface runs along the face's here (hair lying
+  // on it), so that a face behind it may be pulled towards it.
+  bool along_face = true;
 };
 
 inline bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen::Vector3d& vn,
@@ -48,7 +56,16 @@ inline bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen
   c.skin = t.skin.empty() ? 1.0 : static_cast<double>(t.skin.at(px, py));
   if (vn.squaredNorm() > 0.5 && vn.dot(c.n) < cos_min) return false;
   const double plane = c.n.dot(x - c.q);
-  return std::abs(plane) <= gate_mm && (x - c.q).norm() <= 2.0 * gate_mm + 3.0;
+  if (std::abs(plane) > gate_mm || (x - c.q).norm() > 2.0 * gate_mm + 3.0) return false;
+  // On hair and a beard the depth's normal is the hair's: noisy, and at the hairline a ramp
+  // facing down the forehead, so a pull along it slides the face along its own surface
+  // (docs/tuning.md). The bound holds along the face's normal instead; the gate above stays
+  // the depth's, or a face turned away from the ray would reach samples far in front of it.
+  if (c.skin < 0.5 && vn.squaredNorm() > 0.5) {
+    c.along_face = vn.normalized().dot(c.n) >= kAlongFaceCos;
+    c.n = vn.normalized();
+  }
+  return true;
 }
 
 // Hair and a beard are measured in front of the skin: their depth only says the face is not in

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "algo/core/polygon.hpp"
@@ -159,6 +160,46 @@ void median_filter(const Image<float>& depth, int radius, Image<float>& map) {
     }
 }
 
+// Skin within `radius` of a region of hair or beard takes the region's least weight. A region
+// is what a 7x7 window that is mostly under 0.5 covers (an opening): the thin dark rims of
+// shadows (the jaw's underside, the head's outline) and the nostrils grow no margin.
+void hair_margin(const Image<float>& depth, int radius, Image<float>& map) {
+  if (radius <= 0) return;
+  constexpr int kHalf = 3, kLeast = 30;  // of 49
+  const Image<float> in = map;
+  auto low = [&](int x, int y) {
+    return in.contains(x, y) && depth.at(x, y) > 0 && in.at(x, y) < 0.5f;
+  };
+  Image<std::uint8_t> core, region;
+  core.resize(map.width, map.height);
+  region.resize(map.width, map.height);
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      if (!low(x, y)) continue;
+      int n = 0;
+      for (int dy = -kHalf; dy <= kHalf; ++dy)
+        for (int dx = -kHalf; dx <= kHalf; ++dx) n += low(x + dx, y + dy);
+      core.at(x, y) = n >= kLeast;
+    }
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      if (!low(x, y)) continue;
+      for (int dy = -kHalf; dy <= kHalf && !region.at(x, y); ++dy)
+        for (int dx = -kHalf; dx <= kHalf && !region.at(x, y); ++dx)
+          region.at(x, y) = core.contains(x + dx, y + dy) && core.at(x + dx, y + dy);
+    }
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      if (depth.at(x, y) <= 0) continue;
+      float least = in.at(x, y);
+      for (int dy = -radius; dy <= radius; ++dy)
+        for (int dx = -radius; dx <= radius; ++dx)
+          if (region.contains(x + dx, y + dy) && region.at(x + dx, y + dy))
+            least = std::min(least, in.at(x + dx, y + dy));
+      map.at(x, y) = least;
+    }
+}
+
 }  // namespace
 
 Result<Image<float>> skin_map(const Image<float>& depth_mm, const ColorImage& color,
@@ -190,6 +231,7 @@ Result<Image<float>> skin_map(const Image<float>& depth_mm, const ColorImage& co
       map.at(x, y) = w;
     }
   median_filter(depth_mm, options.median_radius_px, map);
+  hair_margin(depth_mm, options.hair_margin_px, map);
   for (int y = 0; y < depth_mm.height; ++y)
     for (int x = 0; x < depth_mm.width; ++x)
       if (depth_mm.at(x, y) > 0) {

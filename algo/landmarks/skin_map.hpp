@@ -28,6 +28,9 @@ struct SkinMapOptions {
   double soft_sigmas = 2.0;
   double soft_factor = 1.5;
   int median_radius_px = 2;  // median of the weights: single strands and pores do not count
+  // Skin this close to a region of hair or beard reads as it does (the least weight within the
+  // radius): fused depth there ramps up to the hair's surface over a few pixels.
+  int hair_margin_px = 2;
 };
 
 struct SkinMapStats {

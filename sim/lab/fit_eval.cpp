@@ -173,6 +173,13 @@ void score_cover(const FitResult& neutral, const FitTarget& target, const Captur
     }
   j["fused_minus_noiseless_on_skin_mm"] = {
       {"mean", n ? sum / n : 0.0}, {"mae", n ? sum_abs / n : 0.0}, {"pixels", n}};
+  auto parts = [&](const std::vector<std::uint32_t>& set) {
+    return set.empty() ? nlohmann::json(nullptr)
+                       : vertex_error_json(vertex_error_parts(
+                             neutral.vertices, neutral.camera_from_model, cap.truth_mesh,
+                             cap.truth_pose, set, model.triangles));
+  };
+  j["vertex_error_parts_by_cover"] = {{"skin", parts(skin)}, {"hair_or_beard", parts(covered)}};
   j["vertex_error_by_cover"] = {{"skin_mm", err(skin)},
                                 {"skin_vertices", skin.size()},
                                 {"hair_or_beard_mm", err(covered)},

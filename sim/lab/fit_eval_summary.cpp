@@ -142,7 +142,9 @@ nlohmann::json vertex_error_json(const VertexErrorParts& p) {
           {"after_rigid_mm", p.after_rigid_mm},
           {"rigid_rotation_deg", p.rigid_rotation_deg},
           {"normal_mm", p.normal_mm},
-          {"tangential_mm", p.tangential_mm}};
+          {"tangential_mm", p.tangential_mm},
+          {"after_similarity_mm", p.after_similarity_mm},
+          {"truth_over_fit_scale", p.similarity_scale}};
 }
 
 nlohmann::json fit_summary_json(const ParsedOptions& options, const FitEvalSetup& setup,

@@ -103,6 +103,13 @@ VertexErrorParts vertex_error_parts(std::span<const float> fitted, const RigidPo
   for (std::size_t k = 0; k < a.size(); ++k) rigid += (r * a[k] + t - b[k]).norm();
   out.after_rigid_mm = rigid / static_cast<double>(a.size());
   out.rigid_rotation_deg = Eigen::AngleAxisd(r).angle() * 180.0 / M_PI;
+  const Eigen::Matrix4d ms = Eigen::umeyama(src, dst, true);
+  const Eigen::Matrix3d sr = ms.topLeftCorner<3, 3>();
+  const Eigen::Vector3d st = ms.topRightCorner<3, 1>();
+  double similar = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) similar += (sr * a[k] + st - b[k]).norm();
+  out.after_similarity_mm = similar / static_cast<double>(a.size());
+  out.similarity_scale = std::cbrt(sr.determinant());
   return out;
 }
 

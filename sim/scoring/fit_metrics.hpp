@@ -31,6 +31,11 @@ struct VertexErrorParts {
   double after_translation_mm = 0;
   double after_rigid_mm = 0;
   double rigid_rotation_deg = 0;
+  // Once the best similarity (rigid + one scale) is taken out, and that scale: a fit of the
+  // right shape but the wrong size reads high after a rigid motion and low here. The scale is
+  // the truth's size over the fit's.
+  double after_similarity_mm = 0;
+  double similarity_scale = 1;
   // Along the truth's surface normal and across it (with `triangles`; 0 without): depth can
   // only show the first.
   double normal_mm = 0;

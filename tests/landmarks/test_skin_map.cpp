@@ -71,8 +71,9 @@ Scores score(const std::string& uri) {
 
 TEST(SkinMap, HairAndBeardAreNotSkinTheFaceIs) {
   // Odd seeds have a beard; the hair colour and the light are drawn per seed. Measured: hair and
-  // beard flagged 0.89-0.97, skin kept 0.89-1.0 (eyes, lips and brows read as skin: their depth
-  // is the surface); seed 5's blond hair is near the skin's colour: 0.29.
+  // beard flagged 0.89-0.99, skin kept 0.83-1.0 (eyes, lips and brows read as skin: their depth
+  // is the surface; the 2 px margin beside hair does not, seed 2's lowest); seed 5's blond hair
+  // is near the skin's colour: 0.37.
   for (int seed : {1, 2, 3, 4, 5, 6}) {
     const Scores s = score("seed=" + std::to_string(seed) +
                            ",frames=1,motion=static,world=none,texture=on,light=vary,hair=on" +
@@ -82,8 +83,73 @@ TEST(SkinMap, HairAndBeardAreNotSkinTheFaceIs) {
     EXPECT_GT(s.hair_pixels, 300) << "seed " << seed;
     EXPECT_GT(s.skin_pixels, 2000) << "seed " << seed;
     EXPECT_GE(s.hair_flagged, seed == 5 ? 0.2 : 0.85) << "seed " << seed;
-    EXPECT_GE(s.skin_kept, 0.85) << "seed " << seed;
+    EXPECT_GE(s.skin_kept, 0.8) << "seed " << seed;
   }
+}
+
+// Fused depth ramps up to the hair's surface over the skin next to it, so that skin reads as
+// hair too. Painted into a rendered face's colour: a block of hair over the forehead's top, a
+// 2 px dark line (a shadow's rim) and a 4 px dark spot (a nostril) on the cheeks. The block
+// grows a 2 px margin; the line and the spot grow none.
+TEST(SkinMap, SkinBesideHairReadsAsHairShadowsDoNotGrow) {
+  auto options = parse_synthetic_options(
+      "seed=2,frames=1,motion=static,world=none,texture=on,light=fixed", test::face_model());
+  ASSERT_TRUE(options.ok());
+  auto camera = make_synthetic_camera(test::face_model(), *options);
+  ASSERT_TRUE(camera.ok());
+  ASSERT_TRUE((*camera)->start().ok());
+  RgbdFrame frame;
+  ASSERT_TRUE((*camera)->next_frame(frame, milliseconds(0)).ok());
+  const FrameTruth& truth = *(*camera)->truth();
+  const auto& lm = truth.landmarks_color_px;
+  const int brow_y = static_cast<int>(std::min(lm[19].y(), lm[24].y()));
+  const int cheek_x = static_cast<int>(lm[2].x() + 0.3 * (lm[31].x() - lm[2].x()));
+  const int cheek_y = static_cast<int>(lm[29].y());
+  auto paint = [&](int x0, int y0, int x1, int y1, Rgb8 c) {
+    for (int y = std::max(0, y0); y < std::min(frame.color.height, y1); ++y)
+      for (int x = std::max(0, x0); x < std::min(frame.color.width, x1); ++x)
+        frame.color.at(x, y) = c;
+  };
+  const int left = static_cast<int>(lm[0].x()), right = static_cast<int>(lm[16].x());
+  paint(left, 0, right, brow_y - 25, Rgb8{20, 22, 30});                        // hair
+  paint(cheek_x - 12, cheek_y, cheek_x + 12, cheek_y + 2, Rgb8{8, 6, 5});      // a shadow's rim
+  paint(cheek_x - 2, cheek_y + 14, cheek_x + 2, cheek_y + 18, Rgb8{8, 6, 5});  // a nostril
+  const Image<float> depth = depth_to_float(frame.depth_mm);
+  const KinectRegistration reg((*camera)->info().calibration);
+  SkinMapOptions none;
+  none.hair_margin_px = 0;
+  auto with = skin_map(depth, frame.color, reg, lm);
+  auto without = skin_map(depth, frame.color, reg, lm, none);
+  ASSERT_TRUE(with.ok() && without.ok());
+  // Depth pixels that only the margin flags: at the hairline, or by the line and the spot.
+  int near_hair = 0, near_shadows = 0, hairline_cols = 0;
+  std::vector<int> rows_per_col(static_cast<std::size_t>(depth.width), 0);
+  for (int y = 0; y < depth.height; ++y)
+    for (int x = 0; x < depth.width; ++x) {
+      if (depth.at(x, y) <= 0 || with->at(x, y) >= 0.5f || without->at(x, y) < 0.5f) continue;
+      double cx = 0, cy = 0;
+      if (!reg.depth_to_color(x, y, static_cast<std::uint16_t>(depth.at(x, y)), cx, cy)) continue;
+      if (cy < brow_y - 25 + 8 && cx > left + 5 && cx < right - 5) {
+        ++near_hair;
+        ++rows_per_col[static_cast<std::size_t>(x)];
+      }
+      near_shadows += std::abs(cx - cheek_x) < 20 && cy > cheek_y - 8 && cy < cheek_y + 26;
+    }
+  double rows = 0;
+  for (int n : rows_per_col)
+    if (n > 0) {
+      ++hairline_cols;
+      rows += n;
+    }
+  rows /= std::max(1, hairline_cols);
+  std::printf(
+      "the margin flags %d pixels at the hairline (%d columns, %.1f rows each), %d by "
+      "the shadow's rim and the nostril\n",
+      near_hair, hairline_cols, rows, near_shadows);
+  EXPECT_GT(hairline_cols, 60);
+  EXPECT_GE(rows, 1.0);
+  EXPECT_LE(rows, 2.5);
+  EXPECT_EQ(near_shadows, 0);
 }
 
 TEST(SkinMap, SaysWhatIsWrongWithoutLandmarks) {

@@ -197,7 +197,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
   const int w = luminance.width, h = luminance.height;
   out.marked.resize(w, h);
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
-  const ImageGradient g = image_gradient(detection_image(luminance, o));
+  const FloatImage detection = detection_image(luminance, o);
+  const ImageGradient g = image_gradient(detection);
   std::vector<Eigen::Vector2d> outline;
   std::vector<PixelRect> zones;
   if (landmarks) {
@@ -251,7 +252,10 @@ SalientRegions salient_regions(const FloatImage& luminance,
           }
       }
       line.box = PixelRect{x0, y0, x1 + 1, y1 + 1};
-      if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
+      const int shortest = std::min(o.min_line_px, o.min_crows_feet_px);
+      if (line.length() <
+          (o.line_test_min_px > 0 ? std::min(shortest, o.line_test_min_px) : shortest))
+        continue;
       auto drop = [&](LineDrop why) {
         line.drop = why;
         out.dropped.push_back(std::move(line));
@@ -264,7 +268,11 @@ SalientRegions salient_regions(const FloatImage& luminance,
         }
       }
       // Crow's feet are short rays (10-15 mm): a shorter line counts there.
-      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) {
+      const bool is_short = line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px);
+      if (o.line_test_min_px > 0) line.evidence = line_evidence(detection, line.pixels, o.evidence);
+      // A short line is kept when the groove it would be a piece of goes on beyond its ends.
+      if (is_short && !(o.line_test_min_px > 0 && line.length() >= o.line_test_min_px &&
+                        line.evidence.continuation_score >= o.line_keep_score)) {
         drop(LineDrop::kShort);
         continue;
       }

@@ -192,7 +192,7 @@ std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
 
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
-                               const SalientOptions& o) {
+                               const SalientOptions& o, const Image<std::uint8_t>* skin) {
   SalientRegions out;
   const int w = luminance.width, h = luminance.height;
   out.marked.resize(w, h);
@@ -212,6 +212,19 @@ SalientRegions salient_regions(const FloatImage& luminance,
           (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
            !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
         out.marked.at(x, y) = 1;
+  // Off the skin and near its silhouette nothing is marked: the local mean there takes in the
+  // wall, and a groove joins the silhouette's marks (SalientOptions::silhouette_margin_px).
+  if (skin && o.silhouette_margin_px >= 0) {
+    const int m = o.silhouette_margin_px;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        bool off = false;
+        for (int dy = -m; dy <= m && !off; ++dy)
+          for (int dx = -m; dx <= m && !off; ++dx)
+            off = !skin->contains(x + dx, y + dy) || !skin->at(x + dx, y + dy);
+        if (off) out.marked.at(x, y) = 0;
+      }
+  }
   // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
   // join the eyelids' edges into one component centred on the eye.
   if (!zones.empty())

@@ -76,10 +76,14 @@ struct SalientOptions {
   int min_crows_feet_px = 8;  // min_line_px in the crow's-feet zones (rays 10-15 mm)
   // The line test (line_evidence.hpp; round 7): a line from line_test_min_px long but shorter
   // than its zone's shortest is kept when its continuation beyond its ends has line_keep_score
-  // or more (its contrast there in noise sd of the mean). line_test_min_px = 0: off.
-  int line_test_min_px = 0;
-  double line_keep_score = 4.0;
+  // or more (its contrast there in noise sd of the mean). line_test_min_px = 0: off (round 6).
+  int line_test_min_px = 5;
+  double line_keep_score = 5.0;
   LineEvidenceOptions evidence;
+  // With a skin mask (salient_regions' `skin`): no marks within this of a pixel off the skin
+  // (round 7: the local mean's 4 px reach the wall, and a forehead line ran into the
+  // silhouette's marks; docs/wrinkles.md). < 0: the mask is not used (round 6).
+  int silhouette_margin_px = 5;
   double crows_feet_width = 0.15;   // outwards from the outer eye corner
   double crows_feet_height = 0.18;  // centred on the corner
 };
@@ -113,8 +117,11 @@ struct SalientRegions {
 std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
                                      const SalientOptions& options);
 
+// `skin` (optional, the image's size): 1 where the image shows the face's skin (the fitted mesh
+// covers the pixel); off it nothing is marked.
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
-                               const SalientOptions& options = {});
+                               const SalientOptions& options = {},
+                               const Image<std::uint8_t>* skin = nullptr);
 
 }  // namespace fb

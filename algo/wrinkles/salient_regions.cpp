@@ -66,16 +66,6 @@ float eyelid_distance(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d
   return static_cast<float>(best);
 }
 
-// The image the sign changes are looked for in (SalientOptions).
-FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o) {
-  FloatImage out = o.smooth_sigma_px > 0 ? gaussian_blur(luminance, o.smooth_sigma_px) : luminance;
-  if (o.relative_sigma_px <= 0) return out;
-  const FloatImage mean = gaussian_blur(luminance, o.relative_sigma_px);
-  for (std::size_t i = 0; i < out.pixels.size(); ++i)
-    out.pixels[i] = 0.5f * out.pixels[i] / std::max(mean.pixels[i], 1e-3f);
-  return out;
-}
-
 // SalientOptions' feature pixels, from the landmarks.
 Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2d, 68>& l,
                                    const SalientOptions& o) {
@@ -163,6 +153,15 @@ LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& la
 }
 
 }  // namespace
+
+FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o) {
+  FloatImage out = o.smooth_sigma_px > 0 ? gaussian_blur(luminance, o.smooth_sigma_px) : luminance;
+  if (o.relative_sigma_px <= 0) return out;
+  const FloatImage mean = gaussian_blur(luminance, o.relative_sigma_px);
+  for (std::size_t i = 0; i < out.pixels.size(); ++i)
+    out.pixels[i] = 0.5f * out.pixels[i] / std::max(mean.pixels[i], 1e-3f);
+  return out;
+}
 
 std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
                                      const SalientOptions& o) {

@@ -117,6 +117,10 @@ struct SalientRegions {
 std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
                                      const SalientOptions& options);
 
+// The image the sign changes are looked for in: the luminance smoothed and divided by its local
+// mean (SalientOptions::smooth_sigma_px, relative_sigma_px).
+FloatImage detection_image(const FloatImage& luminance, const SalientOptions& options);
+
 // `skin` (optional, the image's size): 1 where the image shows the face's skin (the fitted mesh
 // covers the pixel); off it nothing is marked.
 SalientRegions salient_regions(const FloatImage& luminance,

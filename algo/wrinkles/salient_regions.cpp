@@ -95,6 +95,45 @@ Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2
   return out;
 }
 
+// Pixels where the gradient changes sign over the threshold (SalientOptions).
+void mark_sign_changes(const ImageGradient& g, const std::vector<PixelRect>& zones,
+                       const SalientOptions& o, Image<std::uint8_t>& marked) {
+  for (int y = 2; y + 2 < marked.height; ++y)
+    for (int x = 2; x + 2 < marked.width; ++x)
+      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
+          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
+           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
+        marked.at(x, y) = 1;
+}
+
+// Off the skin and within `margin` px of a pixel off it nothing is marked: the detector's local
+// mean there takes in the wall, and a groove joins the silhouette's marks (SalientOptions::
+// silhouette_margin_px).
+void clear_near_silhouette(Image<std::uint8_t>& marked, const Image<std::uint8_t>& skin,
+                           int margin) {
+  for (int y = 0; y < marked.height; ++y)
+    for (int x = 0; x < marked.width; ++x) {
+      if (!marked.at(x, y)) continue;
+      bool off = false;
+      for (int dy = -margin; dy <= margin && !off; ++dy)
+        for (int dx = -margin; dx <= margin && !off; ++dx)
+          off = !skin.contains(x + dx, y + dy) || !skin.at(x + dx, y + dy);
+      if (off) marked.at(x, y) = 0;
+    }
+}
+
+// With SalientOptions::trace_in_zones a line does not cross a zone's border: the zone each
+// pixel is cut into (-1: none).
+std::vector<std::int8_t> zone_cuts(const std::vector<PixelRect>& zones, const SalientOptions& o,
+                                   int w, int h) {
+  std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
+  for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
+    for (int y = std::max(0, zones[z].y0); y < std::min(h, zones[z].y1); ++y)
+      for (int x = std::max(0, zones[z].x0); x < std::min(w, zones[z].x1); ++x)
+        cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
+  return cut;
+}
+
 PixelRect merge(const PixelRect& a, const PixelRect& b) {
   return PixelRect{std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1),
                    std::max(a.y1, b.y1)};
@@ -205,37 +244,15 @@ SalientRegions salient_regions(const FloatImage& luminance,
     outline = face_outline(*landmarks, o);
     out.features = feature_pixels(w, h, *landmarks, o);
   }
-  for (int y = 2; y + 2 < h; ++y)
-    for (int x = 2; x + 2 < w; ++x)
-      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
-          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
-           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
-        out.marked.at(x, y) = 1;
-  // Off the skin and near its silhouette nothing is marked: the local mean there takes in the
-  // wall, and a groove joins the silhouette's marks (SalientOptions::silhouette_margin_px).
-  if (skin && o.silhouette_margin_px >= 0) {
-    const int m = o.silhouette_margin_px;
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        bool off = false;
-        for (int dy = -m; dy <= m && !off; ++dy)
-          for (int dx = -m; dx <= m && !off; ++dx)
-            off = !skin->contains(x + dx, y + dy) || !skin->at(x + dx, y + dy);
-        if (off) out.marked.at(x, y) = 0;
-      }
-  }
+  mark_sign_changes(g, zones, o, out.marked);
+  if (skin && o.silhouette_margin_px >= 0)
+    clear_near_silhouette(out.marked, *skin, o.silhouette_margin_px);
   // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
   // join the eyelids' edges into one component centred on the eye.
   if (!zones.empty())
     for (std::size_t i = 0; i < out.marked.pixels.size(); ++i)
       if (out.features.pixels[i]) out.marked.pixels[i] = 0;
-  // With SalientOptions::trace_in_zones a line does not cross a zone's border: the zone each
-  // pixel is cut into (-1: none).
-  std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
-  for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
-    for (int y = std::max(0, zones[z].y0); y < std::min(h, zones[z].y1); ++y)
-      for (int x = std::max(0, zones[z].x0); x < std::min(w, zones[z].x1); ++x)
-        cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
+  const std::vector<std::int8_t> cut = zone_cuts(zones, o, w, h);
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
   std::vector<Eigen::Vector2i> stack;

@@ -45,10 +45,11 @@ bool in_any(const std::vector<PixelRect>& rs, int x, int y) {
 
 // One subject and relief: per window the figures of the header.
 Result<nlohmann::json> visibility(const FaceModel& model, const ExemplarSet& set,
-                                  WrinkleRelief relief, std::uint64_t seed) {
+                                  WrinkleRelief relief, std::uint64_t seed, double distance_mm) {
   WrinkleCaseOptions co;
   co.relief = relief;
   co.seed = seed;
+  co.distance_mm = distance_mm;
   co.scan_crops = set.exemplars;
   co.scan_mm_per_px = set.mm_per_px;
   auto c = make_wrinkle_case(model, co);
@@ -128,6 +129,9 @@ int run_visibility(const ParsedOptions& options) {
   const auto first = options.get_int("first-seed");
   if (!subjects || !first || *subjects < 1)
     return report_failure({"--subjects and --first-seed take whole numbers (subjects >= 1)"});
+  const auto distance = options.get_double("distance-mm");
+  if (!distance || *distance < 500 || *distance > 1500)
+    return report_failure({"--distance-mm takes a distance in 500-1500 mm"});
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
   auto set = load_exemplar_set(default_exemplar_directory());
@@ -135,7 +139,7 @@ int run_visibility(const ParsedOptions& options) {
   nlohmann::json runs = nlohmann::json::array();
   for (const auto relief : {WrinkleRelief::kGrooves, WrinkleRelief::kScan})
     for (long long s = 0; s < *subjects; ++s) {
-      auto j = visibility(*model, *set, relief, static_cast<std::uint64_t>(*first + s));
+      auto j = visibility(*model, *set, relief, static_cast<std::uint64_t>(*first + s), *distance);
       if (!j) return report_failure(j.error());
       runs.push_back(*j);
     }
@@ -153,6 +157,7 @@ std::vector<Command> wrinkle_visibility_commands() {
             "alone (thresholds 0.005, 0.0025, 0.001) against the real frame's.",
             {{"subjects", "N", "synthetic subjects", "6"},
              {"first-seed", "N", "seed of the first subject", "1"},
+             {"distance-mm", "MM", "the face's distance from the camera", "700"},
              {"json", "", "JSON on stdout (the only output)", ""}}},
            run_visibility}};
 }

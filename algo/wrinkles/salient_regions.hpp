@@ -122,7 +122,8 @@ std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& land
 FloatImage detection_image(const FloatImage& luminance, const SalientOptions& options);
 
 // `skin` (optional, the image's size): 1 where the image shows the face's skin (the fitted mesh
-// covers the pixel); off it nothing is marked.
+// covers the pixel); off it, and within SalientOptions::silhouette_margin_px of a pixel off it,
+// nothing is marked.
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
                                const SalientOptions& options = {},

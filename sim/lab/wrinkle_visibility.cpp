@@ -45,12 +45,15 @@ bool in_any(const std::vector<PixelRect>& rs, int x, int y) {
 
 // One subject and relief: per window the figures of the header.
 Result<nlohmann::json> visibility(const FaceModel& model, const ExemplarSet& set,
-                                  WrinkleRelief relief, std::uint64_t seed, double distance_mm) {
+                                  WrinkleRelief relief, std::uint64_t seed, double distance_mm,
+                                  double scan_scale) {
   WrinkleCaseOptions co;
   co.relief = relief;
   co.seed = seed;
   co.distance_mm = distance_mm;
   co.scan_crops = set.exemplars;
+  for (auto& e : co.scan_crops)  // the scan's relief at another depth scale (round 4, item 3)
+    for (auto& v : e.height_mm.pixels) v *= static_cast<float>(scan_scale);
   co.scan_mm_per_px = set.mm_per_px;
   auto c = make_wrinkle_case(model, co);
   if (!c) return c.failure();
@@ -132,6 +135,9 @@ int run_visibility(const ParsedOptions& options) {
   const auto distance = options.get_double("distance-mm");
   if (!distance || *distance < 500 || *distance > 1500)
     return report_failure({"--distance-mm takes a distance in 500-1500 mm"});
+  const auto scan_scale = options.get_double("scan-scale");
+  if (!scan_scale || *scan_scale <= 0 || *scan_scale > 10)
+    return report_failure({"--scan-scale takes a factor in (0, 10]"});
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
   auto set = load_exemplar_set(default_exemplar_directory());
@@ -139,7 +145,8 @@ int run_visibility(const ParsedOptions& options) {
   nlohmann::json runs = nlohmann::json::array();
   for (const auto relief : {WrinkleRelief::kGrooves, WrinkleRelief::kScan})
     for (long long s = 0; s < *subjects; ++s) {
-      auto j = visibility(*model, *set, relief, static_cast<std::uint64_t>(*first + s), *distance);
+      auto j = visibility(*model, *set, relief, static_cast<std::uint64_t>(*first + s), *distance,
+                          *scan_scale);
       if (!j) return report_failure(j.error());
       runs.push_back(*j);
     }
@@ -158,6 +165,10 @@ std::vector<Command> wrinkle_visibility_commands() {
             {{"subjects", "N", "synthetic subjects", "6"},
              {"first-seed", "N", "seed of the first subject", "1"},
              {"distance-mm", "MM", "the face's distance from the camera", "700"},
+             {"scan-scale", "K",
+              "the scan case's relief times K (the exemplars' 0.0657 mm a level; the normal map "
+              "measures 0.014-0.019: K 0.21-0.29)",
+              "1"},
              {"json", "", "JSON on stdout (the only output)", ""}}},
            run_visibility}};
 }

@@ -66,16 +66,6 @@ float eyelid_distance(const Eigen::Vector2d& p, const std::array<Eigen::Vector2d
   return static_cast<float>(best);
 }
 
-// The image the sign changes are looked for in (SalientOptions).
-FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o) {
-  FloatImage out = o.smooth_sigma_px > 0 ? gaussian_blur(luminance, o.smooth_sigma_px) : luminance;
-  if (o.relative_sigma_px <= 0) return out;
-  const FloatImage mean = gaussian_blur(luminance, o.relative_sigma_px);
-  for (std::size_t i = 0; i < out.pixels.size(); ++i)
-    out.pixels[i] = 0.5f * out.pixels[i] / std::max(mean.pixels[i], 1e-3f);
-  return out;
-}
-
 // SalientOptions' feature pixels, from the landmarks.
 Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2d, 68>& l,
                                    const SalientOptions& o) {
@@ -103,6 +93,45 @@ Image<std::uint8_t> feature_pixels(int w, int h, const std::array<Eigen::Vector2
       out.at(x, y) = on;
     }
   return out;
+}
+
+// Pixels where the gradient changes sign over the threshold (SalientOptions).
+void mark_sign_changes(const ImageGradient& g, const std::vector<PixelRect>& zones,
+                       const SalientOptions& o, Image<std::uint8_t>& marked) {
+  for (int y = 2; y + 2 < marked.height; ++y)
+    for (int x = 2; x + 2 < marked.width; ++x)
+      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
+          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
+           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
+        marked.at(x, y) = 1;
+}
+
+// Off the skin and within `margin` px of a pixel off it nothing is marked: the detector's local
+// mean there takes in the wall, and a groove joins the silhouette's marks (SalientOptions::
+// silhouette_margin_px).
+void clear_near_silhouette(Image<std::uint8_t>& marked, const Image<std::uint8_t>& skin,
+                           int margin) {
+  for (int y = 0; y < marked.height; ++y)
+    for (int x = 0; x < marked.width; ++x) {
+      if (!marked.at(x, y)) continue;
+      bool off = false;
+      for (int dy = -margin; dy <= margin && !off; ++dy)
+        for (int dx = -margin; dx <= margin && !off; ++dx)
+          off = !skin.contains(x + dx, y + dy) || !skin.at(x + dx, y + dy);
+      if (off) marked.at(x, y) = 0;
+    }
+}
+
+// With SalientOptions::trace_in_zones a line does not cross a zone's border: the zone each
+// pixel is cut into (-1: none).
+std::vector<std::int8_t> zone_cuts(const std::vector<PixelRect>& zones, const SalientOptions& o,
+                                   int w, int h) {
+  std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
+  for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
+    for (int y = std::max(0, zones[z].y0); y < std::min(h, zones[z].y1); ++y)
+      for (int x = std::max(0, zones[z].x0); x < std::min(w, zones[z].x1); ++x)
+        cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
+  return cut;
 }
 
 PixelRect merge(const PixelRect& a, const PixelRect& b) {
@@ -164,6 +193,15 @@ LineDrop judge_line(WrinkleLine& line, const std::array<Eigen::Vector2d, 68>& la
 
 }  // namespace
 
+FloatImage detection_image(const FloatImage& luminance, const SalientOptions& o) {
+  FloatImage out = o.smooth_sigma_px > 0 ? gaussian_blur(luminance, o.smooth_sigma_px) : luminance;
+  if (o.relative_sigma_px <= 0) return out;
+  const FloatImage mean = gaussian_blur(luminance, o.relative_sigma_px);
+  for (std::size_t i = 0; i < out.pixels.size(); ++i)
+    out.pixels[i] = 0.5f * out.pixels[i] / std::max(mean.pixels[i], 1e-3f);
+  return out;
+}
+
 std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
                                      const SalientOptions& o) {
   const double jaw = (l[16] - l[0]).norm();
@@ -192,12 +230,13 @@ std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& l,
 
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
-                               const SalientOptions& o) {
+                               const SalientOptions& o, const Image<std::uint8_t>* skin) {
   SalientRegions out;
   const int w = luminance.width, h = luminance.height;
   out.marked.resize(w, h);
   std::fill(out.marked.pixels.begin(), out.marked.pixels.end(), std::uint8_t{0});
-  const ImageGradient g = image_gradient(detection_image(luminance, o));
+  const FloatImage detection = detection_image(luminance, o);
+  const ImageGradient g = image_gradient(detection);
   std::vector<Eigen::Vector2d> outline;
   std::vector<PixelRect> zones;
   if (landmarks) {
@@ -205,24 +244,15 @@ SalientRegions salient_regions(const FloatImage& luminance,
     outline = face_outline(*landmarks, o);
     out.features = feature_pixels(w, h, *landmarks, o);
   }
-  for (int y = 2; y + 2 < h; ++y)
-    for (int x = 2; x + 2 < w; ++x)
-      if (sign_change(g, x, y, 0, 1, o.gradient_threshold) ||
-          (sign_change(g, x, y, 1, 0, o.gradient_threshold) &&
-           !(o.forehead_rows_only && !zones.empty() && zones[0].contains(x, y))))
-        out.marked.at(x, y) = 1;
+  mark_sign_changes(g, zones, o, out.marked);
+  if (skin && o.silhouette_margin_px >= 0)
+    clear_near_silhouette(out.marked, *skin, o.silhouette_margin_px);
   // With zones, the features' pixels (eyes, brows, ...) break the lines: crow's feet otherwise
   // join the eyelids' edges into one component centred on the eye.
   if (!zones.empty())
     for (std::size_t i = 0; i < out.marked.pixels.size(); ++i)
       if (out.features.pixels[i]) out.marked.pixels[i] = 0;
-  // With SalientOptions::trace_in_zones a line does not cross a zone's border: the zone each
-  // pixel is cut into (-1: none).
-  std::vector<std::int8_t> cut(static_cast<std::size_t>(w) * h, -1);
-  for (std::size_t z = o.trace_in_zones == 1 ? 2 : 0; o.trace_in_zones > 0 && z < zones.size(); ++z)
-    for (int y = std::max(0, zones[z].y0); y < std::min(h, zones[z].y1); ++y)
-      for (int x = std::max(0, zones[z].x0); x < std::min(w, zones[z].x1); ++x)
-        cut[static_cast<std::size_t>(y) * w + x] = static_cast<std::int8_t>(z);
+  const std::vector<std::int8_t> cut = zone_cuts(zones, o, w, h);
   // Trace: 8-connected components of marked pixels.
   Image<std::uint8_t> seen = out.marked;
   std::vector<Eigen::Vector2i> stack;
@@ -251,7 +281,10 @@ SalientRegions salient_regions(const FloatImage& luminance,
           }
       }
       line.box = PixelRect{x0, y0, x1 + 1, y1 + 1};
-      if (line.length() < std::min(o.min_line_px, o.min_crows_feet_px)) continue;
+      const int shortest = std::min(o.min_line_px, o.min_crows_feet_px);
+      if (line.length() <
+          (o.line_test_min_px > 0 ? std::min(shortest, o.line_test_min_px) : shortest))
+        continue;
       auto drop = [&](LineDrop why) {
         line.drop = why;
         out.dropped.push_back(std::move(line));
@@ -264,7 +297,11 @@ SalientRegions salient_regions(const FloatImage& luminance,
         }
       }
       // Crow's feet are short rays (10-15 mm): a shorter line counts there.
-      if (line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px)) {
+      const bool is_short = line.length() < (line.zone >= 2 ? o.min_crows_feet_px : o.min_line_px);
+      if (o.line_test_min_px > 0) line.evidence = line_evidence(detection, line.pixels, o.evidence);
+      // A short line is kept when the groove it would be a piece of goes on beyond its ends.
+      if (is_short && !(o.line_test_min_px > 0 && line.length() >= o.line_test_min_px &&
+                        line.evidence.continuation_score >= o.line_keep_score)) {
         drop(LineDrop::kShort);
         continue;
       }

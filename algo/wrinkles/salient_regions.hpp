@@ -15,6 +15,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/pixel_rect.hpp"
 #include "algo/wrinkles/exemplar.hpp"
+#include "algo/wrinkles/line_evidence.hpp"
 
 namespace fb {
 
@@ -72,7 +73,17 @@ struct SalientOptions {
   // With zones: in the forehead zone only sign changes along y count (its expression lines run
   // across it; a sign change along x there is noise or the skin's texture).
   bool forehead_rows_only = false;
-  int min_crows_feet_px = 8;        // min_line_px in the crow's-feet zones (rays 10-15 mm)
+  int min_crows_feet_px = 8;  // min_line_px in the crow's-feet zones (rays 10-15 mm)
+  // The line test (line_evidence.hpp; round 7): a line from line_test_min_px long but shorter
+  // than its zone's shortest is kept when its continuation beyond its ends has line_keep_score
+  // or more (its contrast there in noise sd of the mean). line_test_min_px = 0: off (round 6).
+  int line_test_min_px = 5;
+  double line_keep_score = 5.0;
+  LineEvidenceOptions evidence;
+  // With a skin mask (salient_regions' `skin`): no marks within this of a pixel off the skin
+  // (round 7: the local mean's 4 px reach the wall, and a forehead line ran into the
+  // silhouette's marks; docs/wrinkles.md). < 0: the mask is not used (round 6).
+  int silhouette_margin_px = 5;
   double crows_feet_width = 0.15;   // outwards from the outer eye corner
   double crows_feet_height = 0.18;  // centred on the corner
 };
@@ -85,13 +96,15 @@ struct WrinkleLine {
   PixelRect box;
   int zone = -1;  // with SalientOptions::wrinkle_zones: the zone of its centroid
   LineDrop drop = LineDrop::kKept;
+  LineEvidence evidence;  // with SalientOptions::line_test_min_px, for lines that reached the test
   int length() const { return std::max(box.width(), box.height()); }
 };
 
 struct SalientRegions {
   Image<std::uint8_t> marked;      // 1 where the gradient changes sign over the threshold
   std::vector<WrinkleLine> lines;  // kept lines
-  // Lines at least min(min_line_px, min_crows_feet_px) long that a later test dropped (`drop`).
+  // Lines at least min(min_line_px, min_crows_feet_px, line_test_min_px) long that a later test
+  // dropped (`drop`).
   std::vector<WrinkleLine> dropped;
   std::vector<PixelRect> regions;
   Image<std::uint8_t> features;  // 1 on brows, eyes, nose and mouth (empty without landmarks)
@@ -104,8 +117,16 @@ struct SalientRegions {
 std::vector<PixelRect> wrinkle_zones(const std::array<Eigen::Vector2d, 68>& landmarks,
                                      const SalientOptions& options);
 
+// The image the sign changes are looked for in: the luminance smoothed and divided by its local
+// mean (SalientOptions::smooth_sigma_px, relative_sigma_px).
+FloatImage detection_image(const FloatImage& luminance, const SalientOptions& options);
+
+// `skin` (optional, the image's size): 1 where the image shows the face's skin (the fitted mesh
+// covers the pixel); off it, and within SalientOptions::silhouette_margin_px of a pixel off it,
+// nothing is marked.
 SalientRegions salient_regions(const FloatImage& luminance,
                                const std::optional<std::array<Eigen::Vector2d, 68>>& landmarks,
-                               const SalientOptions& options = {});
+                               const SalientOptions& options = {},
+                               const Image<std::uint8_t>* skin = nullptr);
 
 }  // namespace fb

@@ -201,7 +201,13 @@ Result<WrinkleDetail> wrinkle_detail(
       out.input = ratio_image(luminance, *warped);
     }
   }
-  out.regions = salient_regions(out.input, landmarks, options.regions);
+  Image<std::uint8_t> skin;
+  if (face) {
+    skin.resize(raster.width, raster.height);
+    for (std::size_t i = 0; i < skin.pixels.size(); ++i)
+      skin.pixels[i] = raster.triangle[i] != kNoTriangle;
+  }
+  out.regions = salient_regions(out.input, landmarks, options.regions, face ? &skin : nullptr);
   if (!options.given_regions.empty()) {
     if (!options.given_alongside) out.regions.regions.clear();
     out.regions.regions.insert(out.regions.regions.end(), options.given_regions.begin(),

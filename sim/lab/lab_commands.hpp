@@ -35,6 +35,7 @@ std::vector<Command> wrinkles_eval_commands();          // eval wrinkles, bench 
 std::vector<Command> wrinkle_render_commands();         // render wrinkles (wrinkle_render.cpp)
 std::vector<Command> landmark_embed_commands();         // landmarks embed (landmark_embed.cpp)
 std::vector<Command> wrinkle_diag_commands();           // diag wrinkles, diag wrinkle-scale
+std::vector<Command> wrinkle_visibility_commands();     // diag wrinkle-visibility (in diag's)
 std::vector<Command> photo_eval_commands();             // eval photo (photo_eval.cpp)
 
 }  // namespace fb::cli

@@ -279,28 +279,32 @@ int run_scale(const ParsedOptions& options) {
 }  // namespace
 
 std::vector<Command> wrinkle_diag_commands() {
-  return {
-      {{"diag wrinkles",
-        "take the wrinkle synthesis apart on the grooves case (subjects 1-3, true windows)",
-        "Prints per subject how the frame shows the relief, the skin texture's share, and the "
-        "synthesis under a variant (docs/wrinkles.md).",
-        {{"scales", "K[,K...]", "the exemplars' heights times each K (re-shaded)", "1"},
-         {"local-light", "", "shade the exemplars for a skin patch with normal (nx, ny, 1)", ""},
-         {"nx", "X", "with --local-light", "0"},
-         {"ny", "Y", "with --local-light (the forehead: 0.3)", "0.3"},
-         {"oracle", "", "synthetic grooves as the exemplars", ""},
-         {"ratio", "", "the frame divided by the subject's frame without relief", ""},
-         {"neutral-ratio", "",
-          "the frame divided by the subject's neutral frame (brows down, no relief) warped "
-          "through the meshes",
-          ""}}},
-       run_diag},
-      {{"diag wrinkle-scale",
-        "the scan's displacement grey levels in mm, from its own normal map",
-        "Regresses the normal map's slopes on the displacement's gradient in the exemplar "
-        "crops, per high-pass.",
-        {{"source", "DIR", "../shared/skin/lps", "/work/shared/skin/lps"}}},
-       run_scale}};
+  std::vector<Command> out = wrinkle_visibility_commands();
+  for (auto& c : std::vector<Command>{
+           {{"diag wrinkles",
+             "take the wrinkle synthesis apart on the grooves case (subjects 1-3, true windows)",
+             "Prints per subject how the frame shows the relief, the skin texture's share, and the "
+             "synthesis under a variant (docs/wrinkles.md).",
+             {{"scales", "K[,K...]", "the exemplars' heights times each K (re-shaded)", "1"},
+              {"local-light", "", "shade the exemplars for a skin patch with normal (nx, ny, 1)",
+               ""},
+              {"nx", "X", "with --local-light", "0"},
+              {"ny", "Y", "with --local-light (the forehead: 0.3)", "0.3"},
+              {"oracle", "", "synthetic grooves as the exemplars", ""},
+              {"ratio", "", "the frame divided by the subject's frame without relief", ""},
+              {"neutral-ratio", "",
+               "the frame divided by the subject's neutral frame (brows down, no relief) warped "
+               "through the meshes",
+               ""}}},
+            run_diag},
+           {{"diag wrinkle-scale",
+             "the scan's displacement grey levels in mm, from its own normal map",
+             "Regresses the normal map's slopes on the displacement's gradient in the exemplar "
+             "crops, per high-pass.",
+             {{"source", "DIR", "../shared/skin/lps", "/work/shared/skin/lps"}}},
+            run_scale}})
+    out.push_back(std::move(c));
+  return out;
 }
 
 }  // namespace fb::cli

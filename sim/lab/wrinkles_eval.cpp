@@ -194,12 +194,37 @@ nlohmann::json explain_json(const WrinkleCase& c, const WrinkleDetail& d, int ma
   }
   out["windows"] = windows;
   nlohmann::json lines = nlohmann::json::array();
+  // A line's pixels within 1 px of a true wrinkle pixel (|h| >= 0.1 mm): how much of it is relief.
+  auto on_relief = [&](const WrinkleLine& l) {
+    int n = 0;
+    for (const auto& p : l.pixels) {
+      bool hit = false;
+      for (int dy = -1; dy <= 1 && !hit; ++dy)
+        for (int dx = -1; dx <= 1 && !hit; ++dx)
+          hit = c.true_height_mm.contains(p.x() + dx, p.y() + dy) &&
+                std::abs(c.true_height_mm.at(p.x() + dx, p.y() + dy)) >= 0.1f;
+      n += hit;
+    }
+    return static_cast<double>(n) / static_cast<double>(std::max<std::size_t>(1, l.pixels.size()));
+  };
   for (const auto* set : {&d.regions.lines, &d.regions.dropped})
-    for (const auto& l : *set)
-      lines.push_back({{"drop", drop_name(l.drop)},
-                       {"zone", l.zone},
-                       {"box", {l.box.x0, l.box.y0, l.box.width(), l.box.height()}},
-                       {"pixels", l.pixels.size()}});
+    for (const auto& l : *set) {
+      nlohmann::json j = {{"drop", drop_name(l.drop)},
+                          {"zone", l.zone},
+                          {"box", {l.box.x0, l.box.y0, l.box.width(), l.box.height()}},
+                          {"pixels", l.pixels.size()},
+                          {"on_relief", on_relief(l)}};
+      if (l.evidence.samples > 0)
+        j["evidence"] = {{"length_px", l.evidence.length_px},
+                         {"thickness_px", l.evidence.thickness_px},
+                         {"contrast", l.evidence.contrast},
+                         {"noise", l.evidence.noise},
+                         {"consistency", l.evidence.consistency},
+                         {"score", l.evidence.score},
+                         {"continuation", l.evidence.continuation_contrast},
+                         {"continuation_score", l.evidence.continuation_score}};
+      lines.push_back(j);
+    }
   out["lines"] = lines;
   nlohmann::json outside = nlohmann::json::array();
   for (int y = 0; y < d.input.height; ++y)
@@ -255,6 +280,15 @@ WrinkleDetailOptions detail_options(const ParsedOptions& options, const Setup& s
     wo.line_core_px = std::stoi(f.substr(0, comma));
     wo.line_reach_px = std::stoi(f.substr(comma + 1));
   }
+  if (const std::string t = options.get("line-test"); !t.empty()) {
+    const auto a = t.find(',');
+    wo.regions.line_test_min_px = std::stoi(t.substr(0, a));
+    if (a != std::string::npos) wo.regions.line_keep_score = std::stod(t.substr(a + 1));
+  }
+  if (const auto k = options.get_int("silhouette-margin"); k)
+    wo.regions.silhouette_margin_px = static_cast<int>(*k);
+  if (const auto k = options.get_int("line-extend"); k)
+    wo.regions.evidence.extend_px = static_cast<int>(*k);
   if (const auto k = options.get_int("keep-near-lines"); k)
     wo.keep_near_lines_px = static_cast<int>(*k);
   return wo;
@@ -484,6 +518,13 @@ std::vector<Command> wrinkles_eval_commands() {
          {"line-fade", "CORE,REACH",
           "heights fade from CORE to 0 at REACH px from a line (0,0: off)", "1,4"},
          {"explain", "", "per run: windows' missed pixels, lines kept/dropped, outside pixels", ""},
+         {"line-test", "MIN[,SCORE]",
+          "the line test: a line from MIN px shorter than the shortest kept when its "
+          "continuation scores SCORE (0: off)",
+          "5,5"},
+         {"silhouette-margin", "PX",
+          "no marks this close to the fitted mesh's silhouette (-1: off)", "5"},
+         {"line-extend", "PX", "the line test's continuation beyond each end", "8"},
          {"keep-near-lines", "PX", "heights only this close to a kept line (0: all)", "0"},
          exemplars,
          json}},

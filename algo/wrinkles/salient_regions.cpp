@@ -346,4 +346,23 @@ SalientRegions salient_regions(const FloatImage& luminance,
   return out;
 }
 
+void fill_holes(Image<std::uint8_t>& mask) {
+  const int w = mask.width, h = mask.height;
+  constexpr std::uint8_t kOutside = 2;
+  std::vector<int> stack;
+  auto reach = [&](int x, int y) {
+    if (x < 0 || y < 0 || x >= w || y >= h || mask.at(x, y) != 0) return;
+    mask.at(x, y) = kOutside;
+    stack.push_back(y * w + x);
+  };
+  for (int x = 0; x < w; ++x) reach(x, 0), reach(x, h - 1);
+  for (int y = 0; y < h; ++y) reach(0, y), reach(w - 1, y);
+  while (!stack.empty()) {
+    const int x = stack.back() % w, y = stack.back() / w;
+    stack.pop_back();
+    reach(x + 1, y), reach(x - 1, y), reach(x, y + 1), reach(x, y - 1);
+  }
+  for (auto& m : mask.pixels) m = m != kOutside;
+}
+
 }  // namespace fb

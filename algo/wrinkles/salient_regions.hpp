@@ -129,4 +129,8 @@ SalientRegions salient_regions(const FloatImage& luminance,
                                const SalientOptions& options = {},
                                const Image<std::uint8_t>* skin = nullptr);
 
+// Sets the pixels of `mask` (0 / 1) that no path of 0s joins to the image's border: a mesh's
+// openings, so that the silhouette margin above runs round the head, not round the eyes.
+void fill_holes(Image<std::uint8_t>& mask);
+
 }  // namespace fb

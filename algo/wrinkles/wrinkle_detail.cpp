@@ -201,11 +201,14 @@ Result<WrinkleDetail> wrinkle_detail(
       out.input = ratio_image(luminance, *warped);
     }
   }
+  // The mesh's openings (eyes, mouth) filled: the silhouette margin is the head's outline, not
+  // the eyelids', where crow's feet begin.
   Image<std::uint8_t> skin;
   if (face) {
     skin.resize(raster.width, raster.height);
     for (std::size_t i = 0; i < skin.pixels.size(); ++i)
       skin.pixels[i] = raster.triangle[i] != kNoTriangle;
+    fill_holes(skin);
   }
   out.regions = salient_regions(out.input, landmarks, options.regions, face ? &skin : nullptr);
   if (!options.given_regions.empty()) {

@@ -165,5 +165,44 @@ TEST(SalientRegions, NoMarksNearTheSilhouette) {
   EXPECT_EQ(r.lines.size(), 3u);
 }
 
+// A mesh's eye openings are holes in its raster. Filled, they set no silhouette margin, and a
+// groove ending beside one keeps its length; the head's outline still clears what is near it.
+TEST(SalientRegions, EyeOpeningsAreNotTheSilhouette) {
+  const FloatImage im = ratio_image(0.002, 0.05);
+  Image<std::uint8_t> skin;
+  skin.resize(kW, kH);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) skin.at(x, y) = x < 150;
+  const int row = kRows[0];
+  for (int y = row - 6; y <= row + 6; ++y)  // an opening 3 px past the first groove's start
+    for (int x = kX0 - 12; x < kX0 - 3; ++x) skin.at(x, y) = 0;
+  Image<std::uint8_t> filled = skin;
+  fill_holes(filled);
+  int opening = 0, outside = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      opening += x >= kX0 - 12 && x < kX0 - 3 && std::abs(y - row) <= 6 && filled.at(x, y) == 0;
+      outside += x >= 150 && filled.at(x, y) != 0;
+    }
+  EXPECT_EQ(opening, 0);
+  EXPECT_EQ(outside, 0);
+  SalientOptions o;
+  o.wrinkle_zones = false;
+  o.inside_face_only = false;
+  auto leftmost = [&](const SalientRegions& r) {
+    int left = kW;
+    for (const auto& l : r.lines)
+      if (l.box.y0 <= row && l.box.y1 > row) left = std::min(left, l.box.x0);
+    return left;
+  };
+  const int free = leftmost(salient_regions(im, std::nullopt, o));
+  const int beside_hole = leftmost(salient_regions(im, std::nullopt, o, &skin));
+  const int beside_filled = leftmost(salient_regions(im, std::nullopt, o, &filled));
+  std::printf("first groove starts at x %d; beside the opening %d, filled %d\n", free, beside_hole,
+              beside_filled);
+  EXPECT_GE(beside_hole, free + 2);  // the opening's margin cut the groove's end
+  EXPECT_EQ(beside_filled, free);
+}
+
 }  // namespace
 }  // namespace fb

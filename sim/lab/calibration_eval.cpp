@@ -12,10 +12,11 @@
 
 #include "algo/calibration/checkerboard_calibrator.hpp"
 #include "algo/sensor/self_calibration.hpp"
+#include "host/cli/progress.hpp"
+#include "host/cli/stats.hpp"
 #include "sim/camera/board_scene.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "sim/lab/lab_commands.hpp"
-#include "host/cli/progress.hpp"
 #include "sim/scoring/self_calibration_eval.hpp"
 
 namespace fb::cli {
@@ -26,13 +27,6 @@ struct EvalSettings {
   std::uint64_t seed = 1;
   int views = 12;
 };
-
-double percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const auto index = static_cast<std::size_t>(std::ceil(p * values.size())) - 1;
-  return values[std::min(index, values.size() - 1)];
-}
 
 double mean(const std::vector<double>& values) {
   double sum = 0.0;

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "algo/sensor/self_calibration.hpp"
+#include "host/cli/stats.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "storage/asset_files.hpp"
 
@@ -67,12 +68,6 @@ Result<UnitTake> render_unit(const FaceModel& model, std::uint64_t unit, int fra
     if (!got) return got.failure();
   }
   return take;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
 }
 
 }  // namespace

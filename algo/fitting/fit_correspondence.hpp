@@ -59,8 +59,8 @@ inline bool correspond(const FitTarget& t, const Eigen::Vector3d& x, const Eigen
   if (std::abs(plane) > gate_mm || (x - c.q).norm() > 2.0 * gate_mm + 3.0) return false;
   // On hair and a beard the depth's normal is the hair's: noisy, and at the hairline a ramp
   // facing down the forehead, so a pull along it slides the face along its own surface
-  // (docs/tuning.md). The bound holds along the face's normal instead; the gate above stays
-  // the depth's, or a face turned away from the ray would reach samples far in front of it.
+  // (docs/tuning.md). The bound holds along the face's normal instead; the gate above stays on
+  // the depth's own plane.
   if (c.skin < 0.5 && vn.squaredNorm() > 0.5) {
     c.along_face = vn.normalized().dot(c.n) >= kAlongFaceCos;
     c.n = vn.normalized();

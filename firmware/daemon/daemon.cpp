@@ -509,9 +509,13 @@ void Daemon::Impl::handle(const QueuedInput& first) {
                  to_string(t->next), why.empty() ? "" : ": ", why.c_str());
     // A guide screen is published together with its capture (index, attempts): a client that
     // keys its presses on (state, capture) must never see "guide" with the previous capture.
-    // Likewise the retry screen comes with its reason, never with the "checking" text.
-    const bool prepare_first =
-        t->action == KioskAction::kShowGuide || t->action == KioskAction::kResumeSession;
+    // Likewise the retry screen comes with its reason, never with the "checking" text;
+    // "tracking" comes with this run's counters, never the last run's frame count, and "idle"
+    // after tracking once the take is stored and the live frame gone.
+    const bool prepare_first = t->action == KioskAction::kShowGuide ||
+                               t->action == KioskAction::kResumeSession ||
+                               t->action == KioskAction::kStartTracking ||
+                               t->action == KioskAction::kStopTracking;
     const std::string message =
         why.empty() ? "" : "Quality check failed (" + why + "). Press the button to record again.";
     if (!prepare_first) set_state(t->next, to_string(in.input), message);

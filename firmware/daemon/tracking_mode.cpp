@@ -107,6 +107,11 @@ std::string LiveWeights::wait_newer(std::uint64_t& seen, std::chrono::millisecon
   return json_;
 }
 
+void LiveWeights::clear() {
+  std::lock_guard lock(mutex_);
+  json_.clear();  // keeps its capacity: the next run's frames still do not allocate
+}
+
 void LiveWeights::wake_all() const {
   { std::lock_guard lock(mutex_); }
   cv_.notify_all();
@@ -248,6 +253,7 @@ TrackingMode::Figures TrackingMode::figures() const {
 }
 
 void TrackingMode::stop() {
+  live_.clear();
   tracker_.reset();
   reacquire_source_.reset();
   vmc_.reset();

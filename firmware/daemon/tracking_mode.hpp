@@ -45,6 +45,8 @@ class LiveWeights {
                          const std::atomic<bool>& stopping) const;
   // Wakes the waiters (at stop).
   void wake_all() const;
+  // Forgets the latest frame (at stop): a page must not read the last run's weights as live.
+  void clear();
 
  private:
   mutable std::mutex mutex_;

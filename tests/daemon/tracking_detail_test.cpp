@@ -195,6 +195,10 @@ TEST_F(TrackingDetailTest, RigDetailCapturesGiveLiveMapWeightsAsTheHostComputesT
   });
   EXPECT_NE(event.find("\"detail_weights\":{\"smile@1\":"), std::string::npos) << event;
   stop_tracking(*d, http);
+  // Out of tracking the live frame is gone: the next run never serves this run's last frame.
+  const auto after = http.Get("/api/tracking/live");
+  ASSERT_TRUE(after);
+  EXPECT_EQ(after->status, 404) << after->body;
 
   // A newer rig without detail: tracking streams no map weights.
   auto plain = http.Post(rig_path, body, "application/octet-stream");

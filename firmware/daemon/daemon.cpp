@@ -512,10 +512,9 @@ void Daemon::Impl::handle(const QueuedInput& first) {
     // Likewise the retry screen comes with its reason, never with the "checking" text;
     // "tracking" comes with this run's counters, never the last run's frame count, and "idle"
     // after tracking once the take is stored and the live frame gone.
-    const bool prepare_first = t->action == KioskAction::kShowGuide ||
-                               t->action == KioskAction::kResumeSession ||
-                               t->action == KioskAction::kStartTracking ||
-                               t->action == KioskAction::kStopTracking;
+    const bool prepare_first =
+        t->action == KioskAction::kShowGuide || t->action == KioskAction::kResumeSession ||
+        t->action == KioskAction::kStartTracking || t->action == KioskAction::kStopTracking;
     const std::string message =
         why.empty() ? "" : "Quality check failed (" + why + "). Press the button to record again.";
     if (!prepare_first) set_state(t->next, to_string(in.input), message);

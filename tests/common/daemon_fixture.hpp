@@ -106,7 +106,9 @@ class DaemonFixture : public ::testing::Test {
     ASSERT_TRUE(sessions) << sessions.error().message;
     ASSERT_EQ(sessions->size(), 1u);
     EXPECT_EQ(sessions->front().complete, complete);
-    if (done) EXPECT_EQ(sessions->front().done_count, *done);
+    if (done) {
+      EXPECT_EQ(sessions->front().done_count, *done);
+    }
     if (id != nullptr) *id = sessions->front().id;
   }
 

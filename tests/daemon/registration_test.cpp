@@ -41,7 +41,9 @@ class DaemonRegistration : public test::DaemonFixture {
 
   std::unique_ptr<Daemon> start(const DaemonConfig& c) {
     auto d = make(c);
-    if (d) EXPECT_TRUE(d->start());
+    if (d) {
+      EXPECT_TRUE(d->start());
+    }
     return d;
   }
   template <class P>

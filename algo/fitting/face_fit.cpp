@@ -497,9 +497,13 @@ static Result<Eigen::VectorXd> neutral_step(
     const int vtx = corr_v[k];
     const Eigen::Vector3d& n = corr[k].n;
     const Eigen::Vector3d a = r * v.row(vtx).transpose();
-    const double sw = !behind_hair(corr[k], x.row(vtx).transpose()) ? sp
-                      : corr[k].along_face                          ? sp * std::sqrt(o.hair_weight)
-                                                                    : 0.0;
+    double sw = !behind_hair(corr[k], x.row(vtx).transpose()) ? sp
+                : corr[k].along_face                          ? sp * std::sqrt(o.hair_weight)
+                                                              : 0.0;
+    if (o.robust_scale_mm > 0) {  // Cauchy (IRLS): the row's weight 1 / (1 + (r / s)^2)
+      const double u = n.dot(x.row(vtx).transpose() - corr[k].q) / o.robust_scale_mm;
+      sw /= std::sqrt(1.0 + u * u);
+    }
     const Eigen::Vector3d rn = sw * (r.transpose() * n);
     j.row(row).head<3>() = sw * a.cross(n).transpose();
     j.row(row).segment<3>(3) = sw * n.transpose();

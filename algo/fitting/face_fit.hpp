@@ -124,6 +124,9 @@ struct NeutralFitOptions {
   // weight and pulls one behind it at this weight where it lies along the face
   // (fit_correspondence.hpp): how thick the hair is is not known.
   double hair_weight = 0.5;
+  // Cauchy scale of the depth residual in step 1: depth the identity space cannot hold (hair
+  // the skin map missed, this person's own bumps) pulls the whole face less (0 = plain squares).
+  double robust_scale_mm = 2.0;
   bool refine = true;  // run step 2
   RefineOptions refine_options;
 };

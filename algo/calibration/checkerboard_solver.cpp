@@ -395,7 +395,7 @@ Result<CheckerboardResult> solve_checkerboard(const BoardSpec& board,
 double registration_difference_px(const RegistrationCorrection& a,
                                   const RegistrationCorrection& b) {
   double worst = 0.0;
-  for (const Eigen::Vector2d p :
+  for (const Eigen::Vector2d& p :
        {Eigen::Vector2d(319.5, 239.5), Eigen::Vector2d(0, 0), Eigen::Vector2d(639, 0),
         Eigen::Vector2d(0, 479), Eigen::Vector2d(639, 479)}) {
     worst =

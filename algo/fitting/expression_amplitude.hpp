@@ -1,15 +1,15 @@
 // How strongly this person made each part of a guide expression. The guide's recipe is a sum of
-// model shapes at fixed weights (mouth_stretch: jawOpen 0.7, mouthStretch 0.4, ...), and its
-// transfer onto the subject's neutral opens the jaw as far as the recipe says, scaled by the
-// subject's proportions. People do not: one opens the mouth half as far, another further. Before
-// the Laplacian refinement (which keeps the start's shape and only follows depth within its
-// gate), the expression fit scales each transferred part to the capture's depth and landmarks:
+// model shapes at fixed weights (mouth_stretch: jawOpen 0.7, mouthStretch 0.4, ...), and the
+// expression fit's start opens the jaw as far as the recipe says. People do not: one opens the
+// mouth half as far, another further. Before the Laplacian refinement (which keeps the start's
+// shape and only follows depth within its gate), the expression fit scales each part of its
+// start to the capture's depth and landmarks:
 //
 //   x(a) = S + sum_k (a_k - 1) D_k,   E(a) = sum_v rho(n_v . (R x_v + t - q_v))^2
 //                                           + w_fea sum_l |landmark residual|^2
 //                                           + prior sum_k (a_k - 1)^2,
 //
-// S the transferred expression, D_k the transfer of recipe part k alone minus the neutral, a_k in
+// S the start (ExpressionStart), D_k recipe part k's displacement on the subject, a_k in
 // [min, max] (1 = as the recipe), rho a Cauchy weight, Gauss-Newton with the correspondences
 // re-found every step. The pose is the expression's rigid alignment (on the vertices the
 // expression leaves still), so only the moving vertices take part.

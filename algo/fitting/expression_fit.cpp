@@ -24,18 +24,40 @@ std::vector<std::uint32_t> still_vertices(const FaceModel& model, std::span<cons
   return out;
 }
 
-// The parts' displacements on the subject: the transfer of G0 plus each part, less the
-// transfer of G0 itself (the transfer is nearly linear in the guide; its fourth vertices are
-// not).
-Result<std::vector<std::vector<float>>> transferred_parts(
-    const ExpressionTransfer& transfer, std::span<const std::vector<float>> guide_parts) {
-  const std::span<const float> rest = transfer.rest_transfer();
+// The expression's start on the subject (ExpressionStart).
+Result<std::vector<float>> start_mesh(const ExpressionTransfer& transfer,
+                                      std::span<const float> guide_expression,
+                                      ExpressionStart start) {
+  if (start == ExpressionStart::kDeformationTransfer) return transfer.transfer(guide_expression);
+  const std::span<const float> s0 = transfer.neutral(), g0 = transfer.guide_neutral();
+  if (guide_expression.size() != s0.size())
+    return fail("expression fit: the guide expression has the wrong vertex count");
+  std::vector<float> out(s0.size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = s0[i] + (guide_expression[i] - g0[i]);
+  return out;
+}
+
+// The parts' displacements on the subject. Model shapes: each part less G0. Transfer: the
+// transfer of G0 plus each part, less the transfer of G0 itself (the transfer is nearly linear
+// in the guide; its fourth vertices are not).
+Result<std::vector<std::vector<float>>> part_displacements(
+    const ExpressionTransfer& transfer, std::span<const std::vector<float>> guide_parts,
+    ExpressionStart start) {
+  const bool model_shapes = start == ExpressionStart::kModelShapes;
+  const std::span<const float> rest =
+      model_shapes ? transfer.guide_neutral() : transfer.rest_transfer();
   std::vector<std::vector<float>> out;
   for (const auto& part : guide_parts) {
-    auto moved = transfer.transfer(part);
-    if (!moved) return moved.failure();
-    for (std::size_t i = 0; i < moved->size(); ++i) (*moved)[i] -= rest[i];
-    out.push_back(std::move(*moved));
+    if (part.size() != rest.size())
+      return fail("expression fit: a guide part has the wrong vertex count");
+    std::vector<float> moved = part;
+    if (!model_shapes) {
+      auto t = transfer.transfer(part);
+      if (!t) return t.failure();
+      moved = std::move(*t);
+    }
+    for (std::size_t i = 0; i < moved.size(); ++i) moved[i] -= rest[i];
+    out.push_back(std::move(moved));
   }
   return out;
 }
@@ -48,7 +70,7 @@ Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfe
                                  const std::optional<RigidPose>& initial_pose,
                                  std::span<const std::vector<float>> guide_parts) {
   const auto t0 = Clock::now();
-  auto start = transfer.transfer(guide_expression);
+  auto start = start_mesh(transfer, guide_expression, options.start);
   if (!start) return start.failure();
   const std::vector<std::uint32_t> still =
       still_vertices(model, transfer.guide_neutral(), guide_expression);
@@ -57,7 +79,7 @@ Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfe
   if (!pose) return pose.failure();
   std::vector<double> amplitudes;
   if (options.scale_parts && !guide_parts.empty()) {
-    auto parts = transferred_parts(transfer, guide_parts);
+    auto parts = part_displacements(transfer, guide_parts, options.start);
     if (!parts) return parts.failure();
     auto a = fit_amplitudes(model, target, *start, *pose, *parts, options.amplitude_options);
     if (!a) return a.failure();

@@ -29,6 +29,7 @@ struct ExpressionTransfer::State {
   int vertex_count = 0;
   std::vector<std::uint32_t> triangles;
   std::vector<float> guide_neutral;
+  std::vector<float> neutral;                   // S0
   std::vector<Eigen::Matrix3d> guide_inverse;   // V_0^-1 per triangle (source rest)
   std::vector<Eigen::Matrix3d> target_inverse;  // W^-1 per triangle (target rest)
   Eigen::SparseMatrix<double> a_t;              // A^T (unknowns x 3T)
@@ -45,6 +46,9 @@ ExpressionTransfer::ExpressionTransfer(std::unique_ptr<State> state) : state_(st
 
 std::span<const float> ExpressionTransfer::guide_neutral() const {
   return state_->guide_neutral;
+}
+std::span<const float> ExpressionTransfer::neutral() const {
+  return state_->neutral;
 }
 std::span<const float> ExpressionTransfer::rest_transfer() const {
   return state_->rest_transfer;
@@ -71,6 +75,7 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
   s->vertex_count = model.vertex_count;
   s->triangles = model.triangles;
   s->guide_neutral.assign(guide_neutral.begin(), guide_neutral.end());
+  s->neutral.assign(neutral_fit.begin(), neutral_fit.end());
   const int nt = model.triangle_count();
   const int nv = model.vertex_count;
   const int unknowns = nv + nt;

@@ -37,6 +37,7 @@ class ExpressionTransfer {
 
   const RefineSystem& refine_system() const;
   std::span<const float> guide_neutral() const;  // G0
+  std::span<const float> neutral() const;        // S0
   // transfer(G0): the fitted neutral as the transfer reproduces it; a guide part's displacement
   // on the subject is its transfer minus this.
   std::span<const float> rest_transfer() const;
@@ -49,9 +50,11 @@ class ExpressionTransfer {
   std::unique_ptr<State> state_;
 };
 
-// Expression fit (3.2.2): transfer G0 -> Gi onto the neutral, align it rigidly to this
-// capture (landmarks + ICP on the rigid vertices), scale each part of the guide's recipe to the
-// capture (expression_amplitude.hpp), then refine with E2 and this capture's landmarks.
+// Expression fit (3.2.2): start from the neutral moved as G0 -> Gi (options.start: the face
+// model's own shapes added, or the deformation transferred), align it rigidly to this capture
+// (landmarks + ICP on the vertices the expression leaves still), scale each part of the guide's
+// recipe to the capture (expression_amplitude.hpp), then refine with E2 and this capture's
+// landmarks.
 // `guide_parts` are G0 plus one recipe part each (algo/guide's guide_part_meshes); without them
 // the transfer is refined as it is. `initial_pose` (e.g. the neutral's pose) seeds the alignment.
 Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfer& transfer,

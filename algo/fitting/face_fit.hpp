@@ -6,9 +6,10 @@
 //   neutral, step 2: Laplacian refinement E2 = 0.5 Efea + Epos + Elap (cotangent Laplacian,
 //                    length-preserving target), inexact Gauss-Newton with one factorization
 //                    (refine_system.hpp);
-//   expressions:     deformation transfer G0 -> Gi onto the fitted neutral
-//                    (expression_transfer.hpp), rigid alignment, then the same refinement
-//                    with that capture's landmarks and the subject's shared factorization.
+//   expressions:     the fitted neutral moved as G0 -> Gi (the model's own shapes added, or
+//                    deformation transfer: ExpressionStart), rigid alignment, each recipe part
+//                    scaled to the capture, then the same refinement with that capture's
+//                    landmarks and the subject's shared factorization.
 //
 // Units mm, camera frame = the depth camera (OpenCV axes). Landmarks are given in the depth
 // image (algo/landmarks converts colour-image detections and lifts interior points).
@@ -147,7 +148,17 @@ struct AmplitudeOptions {
   double moving_mm = 0.2;  // vertices every part moves less than this take no part
 };
 
+// Where an expression fit starts from the subject's neutral S0 and the guide's G0 -> Gi:
+//  kModelShapes: S0 + (Gi - G0), the face model's own expression shapes added to the neutral,
+//    as the model composes any identity with any expression;
+//  kDeformationTransfer: Gi's deformation gradients carried onto S0 (FaceWarehouse 3.2.2),
+//    which scales the motion by the subject's proportions.
+// Choosing between the two by the capture's depth and landmark energy picked the wrong one in
+// the realistic world (docs/tuning.md), so the choice is an option.
+enum class ExpressionStart { kModelShapes, kDeformationTransfer };
+
 struct ExpressionFitOptions {
+  ExpressionStart start = ExpressionStart::kModelShapes;
   // Point-to-plane ICP on the rigid vertices + landmarks: steps with a gate shrinking from 15 to
   // 4 mm, then up to 40 more at 4 mm until the pose settles (align_rigid).
   int rigid_iterations = 8;
@@ -167,7 +178,7 @@ struct FitTimes {
 struct FitResult {
   // Final mesh (refined when refinement ran), model frame, 3 * vertex_count floats, mm.
   std::vector<float> vertices;
-  // Before refinement: the PCA fit (neutral) or the transferred, aligned start (expressions).
+  // Before refinement: the PCA fit (neutral) or the scaled, aligned start (expressions).
   std::vector<float> initial_vertices;
   RigidPose camera_from_model;
   std::vector<float> identity_coeffs;  // sigma units (neutral fits; empty for expressions)

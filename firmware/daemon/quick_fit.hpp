@@ -1,7 +1,8 @@
 // The device's processing after fusion (issue 8, FaceWarehouse 3.2): landmarks on the frontal
 // colour frame (dlib, algo/landmarks), lifted into the fused depth, then the quick fit: the
-// neutral fit for the first capture of a session (G0), deformation transfer from that neutral +
-// refinement for the others (algo/fitting). Corrections of landmark positions by the operator
+// neutral fit for the first capture of a session (G0), the expression fit from that neutral
+// (the model's expression shapes added, scaled to the capture, refined) for the others
+// (algo/fitting). Corrections of landmark positions by the operator
 // re-lift the points and refit.
 //
 // Owns the face model and the landmark detector, both loaded once (the shape predictor is the

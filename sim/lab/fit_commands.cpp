@@ -187,6 +187,15 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.noiseless_depth = noiseless_depth;
   setup.skin_map = options.get("skin-map") != "off";
   setup.scale_parts = options.get("scale-parts") != "off";
+  const std::string start = options.get("expression-start");
+  if (start == "model") {
+    setup.expression_start = ExpressionStart::kModelShapes;
+  } else if (start == "transfer") {
+    setup.expression_start = ExpressionStart::kDeformationTransfer;
+  } else {
+    return report_failure(
+        Error{"eval fit: --expression-start must be model or transfer, not '" + start + "'"});
+  }
   setup.dlib_fit = fit_landmarks == "dlib";
   if (const std::string e = options.get("landmark-embedding"); e != "model") {
     auto embedding = e == "dlib" ? load_landmark_embedding(*model)
@@ -261,6 +270,11 @@ std::vector<Command> fit_commands() {
           "scale each part of an expression's guide recipe to the capture before refining (how far "
           "this person opened the jaw), as the product does; off for an A/B",
           "on"},
+         {"expression-start", "model|transfer",
+          "where an expression fit starts: the face model's own expression shapes added to the "
+          "fitted neutral, as the product does, or the guide's deformation transferred onto it "
+          "(FaceWarehouse 3.2.2); transfer for an A/B",
+          "model"},
          {"landmark-embedding", "dlib|model|FILE",
           "the mesh vertices dlib's points mark in the fit: dlib = DATA_DIR/"
           "dlib_landmark_embedding.csv (as the product), model = the model's own landmark "

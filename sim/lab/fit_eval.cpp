@@ -15,9 +15,14 @@
 #include "algo/fitting/fit_qa.hpp"
 #include "host/cli/guide_files.hpp"
 #include "sim/lab/fit_eval_parts.hpp"
+#include "sim/subject/personal_expressions.hpp"
 
 namespace fb::cli::fit_eval {
 namespace {
+
+// How far a subject of the identity part makes each expression its own way
+// (personal_expressions.hpp): amounts 0.7-1.3 of the model's, +-30 % over the face.
+constexpr double kPersonalExpressionSpread = 0.3;
 
 // After a capture: go on with the subject's next one, or stop the subject (no neutral fit).
 enum class Next { kCapture, kSubject };
@@ -43,6 +48,9 @@ struct FitSubject {
   FitResult neutral;
   std::vector<float> g0;
   std::optional<ExpressionTransfer> transfer;
+  // The subject's own expression shapes in a world with the identity part (else empty: the
+  // model's).
+  std::vector<float> personal_basis;
 };
 
 // Why a capture gave no figure: an error outside a world, a counted failure in one (the reason in
@@ -312,6 +320,7 @@ Result<Next> expression_capture(FitRun& run, FitSubject& subject, int e, const C
   if (!parts) return parts.failure();
   ExpressionFitOptions fit_options;
   fit_options.scale_parts = run.setup.scale_parts;
+  fit_options.start = run.setup.expression_start;
   auto fit =
       fit_expression(model, *subject.transfer, *gi, target, fit_options, std::nullopt, *parts);
   if (!fit) {
@@ -352,8 +361,8 @@ Result<Next> eval_fit_capture(FitRun& run, FitSubject& subject, int e,
   const std::uint64_t seed = subject.seed;
   auto cap =
       capture(*setup.model, subject.identity, weights, seed * 1000 + static_cast<std::uint64_t>(e),
-              static_cast<int>(setup.frames), detector && e == 0 && subject.index == 0, {},
-              run.world, seed, setup.unit_calibration, detector);
+              static_cast<int>(setup.frames), detector && e == 0 && subject.index == 0,
+              subject.personal_basis, run.world, seed, setup.unit_calibration, detector);
   if (!cap) return capture_failed(run, e, ge.name, "capture", cap.error(), j);
   auto fit_points = fit_landmark_points(run, *cap, subject.rng, j);
   if (!fit_points) return capture_failed(run, e, ge.name, "dlib", fit_points.error(), j);
@@ -374,6 +383,9 @@ Result<nlohmann::json> eval_fit_subject(FitRun& run, long long s) {
   subject.seed = static_cast<std::uint64_t>(setup.first_seed + s);
   subject.identity = identity_draw(subject.seed, setup.model->identity_count);
   subject.rng.seed(subject.seed * 7919 + 17);
+  if (run.world == "identity" || run.world == "realistic")
+    subject.personal_basis =
+        personal_expression_basis(*setup.model, subject.seed, kPersonalExpressionSpread);
   nlohmann::json out;
   out["seed"] = subject.seed;
   nlohmann::json exprs = nlohmann::json::array();

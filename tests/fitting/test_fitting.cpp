@@ -189,7 +189,10 @@ TEST(Fitting, ExpressionFitFromTransfer) {
   ASSERT_TRUE(tr.ok());
   const auto truth = face(id, w);
   const RigidPose pose = truth_pose(truth, 4.0);
-  auto fit = fit_expression(test::face_model(), *tr, face({}, w), render_target(truth, pose, 1.0));
+  ExpressionFitOptions transferred;
+  transferred.start = ExpressionStart::kDeformationTransfer;
+  auto fit = fit_expression(test::face_model(), *tr, face({}, w), render_target(truth, pose, 1.0),
+                            transferred);
   ASSERT_TRUE(fit.ok()) << fit.error().message;
   const double vi = mean_vertex_distance(fit->initial_vertices, fit->camera_from_model, truth, pose,
                                          test::face_model().fitting_vertices);
@@ -206,6 +209,52 @@ TEST(Fitting, ExpressionFitFromTransfer) {
   EXPECT_LT(vr, vi);
   EXPECT_LT(fit->rms_to_depth_mm, fit->rms_to_depth_mm_initial);
   EXPECT_LT(fit->rms_to_depth_mm, 0.3);
+}
+
+// A face far from the mean (three modes at 3.5 sigma, the rest 1.6x) opening the mouth as the
+// face model composes it: the model's shapes added to the fitted neutral start near the truth;
+// deformation transfer scales the motion by this face's proportions and starts far from it.
+TEST(Fitting, ExpressionStartsFromTheModelsShapesOnAFaceFarFromTheMean) {
+  const FaceModel& model = test::face_model();
+  std::vector<float> id = random_identity(13, 1.6f);
+  for (int k = 0; k < 3; ++k) id[k] = id[k] < 0 ? -3.5f : 3.5f;
+  std::vector<float> recipe(static_cast<std::size_t>(model.expression_count), 0.0f);
+  std::vector<std::vector<float>> parts;
+  for (const auto& [name, weight] : std::initializer_list<std::pair<const char*, float>>{
+           {"jawOpen", 0.7f}, {"mouthStretch_L", 0.4f}, {"mouthStretch_R", 0.4f}}) {
+    std::vector<float> w(recipe.size(), 0.0f);
+    w[model.expression_index(name)] = weight;
+    recipe[model.expression_index(name)] = weight;
+    parts.push_back(face({}, w));
+  }
+  const auto neutral_truth = face(id);
+  auto neutral = fit_neutral(model, render_target(neutral_truth, truth_pose(neutral_truth)));
+  ASSERT_TRUE(neutral.ok());
+  auto tr = ExpressionTransfer::create(model, neutral->vertices, face({}));
+  ASSERT_TRUE(tr.ok());
+  const auto truth = face(id, recipe);
+  const RigidPose pose = truth_pose(truth, 4.0);
+  const FitTarget target = render_target(truth, pose, 1.0);
+  ExpressionFitOptions transferred;
+  transferred.start = ExpressionStart::kDeformationTransfer;
+  auto from_model = fit_expression(model, *tr, face({}, recipe), target, {}, std::nullopt, parts);
+  auto from_transfer =
+      fit_expression(model, *tr, face({}, recipe), target, transferred, std::nullopt, parts);
+  ASSERT_TRUE(from_model.ok() && from_transfer.ok());
+  const auto err = [&](const FitResult& f, bool start) {
+    return mean_vertex_distance(start ? f.initial_vertices : f.vertices, f.camera_from_model, truth,
+                                pose, model.fitting_vertices);
+  };
+  const double neutral_error =
+      mean_vertex_distance(neutral->vertices, neutral->camera_from_model, neutral_truth,
+                           truth_pose(neutral_truth), model.fitting_vertices);
+  std::printf(
+      "far face opening the mouth: neutral %.3f mm; model's shapes start %.3f -> %.3f mm, "
+      "transfer start %.3f -> %.3f mm\n",
+      neutral_error, err(*from_model, true), err(*from_model, false), err(*from_transfer, true),
+      err(*from_transfer, false));
+  EXPECT_LT(err(*from_model, false), 0.7 * err(*from_transfer, false));
+  EXPECT_LT(err(*from_model, false), neutral_error + 0.15);
 }
 
 // A person opens the jaw less than the guide's recipe says (jawOpen 0.24 for the recipe's 0.4,

@@ -126,6 +126,12 @@ Result<nlohmann::json> run_fit_scenarios(const ParsedOptions& options, const Fit
   return out;
 }
 
+Result<ExpressionStart> parse_expression_start(const std::string& name) {
+  if (name == "model") return ExpressionStart::kModelShapes;
+  if (name == "transfer") return ExpressionStart::kDeformationTransfer;
+  return fail("eval fit: --expression-start must be model or transfer, not '" + name + "'");
+}
+
 int run_eval_fit(const ParsedOptions& options) {
   auto identities = options.get_int("identities");
   if (!identities) return report_failure(identities.error());
@@ -139,6 +145,8 @@ int run_eval_fit(const ParsedOptions& options) {
   if (!robust_noise) return report_failure(robust_noise.error());
   if (*identities < 1 || *frames < 2 || *noise < 0)
     return report_failure({"--identities >= 1, --frames >= 2 and --landmark-noise-px >= 0"});
+  auto start = parse_expression_start(options.get("expression-start"));
+  if (!start) return report_failure(start.error());
   auto model = load_face_model();
   if (!model) return report_failure(model.error());
   auto guide = load_guide(*model, options.get("guide"));
@@ -187,15 +195,7 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.noiseless_depth = noiseless_depth;
   setup.skin_map = options.get("skin-map") != "off";
   setup.scale_parts = options.get("scale-parts") != "off";
-  const std::string start = options.get("expression-start");
-  if (start == "model") {
-    setup.expression_start = ExpressionStart::kModelShapes;
-  } else if (start == "transfer") {
-    setup.expression_start = ExpressionStart::kDeformationTransfer;
-  } else {
-    return report_failure(
-        Error{"eval fit: --expression-start must be model or transfer, not '" + start + "'"});
-  }
+  setup.expression_start = *start;
   setup.dlib_fit = fit_landmarks == "dlib";
   if (const std::string e = options.get("landmark-embedding"); e != "model") {
     auto embedding = e == "dlib" ? load_landmark_embedding(*model)

@@ -56,7 +56,7 @@ class ExpressionTransfer {
 // recipe to the capture (expression_amplitude.hpp), then refine with E2 and this capture's
 // landmarks.
 // `guide_parts` are G0 plus one recipe part each (algo/guide's guide_part_meshes); without them
-// the transfer is refined as it is. `initial_pose` (e.g. the neutral's pose) seeds the alignment.
+// the start is refined as it is. `initial_pose` (e.g. the neutral's pose) seeds the alignment.
 Result<FitResult> fit_expression(const FaceModel& model, const ExpressionTransfer& transfer,
                                  std::span<const float> guide_expression, const FitTarget& target,
                                  const ExpressionFitOptions& options = {},

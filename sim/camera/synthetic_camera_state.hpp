@@ -11,25 +11,13 @@
 #include <span>
 #include <vector>
 
-#include "algo/core/mix64.hpp"
+#include "sim/camera/hashed_draws.hpp"
 #include "sim/camera/render_ahead.hpp"
 #include "sim/camera/synthetic_camera.hpp"
 #include "sim/camera/synthetic_world.hpp"
 
 namespace fb {
 namespace synthetic_detail {
-
-inline double hashed_uniform(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {
-  const auto bits = mix64(mix64(seed ^ (stream << 56)) + k);
-  return (static_cast<double>(bits >> 11) + 0.5) * 0x1.0p-53;  // (0, 1)
-}
-
-// Box-Muller from two counter-based uniforms.
-inline double hashed_gaussian(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {
-  const double u1 = hashed_uniform(seed, stream, 2 * k),
-               u2 = hashed_uniform(seed, stream, 2 * k + 1);
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
-}
 
 inline constexpr std::uint64_t kStreamIdentity = 1, kStreamSkin = 2;
 

@@ -5,17 +5,12 @@
 
 #include <Eigen/Core>
 
-#include "algo/core/mix64.hpp"
+#include "sim/camera/hashed_draws.hpp"
 
 namespace fb {
 namespace {
 
 constexpr std::uint64_t kStreamAmount = 11, kStreamField = 12;
-
-double uniform01(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) {
-  const auto bits = mix64(mix64(seed ^ (stream << 56)) + k);
-  return (static_cast<double>(bits >> 11) + 0.5) * 0x1.0p-53;
-}
 
 // g(v) over the mean face: bumps on random face vertices, normalised to a peak of 1.
 std::vector<float> smooth_field(const FaceModel& model, std::uint64_t seed) {
@@ -26,11 +21,12 @@ std::vector<float> smooth_field(const FaceModel& model, std::uint64_t seed) {
   std::vector<float> g(static_cast<std::size_t>(V), 0.0f);
   constexpr int kBumps = 6;
   for (int k = 0; k < kBumps; ++k) {
-    const int centre =
-        std::min(model.face_vertex_count - 1,
-                 static_cast<int>(uniform01(seed, kStreamField, 4 * k) * model.face_vertex_count));
-    const float r = 20.0f + 20.0f * static_cast<float>(uniform01(seed, kStreamField, 4 * k + 1));
-    const float a = uniform01(seed, kStreamField, 4 * k + 2) < 0.5 ? -1.0f : 1.0f;
+    const int centre = std::min(
+        model.face_vertex_count - 1,
+        static_cast<int>(hashed_uniform(seed, kStreamField, 4 * k) * model.face_vertex_count));
+    const float r =
+        20.0f + 20.0f * static_cast<float>(hashed_uniform(seed, kStreamField, 4 * k + 1));
+    const float a = hashed_uniform(seed, kStreamField, 4 * k + 2) < 0.5 ? -1.0f : 1.0f;
     const Eigen::Vector3f c = at(centre);
     for (int v = 0; v < V; ++v) {
       const float d2 = (at(v) - c).squaredNorm();
@@ -53,7 +49,7 @@ std::vector<float> personal_expression_basis(const FaceModel& model, std::uint64
   const auto V = static_cast<std::size_t>(model.vertex_count);
   const std::vector<float> g = smooth_field(model, seed);
   for (int k = 0; k < model.expression_count; ++k) {
-    const double a = 1.0 + spread * (2.0 * uniform01(seed, kStreamAmount, k) - 1.0);
+    const double a = 1.0 + spread * (2.0 * hashed_uniform(seed, kStreamAmount, k) - 1.0);
     float* shape = basis.data() + static_cast<std::size_t>(k) * 3 * V;
     for (std::size_t v = 0; v < V; ++v) {
       const auto m = static_cast<float>(a * (1.0 + spread * g[v]));

@@ -35,7 +35,6 @@ struct ExpressionTransfer::State {
   Eigen::SparseMatrix<double> a_t;              // A^T (unknowns x 3T)
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
   Eigen::MatrixXd anchor;                     // epsilon * rest positions of all unknowns
-  Eigen::MatrixXd target_rest;                // S0, vertex_count x 3
   std::vector<std::uint32_t> fixed_vertices;  // where the translation is pinned
   std::optional<RefineSystem> refine_system;
   std::vector<float> rest_transfer;  // transfer(G0): what a part's displacement is taken from
@@ -105,7 +104,6 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
       trip.emplace_back(static_cast<int>(a), 3 * t + k, -sum);
     }
   }
-  s->target_rest = rest.topRows(nv);
   s->fixed_vertices = model.rigid_vertices;
   if (s->fixed_vertices.empty())
     for (int i = model.face_vertex_count; i < nv; ++i)
@@ -120,7 +118,7 @@ Result<ExpressionTransfer> ExpressionTransfer::create(const FaceModel& model,
   s->solver.compute(ata);
   if (s->solver.info() != Eigen::Success)
     return fail("deformation transfer: factorization failed (degenerate fitted mesh?)");
-  auto system = RefineSystem::create(model, RefineSystem::Points(s->target_rest),
+  auto system = RefineSystem::create(model, RefineSystem::Points(rest.topRows(nv)),
                                      refine_system_options(refine));
   if (!system) return system.failure();
   s->refine_system.emplace(std::move(*system));
@@ -153,9 +151,10 @@ Result<std::vector<float>> ExpressionTransfer::transfer(
   // move on average as they do in the guide (G_i - G_0).
   Eigen::RowVector3d shift = Eigen::RowVector3d::Zero();
   for (std::uint32_t v : s.fixed_vertices) {
-    for (int d = 0; d < 3; ++d)
+    for (int d = 0; d < 3; ++d) {
       shift[d] += guide_expression[3 * v + d] - s.guide_neutral[3 * v + d];
-    shift -= x.row(v) - s.target_rest.row(v);
+      shift[d] -= x(v, d) - s.neutral[3 * v + d];
+    }
   }
   if (!s.fixed_vertices.empty())
     x.rowwise() += shift / static_cast<double>(s.fixed_vertices.size());

@@ -168,6 +168,13 @@ void use_face_model_uvs(ExportContent& content, const FaceModel& model) {
   content.uvs.triangle_uvs = model.triangle_uvs;
 }
 
+const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
+  if (c.pose_details.empty() || c.pose_names.empty() || c.pose_names.front() != "neutral" ||
+      c.pose_details.front().normal_png.empty())
+    return nullptr;
+  return &c.pose_details.front().normal_png;
+}
+
 ShapeNames default_shape_names(ExportFormat format) {
   return format == ExportFormat::kGlb ? ShapeNames::kArkit : ShapeNames::kModel;
 }
@@ -181,14 +188,6 @@ constexpr const char* kTextureFile = "face.png";
 // A plain skin-tone material (Kd matches the glTF baseColorFactor), with the texture when there
 // is one (white Kd then, as glTF's factor, so the texture is not tinted).
 constexpr const char* kNormalFile = "face_normal.png";
-
-// The neutral's wrinkle normal map, when there is one (pose 0 is the neutral).
-const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
-  if (c.pose_details.empty() || c.pose_names.empty() || c.pose_names.front() != "neutral" ||
-      c.pose_details.front().normal_png.empty())
-    return nullptr;
-  return &c.pose_details.front().normal_png;
-}
 
 constexpr const char* kDisplacedMaterialName = "skin_displaced";
 

@@ -58,6 +58,9 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
 ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t seed,
                                 const std::string& face_model_path);
 
+// The neutral's wrinkle normal map (pose 0's detail), or nullptr: the glTF's normalTexture.
+const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& content);
+
 struct ExportRequest {
   ExportFormat format = ExportFormat::kFaceWarehouse;
   std::filesystem::path out;  // the folder to create

@@ -107,7 +107,8 @@ Result<TakeGlb> write_take_glb(const TakeGlbInput& in, ExportFolder& folder) {
     return none("session " + std::to_string(session) +
                 "'s subject has no rig to animate (build one: facebooth rig --store " +
                 in.store->root().string() + " --session " + std::to_string(session) + " --save)");
-  auto content = load_session_content(*in.store, session);  // the rig export --session writes
+  // The rig, texture and detail export --session writes; the capture frames are not needed.
+  auto content = load_session_content(*in.store, session, {.capture_frames = false});
   if (!content) return content.failure();
   use_face_model_uvs(*content, *in.model);
   auto arkit = to_arkit_rig(content->rig);
@@ -135,7 +136,6 @@ Result<TakeGlb> write_take_glb(const TakeGlbInput& in, ExportFolder& folder) {
     animation.extras.push_back(map_weight_extra(in));
     animation.extras.back().values = std::move(*c);
     out.detail = true;
-    out.subdivided_from = detail->source_vertices;
   }
   auto glb = encode_glb(*rig, options);
   if (!glb) return glb.failure();
@@ -144,15 +144,13 @@ Result<TakeGlb> write_take_glb(const TakeGlbInput& in, ExportFolder& folder) {
       options.uvs->fits(rig->triangles)
           ? static_cast<int>(split_seams(rig->triangles, *options.uvs).source_vertex.size())
           : rig->vertex_count();
-  out.manifest =
-      out.file + ": session " + std::to_string(session) + "'s rig (" + content->source["rig"] +
-      ") as export --session --format glb writes it (52 ARKit morph targets, metres), animated by "
-      "glTF animation '" +
-      animation.name +
-      "': LINEAR samplers at the take's measured frame "
-      "times; weights on node 1 (the mesh), the head pose on node 0 'head' (scene = the depth "
-      "camera's frame turned 180 degrees about X: +Y up, +Z toward the camera, origin at the "
-      "camera)";
+  out.manifest = out.file + ": session " + std::to_string(session) + "'s rig (" +
+                 content->source["rig"] +
+                 ") as export --session --format glb writes it (52 ARKit " +
+                 "morph targets, metres), animated by glTF animation '" + animation.name +
+                 "': LINEAR samplers at the take's measured frame times; weights on node 1 (the "
+                 "mesh), the head pose on node 0 'head' (scene = the depth camera's frame turned "
+                 "180 degrees about X: +Y up, +Z toward the camera, origin at the camera)";
   if (out.detail)
     out.manifest += "; wrinkle detail as geometry: the mesh subdivided under the detail (" +
                     std::to_string(out.vertices) + " glTF vertices from " +

@@ -30,7 +30,6 @@ struct TakeGlb {
   std::string file;      // take_ID.glb, empty when none was written
   std::string manifest;  // what it holds, or "none: " and why
   int vertices = 0;      // glTF vertices (seam copies included)
-  int subdivided_from = 0;
   bool detail = false;
 };
 

@@ -41,7 +41,8 @@ const char* to_string(ExportFormat format) {
   return "facewarehouse";
 }
 
-Result<ExportContent> load_session_content(const SessionStore& store, SessionId session) {
+Result<ExportContent> load_session_content(const SessionStore& store, SessionId session,
+                                           const SessionContentOptions& options) {
   auto info = store.session(session);
   if (!info) return info.failure();
   ExportContent content;
@@ -119,7 +120,7 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     content.pose_names.push_back(c.expression);
     ColorImage color;
     std::vector<Landmark> landmarks;
-    if (c.state == CaptureState::kDone) {
+    if (c.state == CaptureState::kDone && options.capture_frames) {
       auto data = store.read_capture(session, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->frames.empty()) color = std::move(data->frames.front().color);

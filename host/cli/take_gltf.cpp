@@ -114,6 +114,8 @@ Result<TakeGlb> write_take_glb(const TakeGlbInput& in, ExportFolder& folder) {
   auto arkit = to_arkit_rig(content->rig);
   if (!arkit) return none(arkit.error().message);
   GlbAnimation animation = take_animation(take);
+  if (auto usable = check_animation(animation, kArkitShapeCount); !usable)
+    return none("the take cannot be animated: " + usable.error().message);
   TakeGlb out;
   out.file = "take_" + std::to_string(take.info.id) + ".glb";
   GlbOptions options;

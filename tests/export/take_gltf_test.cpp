@@ -527,16 +527,18 @@ TEST_F(TakeGltf, WithoutDetailTheRigIsAnimatedUnsubdivided) {
   check_validator(path);
 }
 
-TEST_F(TakeGltf, WithoutSessionOrRigTheCsvStandsAndTheManifestSaysWhy) {
+TEST_F(TakeGltf, WithoutSessionRigOrUsableTimesTheCsvStandsAndTheManifestSaysWhy) {
   const TakeId lone = make_store(false, false, false);
   const TakeId unrigged = make_store(true, false, false);
+  frames_.times[7] = frames_.times[6];  // a clock that stood still: glTF needs increasing times
+  const TakeId stalled = make_store(true, true, false);
   struct Case {
     TakeId take;
     const char* why;
   };
-  for (const Case& c :
-       {Case{lone, "none: the take records no session"},
-        Case{unrigged, "subject has no rig to animate (build one: facebooth rig"}}) {
+  for (const Case& c : {Case{lone, "none: the take records no session"},
+                        Case{unrigged, "subject has no rig to animate (build one: facebooth rig"},
+                        Case{stalled, "none: the take cannot be animated: frame 7's time ("}}) {
     const fs::path out = dir_ / ("out" + std::to_string(c.take));
     const auto summary = export_take(c.take, out);
     EXPECT_TRUE(fs::exists(out / ("take_" + std::to_string(c.take) + ".csv")));

@@ -18,6 +18,7 @@ struct Work {
   std::vector<float> positions, uvs;
   std::vector<std::uint32_t> triangles, triangle_uvs;
   std::vector<char> refine;  // per triangle: split into four at the next level
+  std::vector<std::array<std::uint32_t, 2>> parents;  // per vertex made: its edge's ends
 };
 
 std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
@@ -27,11 +28,14 @@ std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
 // The midpoint of (a, b) in a list of `dim`-float items, made once per edge.
 class Midpoints {
  public:
-  Midpoints(std::vector<float>& items, int dim) : items_(items), dim_(dim) {}
+  Midpoints(std::vector<float>& items, int dim,
+            std::vector<std::array<std::uint32_t, 2>>* parents = nullptr)
+      : items_(items), dim_(dim), parents_(parents) {}
   std::uint32_t at(std::uint32_t a, std::uint32_t b) {
     const auto [it, added] = index_.try_emplace(edge_key(a, b), 0u);
     if (added) {
       it->second = static_cast<std::uint32_t>(items_.size() / dim_);
+      if (parents_ != nullptr) parents_->push_back({a, b});
       for (int k = 0; k < dim_; ++k)
         items_.push_back(0.5f * (items_[dim_ * a + k] + items_[dim_ * b + k]));
     }
@@ -42,13 +46,14 @@ class Midpoints {
  private:
   std::vector<float>& items_;
   int dim_;
+  std::vector<std::array<std::uint32_t, 2>>* parents_;
   std::unordered_map<std::uint64_t, std::uint32_t> index_;
 };
 
 // One level: triangles marked `refine` (and any with all three edges split) into four; their
 // unmarked neighbours into two or three, so no edge keeps a hanging midpoint.
 void subdivide_once(Work& w) {
-  Midpoints pos(w.positions, 3), uv(w.uvs, 2);
+  Midpoints pos(w.positions, 3, &w.parents), uv(w.uvs, 2);
   const std::size_t count = w.triangles.size() / 3;
   for (std::size_t t = 0; t < count; ++t)
     if (w.refine[t])
@@ -98,10 +103,39 @@ void subdivide_once(Work& w) {
   }
   out.positions = std::move(w.positions);
   out.uvs = std::move(w.uvs);
+  out.parents = std::move(w.parents);
   w = std::move(out);
 }
 
 }  // namespace
+
+std::vector<float> interpolate_midpoints(std::span<const float> values, int dim,
+                                         std::span<const std::array<std::uint32_t, 2>> parents) {
+  std::vector<float> out(values.begin(), values.end());
+  const std::size_t d = static_cast<std::size_t>(dim);
+  out.reserve(out.size() + d * parents.size());
+  for (const auto& [a, b] : parents)
+    for (std::size_t k = 0; k < d; ++k) out.push_back(0.5f * (out[d * a + k] + out[d * b + k]));
+  return out;
+}
+
+std::vector<float> corner_mean_heights(const FloatImage& map,
+                                       const std::vector<std::int32_t>& covered_triangle,
+                                       std::size_t vertex_count,
+                                       std::span<const std::uint32_t> triangles,
+                                       std::span<const float> uvs,
+                                       std::span<const std::uint32_t> triangle_uvs) {
+  std::vector<float> sum(vertex_count, 0.0f);
+  std::vector<int> corners(vertex_count, 0);
+  for (std::size_t c = 0; c < triangles.size(); ++c) {
+    const std::uint32_t v = triangles[c], q = triangle_uvs[c];
+    sum[v] += sample_displacement(map, covered_triangle, uvs[2 * q], uvs[2 * q + 1]);
+    ++corners[v];
+  }
+  for (std::size_t v = 0; v < vertex_count; ++v)
+    sum[v] = corners[v] > 0 ? sum[v] / static_cast<float>(corners[v]) : 0.0f;
+  return sum;
+}
 
 float sample_displacement(const FloatImage& map, const std::vector<std::int32_t>& covered_triangle,
                           float u, float v) {
@@ -159,22 +193,14 @@ Result<DetailMesh> subdivided_detail_mesh(const DetailMeshInput& in,
 
   // Heights per vertex: the mean over its corners' UVs (a seam vertex has one per side; the
   // map holds the same surface point's height on both).
-  const std::size_t n = w.positions.size() / 3;
-  std::vector<float> sum(n, 0.0f);
-  std::vector<int> corners(n, 0);
-  for (std::size_t c = 0; c < w.triangles.size(); ++c) {
-    const std::uint32_t v = w.triangles[c], q = w.triangle_uvs[c];
-    sum[v] += sample_displacement(disp, map->triangle, w.uvs[2 * q], w.uvs[2 * q + 1]);
-    ++corners[v];
-  }
-  out.heights.resize(n);
-  for (std::size_t v = 0; v < n; ++v)
-    out.heights[v] = corners[v] > 0 ? sum[v] / static_cast<float>(corners[v]) : 0.0f;
+  out.heights = corner_mean_heights(disp, map->triangle, w.positions.size() / 3, w.triangles, w.uvs,
+                                    w.triangle_uvs);
   out.positions = displace_mesh(w.positions, w.triangles, out.heights, options.smoothing);
   out.undisplaced = std::move(w.positions);
   out.triangles = std::move(w.triangles);
   out.uvs = std::move(w.uvs);
   out.triangle_uvs = std::move(w.triangle_uvs);
+  out.parents = std::move(w.parents);
   return out;
 }
 

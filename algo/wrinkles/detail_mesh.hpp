@@ -11,6 +11,7 @@
 // so the mesh has no T-junctions and stays closed where the input was.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -44,11 +45,28 @@ struct DetailMesh {
   std::vector<std::uint32_t> triangle_uvs;
   std::vector<float> heights;  // per vertex, sampled from the map (before border smoothing)
   int refined_triangles = 0;   // input triangles subdivided in full
+  // Vertex input_count + i is the midpoint of parents[i] (earlier vertices, in this order), so
+  // any per-vertex quantity of the input follows the subdivision: interpolate_midpoints.
+  std::vector<std::array<std::uint32_t, 2>> parents;
 };
 
 // Fails on a layout that does not fit the mesh, or an empty map.
 Result<DetailMesh> subdivided_detail_mesh(const DetailMeshInput& in,
                                           const DetailMeshOptions& options = {});
+
+// `values` (`dim` floats per input vertex) extended to the subdivided mesh's vertices: each
+// midpoint the mean of its parents, as the positions were (bit for bit the same arithmetic).
+std::vector<float> interpolate_midpoints(std::span<const float> values, int dim,
+                                         std::span<const std::array<std::uint32_t, 2>> parents);
+
+// Per vertex of a mesh with a per-corner UV layout: the map's height at its corners' UVs
+// (sample_displacement), the mean over a seam vertex's corners; 0 for a vertex in no triangle.
+std::vector<float> corner_mean_heights(const FloatImage& map,
+                                       const std::vector<std::int32_t>& covered_triangle,
+                                       std::size_t vertex_count,
+                                       std::span<const std::uint32_t> triangles,
+                                       std::span<const float> uvs,
+                                       std::span<const std::uint32_t> triangle_uvs);
 
 // The map's height at (u, v) (v up), bilinear over the texels the layout covers (texels
 // outside every UV triangle hold no surface and are left out of the weights).

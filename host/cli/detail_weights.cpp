@@ -142,9 +142,15 @@ Result<DetailWeightsCsv> DetailWeightsCsv::open(const std::filesystem::path& pat
   return csv;
 }
 
+std::vector<std::string> detail_weight_columns(const SessionDetailBlend& blend) {
+  std::vector<std::string> out;
+  for (std::size_t e = 0; e < blend.captures.size(); ++e) out.push_back(column_name(blend, e));
+  return out;
+}
+
 std::string DetailWeightsCsv::header(const SessionDetailBlend& blend) {
   std::string h = "frame,time_s,face_found";
-  for (std::size_t e = 0; e < blend.captures.size(); ++e) h += "," + column_name(blend, e);
+  for (const auto& column : detail_weight_columns(blend)) h += "," + column;
   return h;
 }
 
@@ -184,25 +190,35 @@ std::string detail_weights_description() {
          "(docs/wrinkles.md)";
 }
 
-Result<int> write_take_detail_weights(ExportFolder& folder, const TakeData& take,
-                                      const SessionDetailBlend& blend, const FaceModel& model) {
+Result<std::vector<float>> take_map_weights(const TakeData& take, const SessionDetailBlend& blend,
+                                            const FaceModel& model) {
   auto mapping = make_arkit_mapping(model);
   if (!mapping) return mapping.failure();
   // The take's columns by ARKit name (camelCase or Live Link's), back to the model's shapes.
   const std::array<int, kArkitShapeCount> column = arkit_columns(take.info.shape_names);
-  std::string text = DetailWeightsCsv::header(blend) + "\n";
-  std::array<float, kArkitShapeCount> arkit{};
+  const std::size_t layers = blend.captures.size();
+  std::vector<float> out(layers * static_cast<std::size_t>(take.info.frame_count));
   std::vector<float> weights(static_cast<std::size_t>(model.fitting_expression_count));
-  std::vector<float> c(blend.captures.size());
   for (int f = 0; f < take.info.frame_count; ++f) {
-    const auto v = take.frame(f);
-    for (int k = 0; k < kArkitShapeCount; ++k)
-      arkit[k] = column[k] >= 0 ? v[kTakePoseValues + column[k]] : 0.0f;
     std::fill(weights.begin(), weights.end(), 0.0f);
-    mapping->to_model(arkit, weights);
-    blend.blend.map_weights(weights, c);
-    text += DetailWeightsCsv::row(f, take.times_s[static_cast<std::size_t>(f)], true, c) + "\n";
+    mapping->to_model(arkit_curves(take, column, f), weights);
+    blend.blend.map_weights(
+        weights, std::span<float>(out).subspan(static_cast<std::size_t>(f) * layers, layers));
   }
+  return out;
+}
+
+Result<int> write_take_detail_weights(ExportFolder& folder, const TakeData& take,
+                                      const SessionDetailBlend& blend, const FaceModel& model) {
+  auto c = take_map_weights(take, blend, model);
+  if (!c) return c.failure();
+  const std::size_t layers = blend.captures.size();
+  std::string text = DetailWeightsCsv::header(blend) + "\n";
+  for (int f = 0; f < take.info.frame_count; ++f)
+    text += DetailWeightsCsv::row(
+                f, take.times_s[static_cast<std::size_t>(f)], true,
+                std::span<const float>(*c).subspan(static_cast<std::size_t>(f) * layers, layers)) +
+            "\n";
   if (auto r =
           folder.write_text("take_" + std::to_string(take.info.id) + "_detail_weights.csv", text);
       !r)

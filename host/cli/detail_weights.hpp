@@ -63,6 +63,14 @@ class DetailWeightsCsv {
   std::ofstream out_;
 };
 
+// Layer e's column name, EXPRESSION@CAPTURE, for every layer.
+std::vector<std::string> detail_weight_columns(const SessionDetailBlend& blend);
+
+// A stored take's map weights: per frame, c = P^T a from its ARKit curves taken back to the
+// model's shapes (ArkitMapping::to_model); frames x layers.
+Result<std::vector<float>> take_map_weights(const TakeData& take, const SessionDetailBlend& blend,
+                                            const FaceModel& model);
+
 // What the map weights mean, for manifests and reports.
 std::string detail_weights_description();
 

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "algo/core/clock.hpp"
 #include "algo/tracking/arkit.hpp"
@@ -15,6 +16,8 @@
 #include "host/cli/detail_weights.hpp"
 #include "host/cli/export_summary.hpp"
 #include "host/cli/stats.hpp"
+#include "host/cli/take_columns.hpp"
+#include "host/cli/take_gltf.hpp"
 #include "storage/asset_files.hpp"
 #include "storage/durable_file.hpp"
 #include "storage/export/export_folder.hpp"
@@ -87,29 +90,59 @@ Result<SessionStore> open_reader(const ParsedOptions& options) {
   return SessionStore::open(options.get("store"), ro);
 }
 
+// What a take's session adds beside its CSV: the face model (for the glb's UV layout and the
+// map weights) and, when the session has wrinkle detail on its neutral and expressions, the
+// blend of its maps; with what the manifest says about the map weights.
+struct TakeSessionParts {
+  std::optional<FaceModel> model;
+  std::string model_problem;
+  std::optional<SessionDetailBlend> detail;
+  std::string detail_note;
+};
+
+Result<TakeSessionParts> take_session_parts(const SessionStore& store, const TakeData& take) {
+  TakeSessionParts out;
+  if (!take.info.session) {
+    out.detail_note = "none: the take has no session";
+    return out;
+  }
+  const SessionId session = *take.info.session;
+  auto model = load_face_model();
+  if (!model)
+    out.model_problem = "the face model cannot be read (" + model.error().message + ")";
+  else
+    out.model = std::move(*model);
+  auto details = store.wrinkle_details(session);
+  if (!details) return details.failure();
+  if (details->empty()) {
+    out.detail_note =
+        "none: session " + std::to_string(session) + " has no wrinkle detail (facebooth wrinkles)";
+    return out;
+  }
+  if (!out.model) return fail(out.model_problem);
+  auto guide = load_guide_expressions(*out.model);
+  if (!guide) return guide.failure();
+  auto blend = load_session_detail_blend(store, session, *out.model, *guide);
+  if (!blend) {
+    out.detail_note = "none: " + blend.error().message;
+    return out;
+  }
+  out.detail = std::move(*blend);
+  return out;
+}
+
 // The wrinkle map weights of a take whose session has detail maps (issue 40 item 5), beside
 // its CSV; what the manifest says about them.
-Result<std::string> take_detail_weights(const SessionStore& store, const TakeData& take,
+Result<std::string> take_detail_weights(const TakeData& take, const TakeSessionParts& parts,
                                         ExportFolder& folder) {
-  if (!take.info.session) return std::string("none: the take has no session");
-  auto details = store.wrinkle_details(*take.info.session);
-  if (!details) return details.failure();
-  if (details->empty())
-    return "none: session " + std::to_string(*take.info.session) +
-           " has no wrinkle detail (facebooth wrinkles)";
-  auto model = load_face_model();
-  if (!model) return model.failure();
-  auto guide = load_guide_expressions(*model);
-  if (!guide) return guide.failure();
-  auto blend = load_session_detail_blend(store, *take.info.session, *model, *guide);
-  if (!blend) return "none: " + blend.error().message;
-  auto layers = write_take_detail_weights(folder, take, *blend, *model);
+  if (!parts.detail) return parts.detail_note;
+  auto layers = write_take_detail_weights(folder, take, *parts.detail, *parts.model);
   if (!layers) return layers.failure();
   return "take_" + std::to_string(take.info.id) +
          "_detail_weights.csv: " + detail_weights_description() +
          "; the maps: wrinkles/capture_I_normal.png (tangent space, x along +u, y along +v) and "
          "wrinkles/capture_I_displacement.pgm (16-bit, mm = (value - 32768) / 1000), capture " +
-         std::to_string(blend->neutral_capture) + " is N";
+         std::to_string(parts.detail->neutral_capture) + " is N";
 }
 
 // Writes the manifest and says what the export holds (`files` including the manifest).
@@ -124,25 +157,17 @@ Result<ExportSummary> finish_export(ExportFolder& folder, const ExportManifest& 
   return summary;
 }
 
-// A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name).
+// A stored tracking take as Live Link Face CSV (the tracker's ARKit curves by name), and as
+// an animated glTF of its session's rig when there is one (take_gltf.hpp).
 Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs::path& out,
-                                  bool overwrite) {
+                                  bool overwrite, TakeGlb& glb) {
   const auto start = Clock::now();
   auto take = store.read_take(id);
   if (!take) return take.failure();
   const TakeInfo& info = take->info;
-  std::array<int, kArkitShapeCount> column;
-  column.fill(-1);
-  int matched = 0;
-  for (int k = 0; k < kArkitShapeCount; ++k) {
-    for (std::size_t i = 0; i < info.shape_names.size(); ++i) {
-      if (info.shape_names[i] == kArkitNames[k] || info.shape_names[i] == kLiveLinkNames[k]) {
-        column[k] = static_cast<int>(i);
-        ++matched;
-        break;
-      }
-    }
-  }
+  const std::array<int, kArkitShapeCount> column = arkit_columns(info.shape_names);
+  const int matched =
+      static_cast<int>(std::count_if(column.begin(), column.end(), [](int c) { return c >= 0; }));
   if (matched == 0) {
     return fail("take " + std::to_string(id) +
                 " has no ARKit curve names (e.g. jawOpen), so it cannot be written as Live Link "
@@ -163,9 +188,7 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
     frame.index = static_cast<std::uint64_t>(f);
     frame.time_s = take->times_s[static_cast<std::size_t>(f)];  // measured, not f / fps
     frame.face_found = true;
-    for (int k = 0; k < kArkitShapeCount; ++k) {
-      if (column[k] >= 0) frame.weights[k] = v[7 + column[k]];
-    }
+    frame.weights = arkit_curves(*take, column, f);
     frame.camera_from_model.translation = Eigen::Vector3d(v[0], v[1], v[2]);
     frame.camera_from_model.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();
     text += format_livelink_row(to_livelink_row(frame), info.fps, start_of_day_s) + "\n";
@@ -175,8 +198,15 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   if (auto r = folder->write_text("take_" + std::to_string(id) + ".csv", text); !r) {
     return r.failure();
   }
-  auto detail = take_detail_weights(store, *take, *folder);
+  auto parts = take_session_parts(store, *take);
+  if (!parts) return parts.failure();
+  auto detail = take_detail_weights(*take, *parts, *folder);
   if (!detail) return detail.failure();
+  auto animated = write_take_glb({&store, &*take, parts->model ? &*parts->model : nullptr,
+                                  parts->model_problem, parts->detail ? &*parts->detail : nullptr},
+                                 *folder);
+  if (!animated) return animated.failure();
+  glb = std::move(*animated);
   ExportManifest manifest;
   manifest.what = "livelink_csv";
   manifest.source = {{"kind", "take"},
@@ -192,7 +222,8 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
                        "the Live Link Face app's order (JawRight before JawLeft, MouthRight "
                        "before MouthLeft); tongueOut is 0 (the skin has no tongue)"},
                       {"format", "Live Link Face CSV (see storage/export/livelink_csv.hpp)"},
-                      {"detail_weights", *detail}};
+                      {"detail_weights", *detail},
+                      {"glb", glb.manifest}};
   return finish_export(*folder, manifest, static_cast<int>(folder->files().size()) + 1, start);
 }
 
@@ -234,11 +265,21 @@ int run_export_stored_item(const ParsedOptions& options) {
   const bool take = !options.get("take").empty();
   auto id = options.get_int(take ? "take" : "model");
   if (!id) return report_failure(id.error());
-  auto summary = take ? export_take(*store, *id, options.get("out"), options.flag("force"))
+  TakeGlb glb;
+  auto summary = take ? export_take(*store, *id, options.get("out"), options.flag("force"), glb)
                       : export_model(*store, *id, options.get("out"), options.flag("force"));
   if (!summary) return report_failure(summary.error());
   nlohmann::json out = summary_json(*summary);
   out["format"] = take ? "livelink" : "model";
+  if (take) {
+    out["glb"] = glb.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(glb.file);
+    if (glb.file.empty()) {
+      out["glb_note"] = glb.manifest;
+    } else {
+      out["glb_vertices"] = glb.vertices;
+      out["glb_detail"] = glb.detail;
+    }
+  }
   std::cout << out.dump(2) << std::endl;
   return kExitOk;
 }
@@ -436,15 +477,25 @@ std::vector<Command> storage_commands() {
         "target); --names model (the default for the others) keeps the face model's names.\n"
         "Without a session, --from-face-model --seed N exports a synthetic subject: the face "
         "model with a random identity and 20 poses at known weights.\n"
-        "--take ID writes a tracking take as Live Link Face CSV (take_ID.csv); --model ID "
-        "writes a stored model's file.",
+        "--take ID writes a tracking take as Live Link Face CSV (take_ID.csv) and, when the "
+        "take's session has a rig, take_ID.glb: that rig as the glb above with one glTF "
+        "animation of the take (the 52 ARKit curves as morph target weights at the take's "
+        "frame times, the head pose on a parent node, the Kinect at the origin); with the "
+        "session's wrinkle detail (facebooth wrinkles) the mesh is subdivided under it and the "
+        "targets carry each shape's detail, so any glTF viewer shows the wrinkles move, and "
+        "take_ID_detail_weights.csv + wrinkles/ hold the per-frame map weights and maps. "
+        "Without a session or rig the manifest's glb entry says why there is no .glb. "
+        "--model ID writes a stored model's file.",
         {{"session", "ID", "export this stored session (its subject's rig and fitted meshes)", ""},
          store_option(),
          {"from-face-model", "", "export a synthetic subject built from the face model", ""},
          {"seed", "N", "identity seed for --from-face-model", "1"},
          {"face-model", "PATH", "face model for --from-face-model (default: the installed one)",
           ""},
-         {"take", "ID", "export this stored tracking take as Live Link Face CSV", ""},
+         {"take", "ID",
+          "export this stored tracking take: Live Link Face CSV, and an animated glb of its "
+          "session's rig",
+          ""},
          {"model", "ID", "export this stored model (e.g. the bilinear model) file", ""},
          {"format", "NAME", "facewarehouse, glb, obj or ply (for --session/--from-face-model)",
           "facewarehouse"},

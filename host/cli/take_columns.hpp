@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "algo/tracking/arkit.hpp"
+#include "storage/session_store.hpp"
 
 namespace fb::cli {
 
@@ -21,6 +22,16 @@ inline std::array<int, kArkitShapeCount> arkit_columns(const std::vector<std::st
         break;
       }
   return column;
+}
+
+// Frame f's ARKit curves in Apple's order (0 where the take lacks the curve).
+inline std::array<float, kArkitShapeCount> arkit_curves(
+    const TakeData& take, const std::array<int, kArkitShapeCount>& column, int f) {
+  std::array<float, kArkitShapeCount> out{};
+  const auto v = take.frame(f);
+  for (int k = 0; k < kArkitShapeCount; ++k)
+    out[k] = column[k] >= 0 ? v[kTakePoseValues + column[k]] : 0.0f;
+  return out;
 }
 
 }  // namespace fb::cli

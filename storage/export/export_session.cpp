@@ -41,7 +41,8 @@ const char* to_string(ExportFormat format) {
   return "facewarehouse";
 }
 
-Result<ExportContent> load_session_content(const SessionStore& store, SessionId session) {
+Result<ExportContent> load_session_content(const SessionStore& store, SessionId session,
+                                           const SessionContentOptions& options) {
   auto info = store.session(session);
   if (!info) return info.failure();
   ExportContent content;
@@ -119,7 +120,7 @@ Result<ExportContent> load_session_content(const SessionStore& store, SessionId 
     content.pose_names.push_back(c.expression);
     ColorImage color;
     std::vector<Landmark> landmarks;
-    if (c.state == CaptureState::kDone) {
+    if (c.state == CaptureState::kDone && options.capture_frames) {
       auto data = store.read_capture(session, c.index, {.max_frames = 1});  // colour of frame 0
       if (!data) return data.failure();
       if (!data->frames.empty()) color = std::move(data->frames.front().color);
@@ -168,6 +169,13 @@ void use_face_model_uvs(ExportContent& content, const FaceModel& model) {
   content.uvs.triangle_uvs = model.triangle_uvs;
 }
 
+const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
+  if (c.pose_details.empty() || c.pose_names.empty() || c.pose_names.front() != "neutral" ||
+      c.pose_details.front().normal_png.empty())
+    return nullptr;
+  return &c.pose_details.front().normal_png;
+}
+
 ShapeNames default_shape_names(ExportFormat format) {
   return format == ExportFormat::kGlb ? ShapeNames::kArkit : ShapeNames::kModel;
 }
@@ -181,14 +189,6 @@ constexpr const char* kTextureFile = "face.png";
 // A plain skin-tone material (Kd matches the glTF baseColorFactor), with the texture when there
 // is one (white Kd then, as glTF's factor, so the texture is not tinted).
 constexpr const char* kNormalFile = "face_normal.png";
-
-// The neutral's wrinkle normal map, when there is one (pose 0 is the neutral).
-const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& c) {
-  if (c.pose_details.empty() || c.pose_names.empty() || c.pose_names.front() != "neutral" ||
-      c.pose_details.front().normal_png.empty())
-    return nullptr;
-  return &c.pose_details.front().normal_png;
-}
 
 constexpr const char* kDisplacedMaterialName = "skin_displaced";
 

@@ -54,9 +54,18 @@ void use_face_model_uvs(ExportContent& content, const FaceModel& model);
 // fitted meshes by capture index (a kNeutral mesh counts as pose 0), and each done capture's
 // first colour frame and landmarks. A subject without a rig exports the session's fitted
 // neutral as a rig without blendshapes (OBJ, PLY, glTF; FaceWarehouse needs blendshapes).
-Result<ExportContent> load_session_content(const SessionStore& store, SessionId session);
+struct SessionContentOptions {
+  // Each done capture's first colour frame and landmarks (FaceWarehouse's pose_i.png/.land):
+  // reading them checks every capture's frames file, seconds for a 20-capture session.
+  bool capture_frames = true;
+};
+Result<ExportContent> load_session_content(const SessionStore& store, SessionId session,
+                                           const SessionContentOptions& options = {});
 ExportContent synthetic_content(const SyntheticSubject& subject, std::uint64_t seed,
                                 const std::string& face_model_path);
+
+// The neutral's wrinkle normal map (pose 0's detail), or nullptr: the glTF's normalTexture.
+const std::vector<std::uint8_t>* neutral_normal_png(const ExportContent& content);
 
 struct ExportRequest {
   ExportFormat format = ExportFormat::kFaceWarehouse;

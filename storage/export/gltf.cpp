@@ -8,42 +8,12 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
+#include "storage/export/glb_buffer.hpp"
+#include "storage/export/gltf_animation_json.hpp"
+
 namespace fb {
 
 namespace {
-
-constexpr std::uint32_t kGlbMagic = 0x46546C67;  // "glTF"
-constexpr std::uint32_t kJsonChunk = 0x4E4F534A;
-constexpr std::uint32_t kBinChunk = 0x004E4942;
-constexpr int kFloat = 5126;
-constexpr int kUnsignedInt = 5125;
-constexpr int kArrayBuffer = 34962;
-constexpr int kElementArrayBuffer = 34963;
-
-// The .glb container: header, the JSON chunk and the binary chunk, each padded to 4 bytes.
-Result<std::vector<std::uint8_t>> pack_glb(std::string json, std::vector<std::uint8_t> bin) {
-  while (json.size() % 4 != 0) json.push_back(' ');
-  while (bin.size() % 4 != 0) bin.push_back(0);
-  const std::size_t total = 12 + 8 + json.size() + 8 + bin.size();
-  if (total > std::numeric_limits<std::uint32_t>::max()) return fail("rig too large for a .glb");
-  std::vector<std::uint8_t> out(total);
-  std::uint8_t* p = out.data();
-  auto put32 = [&](std::uint32_t v) {
-    std::memcpy(p, &v, 4);  // glb is little-endian, like the hosts we build for
-    p += 4;
-  };
-  put32(kGlbMagic);
-  put32(2);
-  put32(static_cast<std::uint32_t>(total));
-  put32(static_cast<std::uint32_t>(json.size()));
-  put32(kJsonChunk);
-  std::memcpy(p, json.data(), json.size());
-  p += json.size();
-  put32(static_cast<std::uint32_t>(bin.size()));
-  put32(kBinChunk);
-  std::memcpy(p, bin.data(), bin.size());
-  return out;
-}
 
 // Per-output-vertex texture coordinates of a seam-split mesh (glTF's v runs downwards).
 std::vector<float> split_texcoords(const SplitMesh& split, const std::vector<float>& uvs) {
@@ -70,20 +40,20 @@ nlohmann::json skin_material(const GlbOptions& options, bool with_texture) {
   return material;
 }
 
-// The glTF document of one mesh in one node, one material and one buffer.
+// The glTF document of one mesh in one node, one material and one buffer; with an animation
+// the mesh's node is the child of a "head" node (GlbAnimationNodes) that carries the head pose.
 nlohmann::json document(const GlbOptions& options, const nlohmann::json& mesh,
-                        const nlohmann::json& material, std::size_t buffer_bytes,
-                        const nlohmann::json& views, const nlohmann::json& accessors) {
+                        const nlohmann::json& material) {
+  nlohmann::json nodes = {{{"mesh", 0}, {"name", options.name}}};
+  if (options.animation != nullptr)
+    nodes = {{{"name", "head"}, {"children", {1}}}, {{"mesh", 0}, {"name", options.name}}};
   return {
       {"asset", {{"version", "2.0"}, {"generator", "facebooth"}}},
       {"scene", 0},
       {"scenes", {{{"nodes", {0}}}}},
-      {"nodes", {{{"mesh", 0}, {"name", options.name}}}},
+      {"nodes", nodes},
       {"meshes", {mesh}},
       {"materials", {material}},
-      {"buffers", {{{"byteLength", buffer_bytes}}}},
-      {"bufferViews", views},
-      {"accessors", accessors},
   };
 }
 
@@ -145,6 +115,10 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   const int nv = rig.vertex_count();
   if (nv == 0 || rig.triangles.empty()) return fail("cannot export an empty rig as glTF");
   if (rig.shape_names.size() != rig.shapes.size()) return fail("rig shape names do not match");
+  if (options.animation != nullptr) {
+    if (auto r = check_animation(*options.animation, rig.shape_count()); !r)
+      return fail("cannot animate the glTF: " + r.error().message);
+  }
 
   // Output vertices: one per (vertex, UV) corner pair with UVs, else the rig's own.
   const bool textured = options.uvs != nullptr && options.uvs->fits(rig.triangles);
@@ -167,47 +141,11 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
     return out;
   };
 
-  std::vector<std::uint8_t> bin;
-  nlohmann::json views = nlohmann::json::array();
-  nlohmann::json accessors = nlohmann::json::array();
-  // target 0: no target (an image); blocks are padded to 4 bytes so accessors stay aligned.
-  auto add_view = [&](const void* data, std::size_t bytes, int target) {
-    const std::size_t offset = bin.size();
-    bin.resize(offset + bytes);
-    std::memcpy(bin.data() + offset, data, bytes);
-    while (bin.size() % 4 != 0) bin.push_back(0);
-    nlohmann::json view = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}};
-    if (target != 0) view["target"] = target;
-    views.push_back(view);
-    return static_cast<int>(views.size() - 1);
-  };
-  // A float accessor of `components` per element; min/max (required for POSITION) are exact.
+  GlbBuffer buffer;
   auto add_floats = [&](const std::vector<float>& values, int components, const char* type) {
-    std::vector<float> lo(static_cast<std::size_t>(components), std::numeric_limits<float>::max());
-    std::vector<float> hi(static_cast<std::size_t>(components),
-                          std::numeric_limits<float>::lowest());
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      const std::size_t k = i % static_cast<std::size_t>(components);
-      lo[k] = std::min(lo[k], values[i]);
-      hi[k] = std::max(hi[k], values[i]);
-    }
-    const int view = add_view(values.data(), values.size() * sizeof(float), kArrayBuffer);
-    accessors.push_back({{"bufferView", view},
-                         {"componentType", kFloat},
-                         {"count", values.size() / static_cast<std::size_t>(components)},
-                         {"type", type},
-                         {"min", lo},
-                         {"max", hi}});
-    return static_cast<int>(accessors.size() - 1);
+    return buffer.add_floats(values, components, type);
   };
-
-  const int indices_view = add_view(
-      split.triangles.data(), split.triangles.size() * sizeof(std::uint32_t), kElementArrayBuffer);
-  accessors.push_back({{"bufferView", indices_view},
-                       {"componentType", kUnsignedInt},
-                       {"count", split.triangles.size()},
-                       {"type", "SCALAR"}});
-  const int indices = 0;
+  const int indices = buffer.add_indices(split.triangles);
 
   const std::vector<float> neutral = gather(rig.neutral, options.scale);
   const std::vector<float> neutral_normals = vertex_normals(rig.neutral, rig.triangles);
@@ -251,15 +189,20 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   nlohmann::json material = skin_material(options, with_texture);
   std::vector<int> image_views;
   if (with_texture)
-    image_views.push_back(
-        add_view(options.base_color_png->data(), options.base_color_png->size(), 0));
+    image_views.push_back(buffer.add_view(options.base_color_png->data(),
+                                          options.base_color_png->size(), GlbBuffer::kNoTarget));
   if (with_normal_map) {
-    image_views.push_back(add_view(options.normal_png->data(), options.normal_png->size(), 0));
+    image_views.push_back(buffer.add_view(options.normal_png->data(), options.normal_png->size(),
+                                          GlbBuffer::kNoTarget));
     material["normalTexture"] = {{"index", image_views.size() - 1}, {"texCoord", 0}};
   }
-  nlohmann::json gltf = document(options, mesh, material, bin.size(), views, accessors);
+  nlohmann::json gltf = document(options, mesh, material);
   if (!image_views.empty()) add_textures(gltf, image_views);
-  return pack_glb(gltf.dump(), std::move(bin));
+  if (options.animation != nullptr) add_animation(gltf, buffer, *options.animation, {});
+  gltf["buffers"] = {{{"byteLength", buffer.size()}}};
+  gltf["bufferViews"] = buffer.views();
+  gltf["accessors"] = buffer.accessors();
+  return pack_glb(gltf.dump(), buffer.take_bytes());
 }
 
 }  // namespace fb

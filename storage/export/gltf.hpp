@@ -11,7 +11,9 @@
 //  - with a normal map (the wrinkle detail, issue 40), the material's normalTexture and a
 //    TANGENT per vertex: xyz along +u of the UV layout, w chosen so that glTF's bitangent
 //    cross(normal, tangent) * w runs along +v of the layout (up in the image), the map's green
-//    axis. Given rather than left to a viewer's MikkTSpace, so every viewer agrees.
+//    axis. Given rather than left to a viewer's MikkTSpace, so every viewer agrees;
+//  - with an animation (gltf_animation.hpp), the mesh's node under a "head" node and one glTF
+//    animation: the targets' weights per frame on the mesh's node, the head pose on its parent.
 #pragma once
 
 #include <array>
@@ -20,6 +22,7 @@
 #include <vector>
 
 #include "algo/core/result.hpp"
+#include "storage/export/gltf_animation.hpp"
 #include "storage/export/mesh_geometry.hpp"
 #include "storage/stored_data.hpp"
 
@@ -37,6 +40,9 @@ struct GlbOptions {
   // A tangent-space normal map (PNG, x along +u, y along +v) in the UV layout as the material's
   // normalTexture (with the UVs only); adds TANGENT.
   const std::vector<std::uint8_t>* normal_png = nullptr;
+  // One animation of the morph targets' weights (in the rig's shape order) and the head pose;
+  // nullptr: a still rig with one node.
+  const GlbAnimation* animation = nullptr;
 };
 
 // Per-vertex glTF tangents (4 floats each) of a mesh with one UV per vertex: +u on the surface

@@ -27,6 +27,7 @@
 #include "storage/export/synthetic_subject.hpp"
 #include "tests/common/gltf_validator.hpp"
 #include "tests/common/run_command.hpp"
+#include "tests/export/glb_reader.hpp"
 
 namespace fb {
 namespace {
@@ -108,35 +109,8 @@ const std::vector<std::string> kAppleOrder = {
     "cheekSquintRight",  "noseSneerLeft",      "noseSneerRight",
     "tongueOut"};
 
-// The JSON chunk of a .glb and the float data of one accessor (tightly packed views only).
-struct Glb {
-  nlohmann::json json;
-  std::vector<std::uint8_t> bytes;
-  std::size_t bin_offset = 0;
-  std::vector<float> floats(int accessor) const {
-    const auto& a = json["accessors"][accessor];
-    const auto& v = json["bufferViews"][a["bufferView"].get<int>()];
-    const std::size_t count = a["count"].get<std::size_t>() * (a["type"] == "VEC2"   ? 2
-                                                               : a["type"] == "VEC4" ? 4
-                                                                                     : 3);
-    std::vector<float> out(count);
-    std::memcpy(out.data(), bytes.data() + bin_offset + v["byteOffset"].get<std::size_t>(),
-                count * sizeof(float));
-    return out;
-  }
-};
-Glb read_glb(const fs::path& path) {
-  Glb glb;
-  auto bytes = read_file_bytes(path);
-  EXPECT_TRUE(bytes);
-  if (!bytes) return glb;
-  glb.bytes = std::move(*bytes);
-  std::uint32_t head[5];
-  std::memcpy(head, glb.bytes.data(), sizeof head);
-  glb.json = nlohmann::json::parse(glb.bytes.begin() + 20, glb.bytes.begin() + 20 + head[3]);
-  glb.bin_offset = 20 + head[3] + 8;
-  return glb;
-}
+using test::Glb;
+using test::read_glb;
 
 std::optional<nlohmann::json> validate(const fs::path& glb, std::string& skip) {
   return test::validate_gltf(glb, skip);

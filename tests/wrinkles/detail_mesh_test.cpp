@@ -18,6 +18,7 @@
 #include "storage/export/export_session.hpp"
 #include "storage/export/synthetic_subject.hpp"
 #include "tests/common/run_command.hpp"
+#include "tests/common/uv_locator.hpp"
 
 namespace fb {
 namespace {
@@ -86,7 +87,8 @@ TEST(DetailMesh, PlaneHeightsInsideExactSurfaceOutsideNoTJunctions) {
     const bool out = x < 12 || x > 38 || y < 12 || y > 38;
     if (in) {
       ++inside;
-      worst_inside = std::max(worst_inside, static_cast<double>(std::abs(p[2] - plane_height(x, y))));
+      worst_inside =
+          std::max(worst_inside, static_cast<double>(std::abs(p[2] - plane_height(x, y))));
     } else if (out) {
       ++outside;
       worst_outside = std::max(worst_outside, std::abs(static_cast<double>(p[2])));
@@ -118,45 +120,7 @@ TEST(DetailMesh, NoMapOrMismatchedLayoutIsAnError) {
   EXPECT_NE(r.error().message.find("UV layout"), std::string::npos);
 }
 
-// Locates a UV in the face model's layout: a grid of buckets over the UV triangles.
-class UvLocator {
- public:
-  UvLocator(const std::vector<float>& uvs, const std::vector<std::uint32_t>& triangle_uvs)
-      : uvs_(uvs), tri_(triangle_uvs), cells_(kCells * kCells) {
-    for (std::size_t t = 0; t < tri_.size() / 3; ++t) {
-      float lo[2] = {1, 1}, hi[2] = {0, 0};
-      for (int k = 0; k < 3; ++k)
-        for (int d = 0; d < 2; ++d) {
-          lo[d] = std::min(lo[d], uvs_[2 * tri_[3 * t + k] + d]);
-          hi[d] = std::max(hi[d], uvs_[2 * tri_[3 * t + k] + d]);
-        }
-      for (int y = cell(lo[1]); y <= cell(hi[1]); ++y)
-        for (int x = cell(lo[0]); x <= cell(hi[0]); ++x)
-          cells_[static_cast<std::size_t>(y * kCells + x)].push_back(static_cast<int>(t));
-    }
-  }
-  // The triangle and barycentric weights at (u, v), or triangle -1.
-  std::pair<int, Eigen::Vector3d> find(double u, double v) const {
-    for (int t : cells_[static_cast<std::size_t>(cell(v) * kCells + cell(u))]) {
-      Eigen::Vector2d q[3];
-      for (int k = 0; k < 3; ++k) q[k] = {uvs_[2 * tri_[3 * t + k]], uvs_[2 * tri_[3 * t + k] + 1]};
-      Eigen::Matrix2d m;
-      m << q[1] - q[0], q[2] - q[0];
-      if (std::abs(m.determinant()) < 1e-14) continue;
-      const Eigen::Vector2d b = m.inverse() * (Eigen::Vector2d(u, v) - q[0]);
-      if (b.x() >= -1e-5 && b.y() >= -1e-5 && b.x() + b.y() <= 1 + 1e-5)
-        return {t, Eigen::Vector3d(1 - b.x() - b.y(), b.x(), b.y())};
-    }
-    return {-1, {}};
-  }
-
- private:
-  static constexpr int kCells = 256;
-  static int cell(double x) { return std::clamp(static_cast<int>(x * kCells), 0, kCells - 1); }
-  const std::vector<float>& uvs_;
-  const std::vector<std::uint32_t>& tri_;
-  std::vector<std::vector<int>> cells_;
-};
+using test::UvLocator;
 
 // The OBJ as written: positions, UVs and per vertex its first corner's UV.
 struct ObjFile {

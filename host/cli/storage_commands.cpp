@@ -208,7 +208,7 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   if (!animated) return animated.failure();
   glb = std::move(*animated);
   ExportManifest manifest;
-  manifest.what = "livelink_csv";
+  manifest.what = glb.file.empty() ? "livelink_csv" : "livelink_csv+glb";
   manifest.source = {{"kind", "take"},
                      {"store", store.root().string()},
                      {"take", std::to_string(id)},

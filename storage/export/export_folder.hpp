@@ -18,7 +18,7 @@ namespace fb {
 inline constexpr int kExportManifestVersion = 1;
 
 struct ExportManifest {
-  std::string what;                            // "facewarehouse", "glb", "obj", "ply"
+  std::string what;  // "facewarehouse", "glb", "obj", "ply", a take's "livelink_csv[+glb]"
   std::map<std::string, std::string> source;   // session/subject/store, or face_model/seed
   std::map<std::string, std::string> details;  // counts, units, conventions
 };

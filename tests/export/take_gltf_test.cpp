@@ -437,6 +437,7 @@ TEST_F(TakeGltf, WrinkleDetailMovesWithTheExpressionInTheAnimatedMesh) {
   const std::string manifest = slurp(out / "manifest.json");
   const auto m = nlohmann::json::parse(manifest);
   EXPECT_EQ(m["details"]["glb"].get<std::string>().rfind(stem + ".glb: ", 0), 0u);
+  EXPECT_EQ(m["what"], "livelink_csv+glb");
   EXPECT_NE(manifest.find("\"" + stem + ".glb\""), std::string::npos);  // in the file list
   EXPECT_FALSE(has_nan(manifest));
 
@@ -549,6 +550,7 @@ TEST_F(TakeGltf, WithoutSessionRigOrUsableTimesTheCsvStandsAndTheManifestSaysWhy
     EXPECT_NE(m["details"]["glb"].get<std::string>().find(c.why), std::string::npos)
         << m["details"]["glb"];
     EXPECT_EQ(summary["glb_note"], m["details"]["glb"]);
+    EXPECT_EQ(m["what"], "livelink_csv");
     EXPECT_FALSE(has_nan(manifest));
   }
 }

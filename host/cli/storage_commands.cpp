@@ -332,7 +332,10 @@ int run_export(const ParsedOptions& options) {
     if (!store) return report_failure(store.error());
     std::cerr << "export: reading session " << *session << " from " << options.get("store")
               << "...\n";
-    auto loaded = load_session_content(*store, *session);
+    // Only FaceWarehouse's layout has the captures' colour frames and landmarks; reading them
+    // opens every capture's frames file (seconds for a session).
+    auto loaded = load_session_content(
+        *store, *session, {.capture_frames = *format == ExportFormat::kFaceWarehouse});
     if (!loaded) return report_failure(loaded.error());
     content = std::move(*loaded);
     // The UV layout comes from the face model the rig was fitted to.

@@ -334,8 +334,8 @@ int run_export(const ParsedOptions& options) {
               << "...\n";
     // Only FaceWarehouse's layout has the captures' colour frames and landmarks; reading them
     // opens every capture's frames file (seconds for a session).
-    auto loaded = load_session_content(
-        *store, *session, {.capture_frames = *format == ExportFormat::kFaceWarehouse});
+    auto loaded = load_session_content(*store, *session,
+                                       {.capture_frames = *format == ExportFormat::kFaceWarehouse});
     if (!loaded) return report_failure(loaded.error());
     content = std::move(*loaded);
     // The UV layout comes from the face model the rig was fitted to.

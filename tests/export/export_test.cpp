@@ -693,7 +693,7 @@ TEST_F(Export, ObjWithMtlAndPlyFoldersLoadInAssimp) {
       EXPECT_LT(size, payload + 400);
     }
     if (std::string(FB_ASSIMP_PATH).empty()) continue;
-    for (const std::string file :
+    for (const std::string& file :
          {"neutral." + ext, "blendshapes/01_" + subject_->rig.shape_names[0] + "." + ext}) {
       const auto info =
           run(std::string(FB_ASSIMP_PATH) + " info " + (summary.path / file).string());

@@ -528,6 +528,75 @@ TEST_F(TakeGltf, WithoutDetailTheRigIsAnimatedUnsubdivided) {
   check_validator(path);
 }
 
+// three.js, the web's glTF engine, plays the file in chromium (tests/export/
+// play_take_threejs.mjs): at frame times and between frames, the influences and the head's world
+// transform it evaluates are the take's, interpolated as glTF's LINEAR says (lerp; slerp).
+TEST_F(TakeGltf, ThreeJsPlaysTheTakeAsRecorded) {
+  if (std::string(FB_NODE_PATH).empty())
+    GTEST_SKIP() << "node is not installed (scripts/install-deps installs it)";
+  const TakeId take = make_store(true, true, false);
+  const fs::path out = dir_ / "out";
+  export_take(take, out);
+  const fs::path path = out / ("take_" + std::to_string(take) + ".glb");
+  ASSERT_TRUE(fs::exists(path));
+  // (frame, fraction of the way to the next frame)
+  const std::vector<std::pair<int, double>> samples = {
+      {0, 0.0}, {17, 0.0}, {30, 0.5}, {44, 0.25}, {kFrames - 1, 0.0}};
+  auto time_of = [&](int f) { return frames_.times[f] - frames_.times[0]; };
+  std::string list;
+  for (const auto& [f, a] : samples) {
+    const double t = a == 0.0 ? time_of(f) : time_of(f) + a * (time_of(f + 1) - time_of(f));
+    char text[32];
+    std::snprintf(text, sizeof text, "%s%.9g", list.empty() ? "" : ",", t);
+    list += text;
+  }
+  const auto run = test::run_command(std::string(FB_NODE_PATH) + " " + FB_PLAY_TAKE_SCRIPT + " " +
+                                         FB_THREEJS_NPM_DIR + " " + path.string() + " " + list,
+                                     test::Stderr::kToLog);
+  if (run.exit_code == 77) GTEST_SKIP() << "chromium is not installed (apt-get install chromium)";
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto played = nlohmann::json::parse(run.out, nullptr, false);
+  ASSERT_FALSE(played.is_discarded()) << run.out;
+  ASSERT_EQ(played["names"].size(), std::size_t(kArkitShapeCount));
+  for (int k = 0; k < kArkitShapeCount; ++k) EXPECT_EQ(played["names"][k], kArkitNames[k]);
+  const Eigen::Quaterniond flip(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  // The head's pose at frame f in the scene frame (gltf_animation.hpp): (x, -y, -z) / 1000.
+  auto position = [&](int f) -> Eigen::Vector3d {
+    const Eigen::Vector3d t = frames_.poses[f].translation;
+    return Eigen::Vector3d(t.x(), -t.y(), -t.z()) / 1000.0;
+  };
+  auto rotation = [&](int f) { return Eigen::Quaterniond(flip * frames_.poses[f].rotation); };
+  double weight_error = 0.0, position_error = 0.0, rotation_error = 0.0, largest_weight = 0.0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const int f = samples[i].first;
+    const double a = samples[i].second;
+    const int g = a == 0.0 ? f : f + 1;
+    const auto& at = played["at"][i];
+    for (int k = 0; k < kArkitShapeCount; ++k) {
+      const double w = (1 - a) * frames_.curves[f][k] + a * frames_.curves[g][k];
+      largest_weight = std::max(largest_weight, w);
+      weight_error = std::max(weight_error, std::abs(at["weights"][k].get<double>() - w));
+    }
+    const Eigen::Vector3d p = (1 - a) * position(f) + a * position(g);
+    for (int d = 0; d < 3; ++d)
+      position_error = std::max(position_error, std::abs(at["position"][d].get<double>() - p[d]));
+    // |q - r| or |q + r| (the same rotation): about half the angle between them, in radians.
+    const Eigen::Vector4d q = rotation(f).slerp(a, rotation(g)).coeffs();  // x y z w
+    Eigen::Vector4d r;
+    for (int d = 0; d < 4; ++d) r[d] = at["quaternion"][d].get<double>();
+    rotation_error = std::max(rotation_error, std::min((q - r).norm(), (q + r).norm()));
+  }
+  std::printf(
+      "three.js r%s plays take_%u.glb (%.3f s): at %zu times (2 between frames) the influences "
+      "are the take's within %.2g (largest %.2f), the head within %.2g m and %.2g (quaternion)\n",
+      played["three"].get<std::string>().c_str(), unsigned(take), played["duration"].get<double>(),
+      samples.size(), weight_error, largest_weight, position_error, rotation_error);
+  EXPECT_GT(largest_weight, 0.1);  // the take moves, so the comparison means something
+  EXPECT_LT(weight_error, 1e-5);
+  EXPECT_LT(position_error, 1e-6);  // metres
+  EXPECT_LT(rotation_error, 1e-6);  // about half the angle, radians
+}
+
 TEST_F(TakeGltf, WithoutSessionRigOrUsableTimesTheCsvStandsAndTheManifestSaysWhy) {
   const TakeId lone = make_store(false, false, false);
   const TakeId unrigged = make_store(true, false, false);

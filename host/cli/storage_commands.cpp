@@ -183,14 +183,12 @@ Result<ExportSummary> export_take(const SessionStore& store, TakeId id, const fs
   }
   std::string text = livelink_csv_header() + "\n";
   for (int f = 0; f < info.frame_count; ++f) {
-    const float* v = take->frame(f).data();
     ArkitFrame frame;
     frame.index = static_cast<std::uint64_t>(f);
     frame.time_s = take->times_s[static_cast<std::size_t>(f)];  // measured, not f / fps
     frame.face_found = true;
     frame.weights = arkit_curves(*take, column, f);
-    frame.camera_from_model.translation = Eigen::Vector3d(v[0], v[1], v[2]);
-    frame.camera_from_model.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();
+    frame.camera_from_model = take_pose(*take, f);
     text += format_livelink_row(to_livelink_row(frame), info.fps, start_of_day_s) + "\n";
   }
   auto folder = ExportFolder::create(out, overwrite);

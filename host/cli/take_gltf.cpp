@@ -31,11 +31,7 @@ GlbAnimation take_animation(const TakeData& take) {
         static_cast<float>(take.times_s[static_cast<std::size_t>(f)] - take.times_s.front()));
     const auto curves = arkit_curves(take, column, f);
     a.weights.insert(a.weights.end(), curves.begin(), curves.end());
-    const auto v = take.frame(f);
-    RigidPose pose;
-    pose.translation = Eigen::Vector3d(v[0], v[1], v[2]);
-    pose.rotation = Eigen::Quaterniond(v[6], v[3], v[4], v[5]).normalized();  // stored x y z w
-    append_head_pose(pose, a);
+    append_head_pose(take_pose(take, f), a);
   }
   return a;
 }

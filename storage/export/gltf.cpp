@@ -142,23 +142,21 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   };
 
   GlbBuffer buffer;
-  auto add_floats = [&](const std::vector<float>& values, int components, const char* type) {
-    return buffer.add_floats(values, components, type);
-  };
   const int indices = buffer.add_indices(split.triangles);
 
   const std::vector<float> neutral = gather(rig.neutral, options.scale);
   const std::vector<float> neutral_normals = vertex_normals(rig.neutral, rig.triangles);
-  nlohmann::json attributes = {{"POSITION", add_floats(neutral, 3, "VEC3")},
-                               {"NORMAL", add_floats(gather(neutral_normals, 1.0f), 3, "VEC3")}};
+  nlohmann::json attributes = {
+      {"POSITION", buffer.add_floats(neutral, 3, "VEC3")},
+      {"NORMAL", buffer.add_floats(gather(neutral_normals, 1.0f), 3, "VEC3")}};
   const bool with_normal_map =
       textured && options.normal_png != nullptr && !options.normal_png->empty();
   if (textured) {
     const std::vector<float> texcoords = split_texcoords(split, options.uvs->uvs);
-    attributes["TEXCOORD_0"] = add_floats(texcoords, 2, "VEC2");
+    attributes["TEXCOORD_0"] = buffer.add_floats(texcoords, 2, "VEC2");
     if (with_normal_map) {
       const std::vector<float> normals = gather(neutral_normals, 1.0f);
-      attributes["TANGENT"] = add_floats(
+      attributes["TANGENT"] = buffer.add_floats(
           vertex_tangents(gather(rig.neutral, 1.0f), normals, texcoords, split.triangles), 4,
           "VEC4");
     }
@@ -168,11 +166,11 @@ Result<std::vector<std::uint8_t>> encode_glb(const RigData& rig, const GlbOption
   std::vector<float> delta(rig.neutral.size());
   for (const auto& shape : rig.shapes) {
     for (std::size_t i = 0; i < delta.size(); ++i) delta[i] = shape[i] - rig.neutral[i];
-    const int position = add_floats(gather(delta, options.scale), 3, "VEC3");
+    const int position = buffer.add_floats(gather(delta, options.scale), 3, "VEC3");
     const std::vector<float> normals = vertex_normals(shape, rig.triangles);
     for (std::size_t i = 0; i < delta.size(); ++i) delta[i] = normals[i] - neutral_normals[i];
     targets.push_back(
-        {{"POSITION", position}, {"NORMAL", add_floats(gather(delta, 1.0f), 3, "VEC3")}});
+        {{"POSITION", position}, {"NORMAL", buffer.add_floats(gather(delta, 1.0f), 3, "VEC3")}});
   }
 
   nlohmann::json primitive = {

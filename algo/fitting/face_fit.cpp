@@ -412,15 +412,38 @@ Result<RefineSystem> model_refine_system(const FaceModel& model, const RefineOpt
   return RefineSystem::create(model, to_points(mean), refine_system_options(o));
 }
 
-// fit_neutral()'s step 1, one Gauss-Newton round at x = r v + t: the step (omega, dt, dc).
+// The Gauss-Newton step of E1 from its weighted rows: (omega, dt, dc, da). Ecoef = 1/2 c^T c
+// (the basis carries sigma) and 1/2 a^T a (each bump's amplitude in units of
+// offset_amplitude_mm): Hessian w I, gradient w c.
+static Result<Eigen::VectorXd> gauss_newton_step(const RowMatrix& j, const Eigen::VectorXd& res,
+                                                 const Eigen::VectorXd& c, const Eigen::VectorXd& a,
+                                                 double w_coef) {
+  const Eigen::Index m = c.size(), nk = a.size(), unknowns = j.cols();
+  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
+  h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
+  h = h.selfadjointView<Eigen::Lower>();
+  Eigen::VectorXd g = j.transpose() * res;
+  h.diagonal().segment(6, m + nk).array() += w_coef;
+  g.segment(6, m) += w_coef * c;
+  g.tail(nk) += w_coef * a;
+  h.diagonal().head(6).array() += 1e-6;
+  const Eigen::VectorXd d = h.ldlt().solve(-g);
+  if (!d.allFinite()) return fail("fit: the least-squares step diverged");
+  return d;
+}
+
+// fit_neutral()'s step 1, one Gauss-Newton round at x = r v + t: the step (omega, dt, dc, da).
 static Result<Eigen::VectorXd> neutral_step(
     const FaceModel& model, const FitTarget& target, const NeutralFitOptions& o,
     const Eigen::VectorXd& c, const Eigen::Matrix3d& r, const Points& v, const Points& x,
     const Points& vn, const std::array<int, kFitLandmarkCount>& lm_verts,
     const std::vector<int>& interior, const std::vector<int>& depth_set,
     const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& depth_basis,
-    double gate, double w_fea, double cos_min) {
-  const int m = static_cast<int>(c.size()), unknowns = 6 + m;
+    double gate, double w_fea, double cos_min, const OffsetBasis* offsets,
+    const Eigen::VectorXd& a_off) {
+  const int m = static_cast<int>(c.size());
+  const int nk = offsets ? offsets->count : 0, unknowns = 6 + m + nk;
+  const double amp = o.offset_amplitude_mm;
   const std::size_t stride = static_cast<std::size_t>(model.vertex_count) * 3;
   auto basis_row = [&](int v, int d, int k) {
     return static_cast<double>(model.identity_basis[static_cast<std::size_t>(k) * stride +
@@ -450,8 +473,20 @@ static Result<Eigen::VectorXd> neutral_step(
   }
   const Eigen::Index rows =
       static_cast<Eigen::Index>(3 * interior.size() + 2 * contour.size() + corr.size());
-  // Row-major: every row is written whole, and J^T J reads it row by row.
+  // Row-major: every row is written whole (the offsets' columns zeroed first), and J^T J reads
+  // it row by row.
   RowMatrix j(rows, unknowns);
+  if (nk > 0) j.rightCols(nk).setZero();
+  // The offsets' columns, on depth rows only (a landmark's error lies mostly along the surface,
+  // which they cannot move, and a detector's bias would bend the face): a row of projection p
+  // at vertex v reads (R^T p . n_v) A g_k(v).
+  auto offset_cols = [&](Eigen::Index row, int vtx, const Eigen::Vector3d& rp, double s) {
+    if (!offsets) return;
+    const double pn =
+        s * amp * rp.dot(offsets->normal[static_cast<std::size_t>(vtx)].cast<double>());
+    for (const auto& e : offsets->of(static_cast<std::size_t>(vtx)))
+      j(row, 6 + m + e.bump) = pn * e.weight;
+  };
   Eigen::VectorXd res(rows);
   Eigen::Index row = 0;
   const double sf = std::sqrt(2.0 * w_fea), sp = std::sqrt(2.0 * o.w_pos);
@@ -508,23 +543,24 @@ static Result<Eigen::VectorXd> neutral_step(
     j.row(row).head<3>() = sw * a.cross(n).transpose();
     j.row(row).segment<3>(3) = sw * n.transpose();
     const Eigen::Index g = 3 * static_cast<Eigen::Index>(corr_slot[k]);
-    j.row(row).tail(m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
-                          rn.z() * depth_basis.row(g + 2))
-                             .cast<double>();
+    j.row(row).segment(6, m) = (rn.x() * depth_basis.row(g) + rn.y() * depth_basis.row(g + 1) +
+                                rn.z() * depth_basis.row(g + 2))
+                                   .cast<double>();
+    offset_cols(row, vtx, r.transpose() * n, sw);
     res[row] = sw * n.dot(x.row(vtx).transpose() - corr[k].q);
     ++row;
   }
-  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(unknowns, unknowns);
-  h.selfadjointView<Eigen::Lower>().rankUpdate(j.transpose());
-  h = h.selfadjointView<Eigen::Lower>();
-  Eigen::VectorXd g = j.transpose() * res;
-  // Ecoef = 1/2 c^T c (the basis carries sigma): Hessian w I, gradient w c.
-  h.diagonal().tail(m).array() += o.w_coef;
-  g.tail(m) += o.w_coef * c;
-  h.diagonal().head(6).array() += 1e-6;
-  const Eigen::VectorXd d = h.ldlt().solve(-g);
-  if (!d.allFinite()) return fail("fit: the least-squares step diverged");
-  return d;
+  return gauss_newton_step(j, res, c, a_off, o.w_coef);
+}
+
+// The offsets along the normal step 1 solves (NeutralFitOptions::offset_amplitude_mm), on the
+// mean face; none when off.
+static std::optional<OffsetBasis> neutral_offsets(const FaceModel& model,
+                                                  const NeutralFitOptions& o) {
+  if (o.offset_amplitude_mm <= 0) return std::nullopt;
+  std::vector<float> mean(static_cast<std::size_t>(model.vertex_count) * 3);
+  model.evaluate({}, {}, mean);
+  return make_offset_basis(model, mean, model.fitting_vertices, o.offsets);
 }
 
 Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
@@ -572,12 +608,22 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
             block[3 * static_cast<std::size_t>(depth_set[slot]) + d];
   }
   std::array<int, kFitLandmarkCount> lm_verts{};
+  const std::optional<OffsetBasis> offsets = neutral_offsets(model, o);
+  Eigen::VectorXd a_off = Eigen::VectorXd::Zero(offsets ? offsets->count : 0);
+  std::vector<double> a_mm(static_cast<std::size_t>(a_off.size()));
+  auto evaluate = [&] {
+    for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
+    model.evaluate(coeffs, {}, mesh);
+    if (!offsets) return;
+    for (std::size_t k = 0; k < a_mm.size(); ++k)
+      a_mm[k] = a_off[static_cast<Eigen::Index>(k)] * o.offset_amplitude_mm;
+    add_offsets(*offsets, a_mm, mesh);
+  };
   const int max_rounds = std::max(o.rounds, o.max_rounds);
   int rounds_run = 0;
   for (int round = 0; round < max_rounds; ++round) {
     rounds_run = round + 1;
-    for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
-    model.evaluate(coeffs, {}, mesh);
+    evaluate();
     const Points v = to_points(mesh);
     const Points x = posed(v, r, t);
     const Points vn = vertex_normals(x, model.triangles);
@@ -587,22 +633,23 @@ Result<FitResult> fit_neutral(const FaceModel& model, const FitTarget& target,
     const double gate = o.max_distance_mm + f * (o.final_distance_mm - o.max_distance_mm);
     const double w_fea = o.w_fea + f * (o.w_fea_final - o.w_fea);
 
-    auto step = neutral_step(model, target, o, c, r, v, x, vn, lm_verts, interior, depth_set,
-                             depth_basis, gate, w_fea, cos_min);
+    auto step =
+        neutral_step(model, target, o, c, r, v, x, vn, lm_verts, interior, depth_set, depth_basis,
+                     gate, w_fea, cos_min, offsets ? &*offsets : nullptr, a_off);
     if (!step) return step.failure();
     const Eigen::VectorXd& d = *step;
     const Eigen::Vector3d w = d.head<3>();
     const double angle = w.norm();
     if (angle > 0) r = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix() * r;
     t += d.segment<3>(3);
-    c += d.tail(m);
-    const bool settled = (m == 0 || d.tail(m).cwiseAbs().maxCoeff() < o.settled_coeff) &&
+    c += d.segment(6, m);
+    if (offsets) a_off += d.tail(offsets->count);
+    const bool settled = (m == 0 || d.segment(6, m).cwiseAbs().maxCoeff() < o.settled_coeff) &&
                          d.segment<3>(3).norm() < o.settled_mm &&
                          angle * 100.0 < o.settled_mm;  // ~100 mm lever arm
     if (round + 1 >= o.rounds && settled) break;
   }
-  for (int k = 0; k < m; ++k) coeffs[static_cast<std::size_t>(k)] = static_cast<float>(c[k]);
-  model.evaluate(coeffs, {}, mesh);
+  evaluate();
   const RigidPose pose = to_pose(r, t);
   const double initial_ms = ms_since(t0);
 

@@ -2,7 +2,8 @@
 // in the depth camera plus 68 landmarks -> a mesh in the model's topology.
 //
 //   neutral, step 1: PCA morphable fit + rigid pose, E1 = 2 Efea + 0.5 Epos + 1 Ecoef, a few
-//                    rounds of least squares with contour and closest-point updates;
+//                    rounds of least squares with contour and closest-point updates; broad
+//                    offsets along the normal solved with the modes (offset_basis.hpp);
 //   neutral, step 2: Laplacian refinement E2 = 0.5 Efea + Epos + Elap (cotangent Laplacian,
 //                    length-preserving target), inexact Gauss-Newton with one factorization
 //                    (refine_system.hpp);
@@ -26,6 +27,7 @@
 #include "algo/core/image.hpp"
 #include "algo/core/result.hpp"
 #include "algo/facemodel/face_model.hpp"
+#include "algo/fitting/offset_basis.hpp"
 #include "algo/fitting/refine_system.hpp"
 
 namespace fb {
@@ -128,6 +130,12 @@ struct NeutralFitOptions {
   // Cauchy scale of the depth residual in step 1: depth the identity space cannot hold (hair
   // the skin map missed, this person's own bumps) pulls the whole face less (0 = plain squares).
   double robust_scale_mm = 2.0;
+  // Step 1 also solves broad offsets along the normal (offset_basis.hpp) for what the identity
+  // modes cannot hold, each bump's amplitude under a prior of this sd (mm; 0 = off): an
+  // out-of-span face's bumps then bend the surface instead of sliding the modes' vertices
+  // along it.
+  double offset_amplitude_mm = 0.5;
+  OffsetBasisOptions offsets;
   bool refine = true;  // run step 2
   RefineOptions refine_options;
 };

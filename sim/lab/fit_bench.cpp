@@ -56,7 +56,18 @@ int run_bench_fit(const ParsedOptions& options) {
   if (!model_system) return report_failure(model_system.error());
   out["model_refine_factorization_ms"] = ms_since(ms0);
   FitResult neutral;
+  // The same fit without the offsets along the normal (NeutralFitOptions::offset_amplitude_mm),
+  // alternating with it: what they cost.
+  NeutralFitOptions no_offsets;
+  no_offsets.offset_amplitude_mm = 0;
+  double best_no_offsets = 1e30, best_step1_no_offsets = 0;
   for (long long r = 0; r < *repeats; ++r) {
+    auto plain = fit_neutral(*model, *target, no_offsets, nullptr, &*model_system);
+    if (!plain) return report_failure(plain.error());
+    if (plain->times.total_ms() < best_no_offsets) {
+      best_no_offsets = plain->times.total_ms();
+      best_step1_no_offsets = plain->times.initial_ms;
+    }
     auto fit = fit_neutral(*model, *target, {}, nullptr, &*model_system);
     if (!fit) return report_failure(fit.error());
     if (fit->times.total_ms() < best_neutral) {
@@ -69,6 +80,9 @@ int run_bench_fit(const ParsedOptions& options) {
   out["neutral_fit_ms"] = best_neutral;
   out["neutral_step1_ms"] = best_step1;
   out["neutral_refine_ms"] = best_refine;
+  out["neutral_fit_ms_without_offsets"] = best_no_offsets;
+  out["neutral_step1_ms_without_offsets"] = best_step1_no_offsets;
+  out["neutral_fit_offsets_ratio"] = best_neutral / best_no_offsets;
   std::vector<float> g0(static_cast<std::size_t>(model->vertex_count) * 3);
   model->evaluate({}, {}, g0);
   const auto tf0 = Clock::now();
@@ -105,7 +119,9 @@ int run_bench_fit(const ParsedOptions& options) {
   out["deformation_transfer_ms"] = dt.mean();
   out["definition"] =
       "wall clock on one thread, best of --repeats; neutral = PCA fit + refinement with the "
-      "model's refinement matrix (model_refine_factorization_ms, once per model); expression = "
+      "model's refinement matrix (model_refine_factorization_ms, once per model), and the same "
+      "without the offsets along the normal (neutral_fit_ms_without_offsets; "
+      "neutral_fit_offsets_ratio = with / without); expression = "
       "transfer + rigid alignment + refinement with the subject's "
       "shared refinement matrix; transfer_factorization_ms = ExpressionTransfer::create, once "
       "per subject: the transfer's and the refinement's factorization (refine_factorization_ms) "

@@ -145,6 +145,9 @@ int run_eval_fit(const ParsedOptions& options) {
   if (!robust_noise) return report_failure(robust_noise.error());
   if (*identities < 1 || *frames < 2 || *noise < 0)
     return report_failure({"--identities >= 1, --frames >= 2 and --landmark-noise-px >= 0"});
+  for (const char* name : {"skin-map", "scale-parts", "offsets"})
+    if (const std::string v = options.get(name); v != "on" && v != "off")
+      return report_failure({std::string("--") + name + " takes on or off, not '" + v + "'"});
   auto start = parse_expression_start(options.get("expression-start"));
   if (!start) return report_failure(start.error());
   auto model = load_face_model();
@@ -195,6 +198,7 @@ int run_eval_fit(const ParsedOptions& options) {
   setup.noiseless_depth = noiseless_depth;
   setup.skin_map = options.get("skin-map") != "off";
   setup.scale_parts = options.get("scale-parts") != "off";
+  setup.offsets = options.get("offsets") != "off";
   setup.expression_start = *start;
   setup.dlib_fit = fit_landmarks == "dlib";
   if (const std::string e = options.get("landmark-embedding"); e != "model") {
@@ -265,6 +269,11 @@ std::vector<Command> fit_commands() {
          {"skin-map", "on|off",
           "weigh the depth by where frame 0's colour sees skin (hair and beard as bounds, "
           "contour points on them dropped), as the product does; off for an A/B",
+          "on"},
+         {"offsets", "on|off",
+          "let the neutral fit's PCA step bend the surface along its normal where the identity "
+          "modes cannot hold this face (NeutralFitOptions::offset_amplitude_mm), as the product "
+          "does; off for an A/B",
           "on"},
          {"scale-parts", "on|off",
           "scale each part of an expression's guide recipe to the capture before refining (how far "

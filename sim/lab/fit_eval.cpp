@@ -233,6 +233,13 @@ void score_neutral_fit(FitRun& run, const FitResult& neutral, const FitTarget& t
                figure_text(vr, 3).c_str(), neutral.times.total_ms());
 }
 
+// The product's neutral fit, or without its offsets along the normal (--offsets off).
+NeutralFitOptions neutral_options(const FitEvalSetup& setup) {
+  NeutralFitOptions options;
+  if (!setup.offsets) options.offset_amplitude_mm = 0;
+  return options;
+}
+
 // Robustness: the same capture fitted again with stronger landmark noise.
 Result<void> robustness_fit(FitRun& run, const Capture& cap, std::mt19937_64& rng,
                             nlohmann::json& j) {
@@ -240,7 +247,7 @@ Result<void> robustness_fit(FitRun& run, const Capture& cap, std::mt19937_64& rn
   auto t2 = make_fit_target(cap, noisy(cap.truth_color_px, setup.robust_noise, rng),
                             setup.noiseless_depth);
   if (!t2) return t2.failure();
-  auto f2 = fit_neutral(*setup.model, *t2, {}, nullptr, &*setup.model_system);
+  auto f2 = fit_neutral(*setup.model, *t2, neutral_options(setup), nullptr, &*setup.model_system);
   if (!f2) return f2.failure();
   const double vn = mean_vertex_distance(f2->vertices, f2->camera_from_model, cap.truth_mesh,
                                          cap.truth_pose, setup.model->fitting_vertices);
@@ -284,7 +291,7 @@ Result<Next> neutral_capture(FitRun& run, FitSubject& subject, const Capture& ca
                              const FitTarget& target, nlohmann::json& j) {
   const FitEvalSetup& setup = run.setup;
   const FaceModel& model = *setup.model;
-  auto fit = fit_neutral(model, target, {}, nullptr, &*setup.model_system);
+  auto fit = fit_neutral(model, target, neutral_options(setup), nullptr, &*setup.model_system);
   if (!fit) {
     auto stop =
         capture_failed(run, 0, setup.guide->expressions[0].name, "neutral fit", fit.error(), j);

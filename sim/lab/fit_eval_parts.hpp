@@ -52,6 +52,7 @@ struct FitEvalSetup {
   bool noiseless_depth = false;
   bool skin_map = true;     // FitTarget::skin from frame 0's colour (--skin-map)
   bool scale_parts = true;  // ExpressionFitOptions::scale_parts (--scale-parts)
+  bool offsets = true;      // NeutralFitOptions::offset_amplitude_mm as is, or 0 (--offsets)
   ExpressionStart expression_start = ExpressionStart::kModelShapes;  // --expression-start
   bool dlib_fit = false;  // fit dlib's points on frame 0's colour image instead of truth + noise
   // The mesh vertices dlib's points mark (with dlib_fit); unset = the model's landmark vertices.

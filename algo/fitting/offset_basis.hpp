@@ -18,7 +18,7 @@ namespace fb {
 
 struct OffsetBasisOptions {
   double sigma_mm = 30.0;     // the bumps' Gaussian width
-  double spacing_mm = 40.0;   // centres at least this far apart (farthest-point sampling)
+  double spacing_mm = 30.0;   // centres at least this far apart (farthest-point sampling)
   double reach_sigmas = 3.0;  // a bump ends here
   // Every bump fades to 0 at the eyes' and the mouth's landmark vertices (36-67): 0 within this
   // distance, full from twice it. Their rims have no depth; the modes and the landmarks place
